@@ -1,0 +1,55 @@
+#pragma once
+// Triangle meshes in world coordinates, read from and written to glTF 2.0
+// (.glb / .gltf) through tinygltf (Debian's compiled library: no TINYGLTF_IMPLEMENTATION).
+#include <glm/glm.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+struct Mesh {
+    std::vector<glm::vec3> positions;  // world space, all node transforms applied
+    std::vector<glm::vec3> normals;    // unit, one per position (read or computed area-weighted)
+    std::vector<glm::vec2> texcoords;  // optional (empty when the file has none); synthetic truth textures use them
+    std::vector<glm::uvec3> triangles; // indices into positions; degenerate triangles removed
+
+    [[nodiscard]] std::size_t triangle_count() const noexcept { return triangles.size(); }
+    [[nodiscard]] bool has_texcoords() const noexcept { return !texcoords.empty() && texcoords.size() == positions.size(); }
+};
+
+struct MeshLoadResult {
+    Mesh mesh;
+    std::vector<std::string> warnings; // e.g. "dropped 3 degenerate triangles"
+};
+
+/// Loads every triangle primitive of every node of the default scene (all
+/// scenes' root nodes when there is no default), with node transforms applied
+/// (normals by the inverse transpose). Computes area-weighted normals where a
+/// primitive has none. Drops degenerate (zero-area) triangles with a warning.
+/// Throws InputError naming the file and the field (e.g. "mesh_path",
+/// "meshes[2].primitives[0].attributes.POSITION") on: missing/unreadable file,
+/// empty mesh, non-finite vertices, out-of-range indices.
+[[nodiscard]] MeshLoadResult load_mesh(const std::filesystem::path& path, const std::string& field = "mesh_path");
+
+/// Writes a single-primitive .glb (POSITION, NORMAL, TEXCOORD_0 when present, uint32 indices), atomically.
+void write_mesh_glb(const std::filesystem::path& path, const Mesh& mesh);
+
+/// Area-weighted vertex normals (normalized; a vertex on no triangle gets +Z).
+[[nodiscard]] std::vector<glm::vec3> compute_vertex_normals(const std::vector<glm::vec3>& positions,
+                                                            const std::vector<glm::uvec3>& triangles);
+
+/// Axis-aligned bounds.
+struct Bounds {
+    glm::vec3 min{0.0f};
+    glm::vec3 max{0.0f};
+    [[nodiscard]] glm::vec3 center() const { return 0.5f * (min + max); }
+    [[nodiscard]] float radius() const { return 0.5f * glm::length(max - min); }
+    [[nodiscard]] bool contains(const glm::dvec3& p) const {
+        return p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y && p.z <= max.z;
+    }
+};
+[[nodiscard]] Bounds mesh_bounds(const Mesh& mesh);
+
+} // namespace specula

@@ -1,0 +1,5 @@
+// Placeholder until the synth command lands.
+#include "commands.h"
+namespace specula::cli {
+void add_synth_command(CLI::App& app) { (void)app; }
+}

@@ -1,0 +1,12 @@
+#pragma once
+// Each subcommand of `specula` registers itself here. A command's callback maps
+// its options to an engine call; all logic lives in engine/.
+#include <CLI/CLI.hpp>
+
+namespace specula::cli {
+
+void add_validate_command(CLI::App& app); // cmd_validate.cpp
+void add_synth_command(CLI::App& app);    // cmd_synth.cpp
+void add_devices_command(CLI::App& app);  // cmd_devices.cpp
+
+} // namespace specula::cli
