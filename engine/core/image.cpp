@@ -25,7 +25,11 @@ namespace {
 std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, const std::string& field) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw InputError(path, field, "file not found");
-    auto in = OIIO::ImageInput::open(path.string());
+    // Alpha is ignored by contract: ask for unassociated alpha so OIIO does not
+    // premultiply the colour channels by it (a PNG pixel with alpha 0 would read black).
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = OIIO::ImageInput::open(path.string(), &config);
     if (!in) {
         std::string why = OIIO::geterror();
         throw InputError(path, field, "cannot read image" + (why.empty() ? std::string() : " (" + why + ")"));
@@ -86,6 +90,7 @@ void write_image(const fs::path& path, const Image& image, ColorSpace integer_en
         OIIO::TypeDesc type = is_float ? OIIO::TypeDesc::FLOAT : (bits == 16 ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8);
         OIIO::ImageSpec spec(image.width, image.height, image.channels, type);
         if (ext == ".exr") spec.attribute("compression", "zip");
+        spec.attribute("oiio:UnassociatedAlpha", 1); // our colour is never premultiplied by alpha
         std::vector<float> encoded;
         const float* data = image.pixels.data();
         if (!is_float) {

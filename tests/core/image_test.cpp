@@ -79,3 +79,27 @@ TEST(ImageIo, FailedWriteLeavesNoFile) {
 
 } // namespace
 } // namespace specula
+
+namespace specula {
+namespace {
+
+TEST(ImageIo, AlphaIsIgnoredNotPremultiplied) {
+    test::TempDir dir("img");
+    Image rgba(2, 1, 4);
+    for (int x = 0; x < 2; ++x) {
+        rgba.at(x, 0, 0) = 0.8f;
+        rgba.at(x, 0, 1) = 0.4f;
+        rgba.at(x, 0, 2) = 0.2f;
+        rgba.at(x, 0, 3) = x == 0 ? 0.0f : 1.0f; // transparent, then opaque
+    }
+    write_image(dir / "a.png", rgba, ColorSpace::Linear, 16);
+    const Image back = read_image(dir / "a.png", ColorSpace::Linear);
+    ASSERT_EQ(back.channels, 4);
+    for (int x = 0; x < 2; ++x) {
+        EXPECT_NEAR(back.at(x, 0, 0), 0.8f, 1e-4f) << "pixel " << x;
+        EXPECT_NEAR(back.at(x, 0, 1), 0.4f, 1e-4f) << "pixel " << x;
+    }
+}
+
+} // namespace
+} // namespace specula
