@@ -33,6 +33,7 @@ struct FrameDesc {
     std::optional<std::filesystem::path> mask_path; // relative, like file_path
     Split split = Split::Train;
     nlohmann::json extra = nlohmann::json::object(); // unknown fields, kept and written back
+    nlohmann::json light_extra = nlohmann::json::object(); // unknown fields of "light", kept and written back
 
     [[nodiscard]] Camera camera() const { return Camera(intrinsics, transform); }
 };
@@ -79,6 +80,7 @@ struct Capture {
     std::vector<View> views;          // sorted by view_index
     std::vector<FrameImage> images;   // parallel to desc.frames; empty when images were not loaded
     std::vector<std::string> warnings;
+    double load_seconds = 0.0;        // wall-clock time load_capture took
 
     [[nodiscard]] std::size_t frame_count(Split split) const;
 };
@@ -86,7 +88,14 @@ struct Capture {
 struct CaptureLoadOptions {
     bool load_mesh = true;
     bool load_images = true; // false: only headers are read (sizes checked), pixels are not decoded
+    int threads = 2;         // image decoding threads (at least 1)
 };
+
+/// Tolerances of the checks on transform_matrix (max abs entry of R^T R - I, and of the
+/// last row against 0 0 0 1) and on poses of frames of one view (max abs difference of
+/// rotation entries; translation distance relative to max(1, |t|)).
+inline constexpr double kRigidTolerance = 1e-4;
+inline constexpr double kPoseAgreementTolerance = 1e-4;
 
 /// The capture's folder from a path to the folder or to its capture.json.
 [[nodiscard]] std::filesystem::path capture_json_path(const std::filesystem::path& dir_or_file);

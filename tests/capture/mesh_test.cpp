@@ -1,0 +1,398 @@
+// glTF mesh I/O: round trips, node transforms, index types, computed normals,
+// degenerate triangles, and refusal of broken files (file and field named).
+#include "capture/mesh.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "gltf_builder.h"
+#include "test_dirs.h"
+
+#include <gtest/gtest.h>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+namespace specula {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+// A closed tetrahedron with per-vertex normals, texcoords and unique vertices per face.
+Mesh tetrahedron() {
+    const glm::vec3 v[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    const glm::uvec3 faces[4] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    Mesh m;
+    for (const glm::uvec3& f : faces) {
+        const auto base = static_cast<glm::uint>(m.positions.size());
+        for (int k = 0; k < 3; ++k) {
+            m.positions.push_back(v[f[k]]);
+            m.texcoords.emplace_back(0.25f * static_cast<float>(base / 3), 0.5f * static_cast<float>(k));
+        }
+        m.triangles.emplace_back(base, base + 1, base + 2);
+    }
+    m.normals = compute_vertex_normals(m.positions, m.triangles);
+    return m;
+}
+
+template <class F>
+InputError expect_input_error(F&& f) {
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e;
+    }
+    ADD_FAILURE() << "expected an InputError";
+    return InputError("", "", "");
+}
+
+void expect_vec_eq(const glm::vec3& a, const glm::vec3& b, float tol = 1e-5f) {
+    EXPECT_NEAR(a.x, b.x, tol);
+    EXPECT_NEAR(a.y, b.y, tol);
+    EXPECT_NEAR(a.z, b.z, tol);
+}
+
+// Unit triangle in z = 0, normal +Z; optional indices.
+json triangle_primitive(test::GltfBuilder& b, bool with_normals = true) {
+    json prim = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0})}}}};
+    if (with_normals) prim["attributes"]["NORMAL"] = b.normals({0, 0, 1, 0, 0, 1, 0, 0, 1});
+    return prim;
+}
+
+TEST(MeshIo, GlbRoundTripIsExact) {
+    test::TempDir dir("mesh");
+    const Mesh m = tetrahedron();
+    write_mesh_glb(dir / "t.glb", m);
+    const MeshLoadResult r = load_mesh(dir / "t.glb");
+    EXPECT_TRUE(r.warnings.empty());
+    ASSERT_EQ(r.mesh.positions.size(), m.positions.size());
+    ASSERT_EQ(r.mesh.triangles.size(), m.triangles.size());
+    ASSERT_TRUE(r.mesh.has_texcoords());
+    for (std::size_t i = 0; i < m.positions.size(); ++i) {
+        EXPECT_EQ(r.mesh.positions[i], m.positions[i]);
+        EXPECT_EQ(r.mesh.normals[i], m.normals[i]);
+        EXPECT_EQ(r.mesh.texcoords[i], m.texcoords[i]);
+    }
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) EXPECT_EQ(r.mesh.triangles[t], m.triangles[t]);
+}
+
+TEST(MeshIo, GlbIsWellFormedGltf2) {
+    test::TempDir dir("mesh");
+    Mesh m = tetrahedron();
+    m.texcoords.clear();
+    write_mesh_glb(dir / "t.glb", m);
+    const std::string bytes = read_text_file(dir / "t.glb");
+    ASSERT_GE(bytes.size(), 28u);
+    auto u32 = [&](std::size_t at) {
+        std::uint32_t v;
+        std::memcpy(&v, bytes.data() + at, 4);
+        return v;
+    };
+    EXPECT_EQ(bytes.substr(0, 4), "glTF");
+    EXPECT_EQ(u32(4), 2u);
+    EXPECT_EQ(u32(8), bytes.size());
+    const std::uint32_t json_len = u32(12);
+    EXPECT_EQ(json_len % 4, 0u);
+    EXPECT_EQ(bytes.substr(16, 4), "JSON");
+    const json doc = json::parse(bytes.substr(20, json_len));
+    const std::uint32_t bin_len = u32(20 + json_len);
+    EXPECT_EQ(bin_len % 4, 0u);
+    EXPECT_EQ(bytes.substr(24 + json_len, 4), std::string("BIN\0", 4));
+    EXPECT_EQ(24u + json_len + 4u + bin_len, bytes.size());
+    EXPECT_EQ(doc["asset"]["version"], "2.0");
+    EXPECT_EQ(doc["buffers"][0]["byteLength"].get<std::size_t>(), bin_len);
+    const json& prim = doc["meshes"][0]["primitives"][0];
+    EXPECT_FALSE(prim["attributes"].contains("TEXCOORD_0"));
+    const json& pos = doc["accessors"][prim["attributes"]["POSITION"].get<int>()];
+    EXPECT_EQ(pos["min"], json({0.0, 0.0, 0.0}));
+    EXPECT_EQ(pos["max"], json({1.0, 1.0, 1.0}));
+    EXPECT_EQ(doc["accessors"][prim["indices"].get<int>()]["componentType"], 5125);
+    for (const json& v : doc["bufferViews"]) EXPECT_EQ(v["byteOffset"].get<std::size_t>() % 4, 0u);
+}
+
+TEST(MeshIo, NodeHierarchyTransformsApplied) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const int mesh = b.mesh(json::array({triangle_primitive(b)}));
+    // root: translate (1,2,3) -> child: rotate 90 deg about Z, scale 2 -> mesh
+    const int child = b.node({{"mesh", mesh}, {"rotation", {0.0, 0.0, std::sqrt(0.5), std::sqrt(0.5)}}, {"scale", {2.0, 2.0, 2.0}}});
+    const int root = b.node({{"translation", {1.0, 2.0, 3.0}}, {"children", {child}}});
+    // a second root with a column-major matrix: translate (0, 0, -5)
+    const int by_matrix = b.node({{"mesh", mesh}, {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, -5, 1}}});
+    // a node of a scene that is not the default one: ignored
+    const int other = b.node({{"mesh", mesh}, {"translation", {100.0, 0.0, 0.0}}});
+    b.doc()["scenes"] = {{{"nodes", {root, by_matrix}}}, {{"nodes", {other}}}};
+    b.doc()["scene"] = 0;
+    b.write(dir / "h.gltf");
+
+    const MeshLoadResult r = load_mesh(dir / "h.gltf");
+    ASSERT_EQ(r.mesh.positions.size(), 6u);
+    ASSERT_EQ(r.mesh.triangles.size(), 2u);
+    // R(90 about Z) * 2 * (1,0,0) = (0,2,0); * (0,1,0) = (-2,0,0)
+    expect_vec_eq(r.mesh.positions[0], {1, 2, 3});
+    expect_vec_eq(r.mesh.positions[1], {1, 4, 3});
+    expect_vec_eq(r.mesh.positions[2], {-1, 2, 3});
+    expect_vec_eq(r.mesh.positions[3], {0, 0, -5});
+    expect_vec_eq(r.mesh.positions[4], {1, 0, -5});
+    for (const glm::vec3& n : r.mesh.normals) expect_vec_eq(n, {0, 0, 1});
+    EXPECT_FALSE(r.mesh.has_texcoords());
+}
+
+TEST(MeshIo, AllScenesWhenNoDefault) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const int mesh = b.mesh(json::array({triangle_primitive(b)}));
+    const int n0 = b.node({{"mesh", mesh}});
+    const int n1 = b.node({{"mesh", mesh}, {"translation", {0.0, 0.0, 1.0}}});
+    b.doc()["scenes"] = {{{"nodes", {n0}}}, {{"nodes", {n1}}}};
+    b.write(dir / "s.gltf");
+    EXPECT_EQ(load_mesh(dir / "s.gltf").mesh.triangle_count(), 2u);
+}
+
+TEST(MeshIo, NonUniformAndMirroredTransformsKeepNormalsConsistent) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    // triangle in the plane x + y = 1 (tilted), normal (1,1,0)/sqrt2
+    const float s = static_cast<float>(std::sqrt(0.5));
+    json prim = {{"attributes",
+                  {{"POSITION", b.positions({1, 0, 0, 0, 1, 0, 1, 0, 1})},
+                   {"NORMAL", b.normals({s, s, 0, s, s, 0, s, s, 0})}}}};
+    const int mesh = b.mesh(json::array({prim}));
+    const int n0 = b.node({{"mesh", mesh}, {"scale", {-3.0, 1.0, 1.0}}});
+    b.doc()["scenes"] = {{{"nodes", {n0}}}};
+    b.doc()["scene"] = 0;
+    b.write(dir / "m.gltf");
+    const Mesh m = load_mesh(dir / "m.gltf").mesh;
+    ASSERT_EQ(m.triangle_count(), 1u);
+    const glm::uvec3 t = m.triangles[0];
+    const glm::vec3 geo = glm::normalize(glm::cross(m.positions[t.y] - m.positions[t.x], m.positions[t.z] - m.positions[t.x]));
+    for (const glm::vec3& n : m.normals) {
+        EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f);
+        expect_vec_eq(n, geo); // inverse transpose + flipped winding agree with the geometry
+    }
+}
+
+TEST(MeshIo, IndexTypesAndNonIndexedPrimitives) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const std::vector<float> quad = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    json p8 = {{"attributes", {{"POSITION", b.positions(quad)}}}, {"indices", b.indices_u8({0, 1, 2, 0, 2, 3})}};
+    json p16 = {{"attributes", {{"POSITION", b.positions(quad)}}}, {"indices", b.indices_u16({0, 1, 2, 0, 2, 3})}};
+    json p32 = {{"attributes", {{"POSITION", b.positions(quad)}}}, {"indices", b.indices_u32({0, 1, 2, 0, 2, 3})}, {"mode", 4}};
+    json plain = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 0})}}}};
+    json strip = {{"attributes", {{"POSITION", b.positions(quad)}}}, {"indices", b.indices_u8({0, 1, 3, 2})}, {"mode", 5}};
+    json fan = {{"attributes", {{"POSITION", b.positions(quad)}}}, {"mode", 6}};
+    const int mesh = b.mesh(json::array({p8, p16, p32, plain, strip, fan}));
+    b.node({{"mesh", mesh}});
+    b.write(dir / "i.gltf"); // no scenes: root nodes are taken
+    const MeshLoadResult r = load_mesh(dir / "i.gltf");
+    EXPECT_TRUE(r.warnings.empty());
+    ASSERT_EQ(r.mesh.triangle_count(), 12u);
+    for (std::size_t t = 0; t < r.mesh.triangle_count(); ++t) {
+        const glm::uvec3 tri = r.mesh.triangles[t];
+        const glm::vec3 n = glm::cross(r.mesh.positions[tri.y] - r.mesh.positions[tri.x],
+                                       r.mesh.positions[tri.z] - r.mesh.positions[tri.x]);
+        EXPECT_GT(n.z, 0.0f) << "triangle " << t << " keeps counter-clockwise winding";
+        EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f); // each is half the unit square
+    }
+    for (const glm::vec3& n : r.mesh.normals) expect_vec_eq(n, {0, 0, 1}); // computed
+}
+
+TEST(MeshIo, SparseAccessorApplied) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const int pos = b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0});
+    const int idx_view = b.view(std::vector<std::uint16_t>{2, 0});
+    const int val_view = b.view(std::vector<float>{0, 5, 0});
+    b.doc()["accessors"][pos]["sparse"] = {{"count", 1},
+                                          {"indices", {{"bufferView", idx_view}, {"componentType", 5123}}},
+                                          {"values", {{"bufferView", val_view}}}};
+    const int mesh = b.mesh(json::array({{{"attributes", {{"POSITION", pos}}}}}));
+    b.node({{"mesh", mesh}});
+    b.write(dir / "sp.gltf");
+    const Mesh m = load_mesh(dir / "sp.gltf").mesh;
+    ASSERT_EQ(m.positions.size(), 3u);
+    expect_vec_eq(m.positions[2], {0, 5, 0});
+}
+
+TEST(MeshIo, TexcoordsOnlyWhenEveryPrimitiveHasThem) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    json with_uv = triangle_primitive(b);
+    with_uv["attributes"]["TEXCOORD_0"] = b.texcoords({0, 0, 1, 0, 0, 1});
+    json without = triangle_primitive(b);
+    const int m1 = b.mesh(json::array({with_uv}));
+    const int m2 = b.mesh(json::array({with_uv, without}));
+    b.node({{"mesh", m1}});
+    b.write(dir / "uv1.gltf");
+    const Mesh a = load_mesh(dir / "uv1.gltf").mesh;
+    ASSERT_TRUE(a.has_texcoords());
+    EXPECT_EQ(a.texcoords[1], glm::vec2(1, 0));
+    b.doc()["nodes"][0]["mesh"] = m2;
+    b.write(dir / "uv2.gltf");
+    EXPECT_FALSE(load_mesh(dir / "uv2.gltf").mesh.has_texcoords());
+}
+
+TEST(MeshIo, ComputedNormalsAreAreaWeighted) {
+    // vertex 0 is shared by a big triangle in z = 0 (area 2) and a small one in x = 0 (area 0.005)
+    const std::vector<glm::vec3> p = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0.1f, 0}, {0, 0, 0.1f}};
+    const std::vector<glm::uvec3> t = {{0, 1, 2}, {0, 3, 4}};
+    const std::vector<glm::vec3> n = compute_vertex_normals(p, t);
+    const glm::vec3 expected = glm::normalize(glm::vec3(0, 0, 4) + glm::vec3(0.01f, 0, 0));
+    expect_vec_eq(n[0], expected, 1e-6f);
+    expect_vec_eq(n[1], {0, 0, 1});
+    expect_vec_eq(n[4], {1, 0, 0});
+    // a vertex on no triangle gets +Z
+    const std::vector<glm::vec3> lonely = compute_vertex_normals({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {5, 5, 5}}, {{0, 1, 2}});
+    expect_vec_eq(lonely[3], {0, 0, 1});
+}
+
+TEST(MeshIo, DegenerateTrianglesDroppedWithWarning) {
+    test::TempDir dir("mesh");
+    Mesh m = tetrahedron();
+    m.positions.push_back({2, 0, 0});
+    m.triangles.emplace_back(0, 0, 1);  // repeated index
+    m.triangles.emplace_back(0, 2, 12); // collinear: (0,0,0), (1,0,0), (2,0,0)
+    m.normals = compute_vertex_normals(m.positions, m.triangles);
+    write_mesh_glb(dir / "d.glb", m);
+    const MeshLoadResult r = load_mesh(dir / "d.glb");
+    EXPECT_EQ(r.mesh.triangle_count(), 4u);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_NE(r.warnings[0].find("dropped 2 degenerate"), std::string::npos) << r.warnings[0];
+}
+
+TEST(MeshIo, PointsAndLinesSkippedWithWarning) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    json points = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 1, 1})}}}, {"mode", 0}};
+    json lines = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 1, 1})}}}, {"mode", 1}};
+    const int mesh = b.mesh(json::array({points, triangle_primitive(b), lines}));
+    b.node({{"mesh", mesh}});
+    b.write(dir / "pl.gltf");
+    const MeshLoadResult r = load_mesh(dir / "pl.gltf");
+    EXPECT_EQ(r.mesh.triangle_count(), 1u);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_NE(r.warnings[0].find("skipped 2"), std::string::npos) << r.warnings[0];
+}
+
+TEST(MeshIo, BoundsOfMesh) {
+    const Bounds b = mesh_bounds(tetrahedron());
+    EXPECT_EQ(b.min, glm::vec3(0.0f));
+    EXPECT_EQ(b.max, glm::vec3(1.0f));
+    EXPECT_TRUE(b.contains(glm::dvec3(0.5, 0.5, 0.5)));
+    EXPECT_FALSE(b.contains(glm::dvec3(0.5, 0.5, 1.5)));
+}
+
+// ---- refusals -----------------------------------------------------------------
+
+TEST(MeshRefusal, MissingFile) {
+    test::TempDir dir("mesh");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "none.glb"); });
+    EXPECT_EQ(e.file(), dir / "none.glb");
+    EXPECT_EQ(e.field(), "mesh_path");
+}
+
+TEST(MeshRefusal, NotGltf) {
+    test::TempDir dir("mesh");
+    write_text_file(dir / "x.glb", "this is not a mesh");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "x.glb", "mesh_path"); });
+    EXPECT_EQ(e.file(), dir / "x.glb");
+    EXPECT_EQ(e.field(), "mesh_path");
+}
+
+TEST(MeshRefusal, EmptyMesh) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    json points = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 1, 1})}}}, {"mode", 0}};
+    b.node({{"mesh", b.mesh(json::array({points}))}});
+    b.write(dir / "e.gltf");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "e.gltf"); });
+    EXPECT_EQ(e.field(), "mesh_path");
+    EXPECT_NE(std::string(e.what()).find("empty mesh"), std::string::npos);
+
+    // only degenerate triangles: empty too
+    Mesh m;
+    m.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+    m.triangles = {{0, 1, 2}};
+    write_mesh_glb(dir / "d.glb", m);
+    EXPECT_EQ(expect_input_error([&] { (void)load_mesh(dir / "d.glb"); }).field(), "mesh_path");
+}
+
+TEST(MeshRefusal, NonFiniteVertex) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    json prim = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 0, 0, 0, nan, 0})}}}};
+    b.node({{"mesh", b.mesh(json::array({triangle_primitive(b), prim}))}});
+    b.write(dir / "n.gltf");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "n.gltf"); });
+    EXPECT_EQ(e.file(), dir / "n.gltf");
+    EXPECT_EQ(e.field(), "meshes[0].primitives[1].attributes.POSITION");
+}
+
+TEST(MeshRefusal, IndexOutOfRange) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    json prim = {{"attributes", {{"POSITION", b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0})}}},
+                 {"indices", b.indices_u16({0, 1, 3})}};
+    b.node({{"mesh", b.mesh(json::array({prim}))}});
+    b.write(dir / "o.gltf");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "o.gltf"); });
+    EXPECT_EQ(e.field(), "meshes[0].primitives[0].indices");
+}
+
+TEST(MeshRefusal, AccessorBeyondItsBuffer) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    json prim = triangle_primitive(b, false);
+    b.doc()["accessors"][0]["count"] = 1000;
+    b.node({{"mesh", b.mesh(json::array({prim}))}});
+    b.write(dir / "b.gltf");
+    const InputError e = expect_input_error([&] { (void)load_mesh(dir / "b.gltf"); });
+    EXPECT_EQ(e.field(), "meshes[0].primitives[0].attributes.POSITION");
+}
+
+TEST(MeshRefusal, NodeCycle) {
+    test::TempDir dir("mesh");
+    test::GltfBuilder b;
+    const int mesh = b.mesh(json::array({triangle_primitive(b)}));
+    b.node({{"mesh", mesh}, {"children", {1}}});
+    b.node({{"children", {0}}});
+    b.doc()["scenes"] = {{{"nodes", {0}}}};
+    b.write(dir / "c.gltf");
+    try {
+        (void)load_mesh(dir / "c.gltf");
+        FAIL() << "a node cycle must be refused";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.file(), dir / "c.gltf");
+    }
+}
+
+TEST(MeshRobustness, TruncatedAndCorruptedGlbNeverCrash) {
+    test::TempDir dir("mesh");
+    write_mesh_glb(dir / "t.glb", tetrahedron());
+    const std::string bytes = read_text_file(dir / "t.glb");
+    for (std::size_t len = 0; len < bytes.size(); len += 7) {
+        write_text_file(dir / "cut.glb", bytes.substr(0, len));
+        EXPECT_THROW((void)load_mesh(dir / "cut.glb"), InputError) << "length " << len;
+    }
+    std::uint32_t state = 12345;
+    for (int trial = 0; trial < 200; ++trial) {
+        std::string bad = bytes;
+        for (int k = 0; k < 4; ++k) {
+            state = state * 1664525u + 1013904223u;
+            bad[state % bad.size()] = static_cast<char>(state >> 24);
+        }
+        write_text_file(dir / "bad.glb", bad);
+        try {
+            (void)load_mesh(dir / "bad.glb");
+        } catch (const InputError&) {
+        } catch (const std::exception& e) {
+            ADD_FAILURE() << "trial " << trial << ": not an InputError: " << e.what();
+        }
+    }
+}
+
+} // namespace
+} // namespace specula
