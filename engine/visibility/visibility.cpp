@@ -1,0 +1,227 @@
+#include "visibility/visibility.h"
+
+#include "core/error.h"
+#include "core/timer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+namespace specula {
+
+namespace {
+
+constexpr std::size_t kChunk = 1024; // particles per work item
+
+struct ThreadCounts {
+    std::uint64_t rays_cast = 0;
+    std::uint64_t rays_occluded = 0;
+    std::uint64_t rays_avoided = 0;
+};
+
+struct Target {
+    bool is_view;
+    std::uint32_t index;
+};
+
+} // namespace
+
+Visibility compute_visibility(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
+                              std::span<const VisibilityView> views, std::span<const PointLight> lights,
+                              const VisibilityOptions& options) {
+    const Stopwatch clock;
+    if (scene.triangle_count() != mesh.triangles.size()) throw Error("visibility: the ray scene was built from another mesh");
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const Intrinsics& k = views[v].camera.intrinsics;
+        if (!views[v].flags.empty() && views[v].flags.size() != std::size_t(k.w) * std::size_t(k.h))
+            throw Error("visibility: view " + std::to_string(v) + " has " + std::to_string(views[v].flags.size()) +
+                        " pixel flags for a " + std::to_string(k.w) + "x" + std::to_string(k.h) + " image");
+    }
+
+    Visibility vis;
+    vis.particle_count = static_cast<std::uint32_t>(particles.size());
+    vis.view_count = static_cast<std::uint32_t>(views.size());
+    vis.frame_count = static_cast<std::uint32_t>(lights.size());
+    vis.view_words = std::max<std::uint32_t>(1, (vis.view_count + 31) / 32);
+    vis.frame_words = std::max<std::uint32_t>(1, (vis.frame_count + 31) / 32);
+    vis.seen.assign(std::size_t(vis.particle_count) * vis.view_words, 0u);
+    vis.lit.assign(std::size_t(vis.particle_count) * vis.frame_words, 0u);
+    vis.best_view.assign(vis.particle_count, -1);
+
+    VisibilityStats& st = vis.stats;
+    st.particles = particles.size();
+    st.views = views.size();
+    st.frames = lights.size();
+    st.convexity = analyze_convexity(mesh);
+    const bool skip_rays = st.convexity.convex && !options.force_rays;
+    if (skip_rays) st.skipped = "mesh is convex (closed, connected, no reflex edge): the facing test is exact";
+
+    std::vector<glm::vec3> face_normal(mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const glm::uvec3 tri = mesh.triangles[t];
+        const glm::vec3 n = glm::cross(mesh.positions[tri.y] - mesh.positions[tri.x], mesh.positions[tri.z] - mesh.positions[tri.x]);
+        const float len = glm::length(n);
+        face_normal[t] = len > 0.0f ? n / len : glm::vec3(0.0f);
+    }
+    std::vector<glm::vec3> view_center(views.size());
+    for (std::size_t v = 0; v < views.size(); ++v) view_center[v] = glm::vec3(views[v].camera.center());
+
+    const std::size_t chunks = (particles.size() + kChunk - 1) / kChunk;
+    std::atomic<std::size_t> next_chunk{0};
+    const unsigned thread_count = std::max(1u, std::min<unsigned>(options.threads, unsigned(std::max<std::size_t>(chunks, 1))));
+    std::vector<ThreadCounts> counts(thread_count);
+    std::exception_ptr failure;
+    std::mutex failure_mutex;
+
+    auto work = [&](unsigned thread) {
+        try {
+            ThreadCounts& c = counts[thread];
+            std::vector<Ray> rays;
+            std::vector<Target> targets;
+            std::vector<std::uint8_t> occluded;
+            for (std::size_t chunk = next_chunk++; chunk < chunks; chunk = next_chunk++) {
+                const std::size_t end = std::min(particles.size(), (chunk + 1) * kChunk);
+                for (std::size_t p = chunk * kChunk; p < end; ++p) {
+                    const Particle& particle = particles[p];
+                    const glm::vec3 pos = particle.p();
+                    const glm::vec3 n = particle.n();
+                    const glm::vec3 face = face_normal[particle.triangle];
+                    std::uint32_t* seen = &vis.seen[p * vis.view_words];
+                    std::uint32_t* lit = &vis.lit[p * vis.frame_words];
+                    rays.clear();
+                    targets.clear();
+
+                    for (std::uint32_t v = 0; v < views.size(); ++v) {
+                        const glm::vec3 to_cam = view_center[v] - pos;
+                        if (!(glm::dot(n, to_cam) > 0.0f) || !(glm::dot(face, to_cam) > 0.0f)) continue;
+                        const Camera& cam = views[v].camera;
+                        const auto q = cam.project(glm::dvec3(pos));
+                        if (!q || !cam.inside(*q)) continue;
+                        if (!views[v].flags.empty()) {
+                            const std::size_t px = static_cast<std::size_t>(q->x), py = static_cast<std::size_t>(q->y);
+                            if (views[v].flags[py * std::size_t(cam.intrinsics.w) + px] & options.reject_flags) continue;
+                        }
+                        if (skip_rays) {
+                            seen[v / 32] |= 1u << (v % 32);
+                            ++c.rays_avoided;
+                        } else {
+                            rays.push_back(scene.ray_toward(pos, n, view_center[v]));
+                            targets.push_back({true, v});
+                        }
+                    }
+                    for (std::uint32_t f = 0; f < lights.size(); ++f) {
+                        const glm::vec3 light = glm::vec3(lights[f].position);
+                        const glm::vec3 to_light = light - pos;
+                        if (!(glm::dot(n, to_light) > 0.0f) || !(glm::dot(face, to_light) > 0.0f)) continue;
+                        if (skip_rays) {
+                            lit[f / 32] |= 1u << (f % 32);
+                            ++c.rays_avoided;
+                        } else {
+                            rays.push_back(scene.ray_toward(pos, n, light));
+                            targets.push_back({false, f});
+                        }
+                    }
+                    if (!rays.empty()) {
+                        occluded.resize(rays.size());
+                        scene.occluded(rays, occluded);
+                        c.rays_cast += rays.size();
+                        for (std::size_t i = 0; i < rays.size(); ++i) {
+                            if (occluded[i]) {
+                                ++c.rays_occluded;
+                                continue;
+                            }
+                            const Target t = targets[i];
+                            (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
+                        }
+                    }
+
+                    // Best view (thesis 3.1.2): smallest angle between the normal and the direction to the camera.
+                    float best = -2.0f;
+                    for (std::uint32_t v = 0; v < views.size(); ++v) {
+                        if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
+                        const float cosine = glm::dot(n, glm::normalize(view_center[v] - pos));
+                        if (cosine > best) {
+                            best = cosine;
+                            vis.best_view[p] = static_cast<std::int32_t>(v);
+                        }
+                    }
+                }
+            }
+        } catch (...) {
+            const std::lock_guard lock(failure_mutex);
+            if (!failure) failure = std::current_exception();
+            next_chunk = chunks; // stop the others early
+        }
+    };
+
+    if (thread_count == 1) {
+        work(0);
+    } else {
+        std::vector<std::thread> pool;
+        pool.reserve(thread_count);
+        for (unsigned t = 0; t < thread_count; ++t) pool.emplace_back(work, t);
+        for (std::thread& t : pool) t.join();
+    }
+    if (failure) std::rethrow_exception(failure);
+
+    st.threads = thread_count;
+    for (const ThreadCounts& c : counts) {
+        st.rays_cast += c.rays_cast;
+        st.rays_occluded += c.rays_occluded;
+        st.rays_avoided += c.rays_avoided;
+    }
+    for (std::size_t p = 0; p < particles.size(); ++p) {
+        if (vis.best_view[p] < 0) ++st.seen_by_no_view;
+        const std::uint32_t* lit = &vis.lit[p * vis.frame_words];
+        if (std::all_of(lit, lit + vis.frame_words, [](std::uint32_t w) { return w == 0; })) ++st.lit_by_no_frame;
+    }
+    st.seconds = clock.seconds();
+    return vis;
+}
+
+VisibilityInputs visibility_inputs(const Capture& capture) {
+    VisibilityInputs in;
+    in.views.reserve(capture.views.size());
+    in.frame_view.assign(capture.desc.frames.size(), 0u);
+    for (std::size_t v = 0; v < capture.views.size(); ++v) {
+        const View& view = capture.views[v];
+        VisibilityView vv;
+        vv.camera = view.camera;
+        for (std::size_t f : view.frames) {
+            if (f < in.frame_view.size()) in.frame_view[f] = static_cast<std::uint32_t>(v);
+            if (f >= capture.images.size() || capture.images[f].flags.empty()) continue;
+            const std::vector<std::uint8_t>& flags = capture.images[f].flags;
+            if (vv.flags.empty()) vv.flags.assign(flags.size(), 0u);
+            if (flags.size() != vv.flags.size())
+                throw Error("visibility: frames of view " + std::to_string(view.view_index) + " have images of different sizes");
+            for (std::size_t i = 0; i < flags.size(); ++i) vv.flags[i] |= flags[i];
+        }
+        in.views.push_back(std::move(vv));
+    }
+    in.lights.reserve(capture.desc.frames.size());
+    for (const FrameDesc& f : capture.desc.frames) in.lights.push_back(f.light);
+    return in;
+}
+
+std::string describe(const VisibilityStats& s) {
+    char buf[1024];
+    std::snprintf(buf, sizeof buf,
+                  "visibility: %zu particles x %zu views, %zu frames, %u threads, %.3f s\n"
+                  "  seen by no view: %zu (%.2f%%); lit by no frame: %zu (%.2f%%)\n"
+                  "  occlusion rays: %llu cast (%llu occluded), %llu avoided\n",
+                  s.particles, s.views, s.frames, s.threads, s.seconds, s.seen_by_no_view,
+                  s.particles ? 100.0 * double(s.seen_by_no_view) / double(s.particles) : 0.0, s.lit_by_no_frame,
+                  s.particles ? 100.0 * double(s.lit_by_no_frame) / double(s.particles) : 0.0,
+                  static_cast<unsigned long long>(s.rays_cast), static_cast<unsigned long long>(s.rays_occluded),
+                  static_cast<unsigned long long>(s.rays_avoided));
+    std::string out = buf;
+    out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
+                             : "  occlusion rays skipped: " + s.skipped + "\n";
+    return out;
+}
+
+} // namespace specula

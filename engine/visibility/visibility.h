@@ -1,0 +1,106 @@
+#pragma once
+// Visibility of the surface particles (pipeline.md section 2).
+//
+// View v SEES particle p when
+//   1. p faces the camera: the particle's normal (eq. 3.3) AND its triangle's
+//      geometric normal point toward the camera center (the geometric test
+//      makes the answer exact on convex meshes, see convexity.h; a point whose
+//      face turns away from the camera is hidden by the surface itself),
+//   2. p projects in front of the camera and inside the image,
+//   3. the pixel it projects to carries none of options.reject_flags
+//      (kOutsideMask by default) when the view has per-pixel flags,
+//   4. the ray from p (offset by RayScene::ray_offset() along its normal) to
+//      the camera center is unoccluded.
+// Frame f LIGHTS particle p when p faces the light (both normals, n.u > 0)
+// and the ray from p to the light is unoccluded.
+// When the mesh is convex (closed, connected, every edge convex), the rays of
+// tests 4 cannot hit anything: they are skipped (stats.skipped says why,
+// stats.rays_avoided how many); options.force_rays casts them anyway.
+//
+// Result layout (for upload as std430 uint arrays):
+//   seen[p * view_words + v / 32]  bit (v % 32): view v sees particle p
+//   lit [p * frame_words + f / 32] bit (f % 32): frame f lights particle p
+// with view_words = ceil(views / 32), frame_words = ceil(frames / 32)
+// (at least 1). best_view[p]: the seeing view whose direction from p is
+// closest to p's normal (thesis 3.1.2), -1 when none sees it.
+//
+// Work is split over options.threads threads by particle; every particle's
+// bits depend on that particle alone, so results do not depend on the thread count.
+#include "capture/capture.h"
+#include "geometry/particles.h"
+#include "geometry/ray_scene.h"
+#include "visibility/convexity.h"
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+struct VisibilityView {
+    Camera camera;
+    /// Optional per-pixel PixelFlag sets, w x h row-major (FrameImage::flags);
+    /// empty: every pixel of the image counts.
+    std::vector<std::uint8_t> flags;
+};
+
+struct VisibilityOptions {
+    unsigned threads = 2;
+    bool force_rays = false;                  ///< cast occlusion rays even on a convex mesh
+    std::uint8_t reject_flags = kOutsideMask; ///< pixel flags that make a view not see a particle
+};
+
+struct VisibilityStats {
+    std::size_t particles = 0;
+    std::size_t views = 0;
+    std::size_t frames = 0;
+    std::size_t seen_by_no_view = 0;
+    std::size_t lit_by_no_frame = 0;
+    std::uint64_t rays_cast = 0;     ///< occlusion rays traced
+    std::uint64_t rays_occluded = 0; ///< of those, how many hit something
+    std::uint64_t rays_avoided = 0;  ///< rays the convexity test made unnecessary
+    ConvexityReport convexity;
+    std::string skipped;             ///< why occlusion rays were skipped; empty when they were cast
+    unsigned threads = 0;
+    double seconds = 0.0;
+};
+
+struct Visibility {
+    std::uint32_t particle_count = 0;
+    std::uint32_t view_count = 0;
+    std::uint32_t frame_count = 0;
+    std::uint32_t view_words = 1;
+    std::uint32_t frame_words = 1;
+    std::vector<std::uint32_t> seen;     ///< particle_count * view_words
+    std::vector<std::uint32_t> lit;      ///< particle_count * frame_words
+    std::vector<std::int32_t> best_view; ///< particle_count
+    VisibilityStats stats;
+
+    [[nodiscard]] bool sees(std::size_t particle, std::size_t view) const {
+        return (seen[particle * view_words + view / 32] >> (view % 32)) & 1u;
+    }
+    [[nodiscard]] bool lights(std::size_t particle, std::size_t frame) const {
+        return (lit[particle * frame_words + frame / 32] >> (frame % 32)) & 1u;
+    }
+};
+
+/// `mesh` must be the mesh `scene` and `particles` were built from.
+[[nodiscard]] Visibility compute_visibility(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
+                                            std::span<const VisibilityView> views, std::span<const PointLight> lights,
+                                            const VisibilityOptions& options = {});
+
+/// The views (in capture.views order, each with the OR of its frames' pixel
+/// flags when images are loaded) and the lights of all frames (in
+/// capture.desc.frames order) of a capture.
+struct VisibilityInputs {
+    std::vector<VisibilityView> views;
+    std::vector<PointLight> lights;       ///< per frame
+    std::vector<std::uint32_t> frame_view; ///< per frame: index into views
+};
+[[nodiscard]] VisibilityInputs visibility_inputs(const Capture& capture);
+
+/// Multi-line text of the statistics for logs and the report.
+[[nodiscard]] std::string describe(const VisibilityStats& stats);
+
+} // namespace specula

@@ -1,0 +1,293 @@
+// Visibility (engine/visibility/visibility.h): occlusion by a box, its shadow,
+// front-facing and mask rejection, the convex fast path, determinism, layout.
+#include "visibility/visibility.h"
+
+#include "core/error.h"
+#include "test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace specula {
+namespace {
+
+Camera make_camera(glm::dvec3 eye, glm::dvec3 target, int size = 256, double fl = 300.0) {
+    return Camera(Intrinsics{size, size, fl, fl, size / 2.0, size / 2.0}, look_at_camera_to_world(eye, target, {0, 1, 0}));
+}
+
+struct Scene {
+    Mesh mesh;
+    Atlas atlas;
+    ParticleSet particles;
+    RayScene rays;
+    Scene(Mesh m, const std::vector<Camera>& cams)
+        : mesh(std::move(m)), atlas(build_atlas(mesh, cams)), particles(build_particles(mesh, atlas)), rays(mesh) {}
+};
+
+std::vector<VisibilityView> views_of(const std::vector<Camera>& cams) {
+    std::vector<VisibilityView> views;
+    for (const Camera& c : cams) views.push_back({c, {}});
+    return views;
+}
+
+PointLight light_at(glm::dvec3 p) { return PointLight{p, glm::dvec3(10.0)}; }
+
+constexpr std::size_t kPlaneTriangles = 2 * 16 * 16; // test::plane_with_box(): the plane comes first
+
+TEST(Visibility, BoxHidesTheFloorBehindIt) {
+    const std::vector<Camera> cams = {make_camera({0, 0.5, 5}, {0, 0.5, 0})};
+    const Scene s(test::plane_with_box(), cams);
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {});
+    EXPECT_FALSE(vis.stats.convexity.convex);
+    EXPECT_TRUE(vis.stats.skipped.empty());
+    EXPECT_GT(vis.stats.rays_cast, 0u);
+    std::size_t behind = 0, in_front = 0;
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const Particle& p = s.particles.particles[i];
+        if (p.triangle >= kPlaneTriangles) continue;
+        const glm::vec3 x = p.p();
+        if (x.z < -0.6f && x.z > -1.9f && std::abs(x.x) < 0.3f) { // the camera's line of sight passes through the box
+            ++behind;
+            EXPECT_FALSE(vis.sees(i, 0)) << "floor particle at (" << x.x << ", " << x.z << ") behind the box";
+        }
+        if (x.z > 0.7f && x.z < 1.9f && std::abs(x.x) < 1.0f) {
+            ++in_front;
+            EXPECT_TRUE(vis.sees(i, 0)) << "floor particle at (" << x.x << ", " << x.z << ") in front of the box";
+        }
+    }
+    EXPECT_GT(behind, 10u);
+    EXPECT_GT(in_front, 10u);
+    EXPECT_GT(vis.stats.seen_by_no_view, 0u);
+    EXPECT_GT(vis.stats.rays_occluded, 0u);
+}
+
+TEST(Visibility, BoxShadowsTheFloor) {
+    const std::vector<Camera> cams = {make_camera({0, 4, 4}, {0, 0, 0})};
+    const Scene s(test::plane_with_box(), cams);
+    const std::vector<PointLight> lights = {light_at({0, 1.5, 3}), light_at({0, 5, 0})};
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights);
+    std::size_t shadowed = 0, lit = 0;
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const Particle& p = s.particles.particles[i];
+        const glm::vec3 x = p.p();
+        if (p.triangle < kPlaneTriangles) {
+            if (x.z < -0.6f && std::abs(x.x) < 0.4f) { // behind the box as seen from light 0
+                ++shadowed;
+                EXPECT_FALSE(vis.lights(i, 0)) << "floor particle at (" << x.x << ", " << x.z << ") is in the box's shadow";
+            }
+            if (x.z > 0.6f) {
+                ++lit;
+                EXPECT_TRUE(vis.lights(i, 0)) << "floor particle at (" << x.x << ", " << x.z << ") sees the light";
+            }
+            // Light 1 is straight above the box: the floor outside its footprint and margin is lit.
+            if (std::abs(x.x) > 0.7f || std::abs(x.z) > 0.7f) {
+                EXPECT_TRUE(vis.lights(i, 1));
+            }
+        } else if (x.y > 0.999f && p.n().y > 0.9f) {
+            EXPECT_TRUE(vis.lights(i, 0)); // the box's top
+            EXPECT_TRUE(vis.lights(i, 1));
+        }
+    }
+    EXPECT_GT(shadowed, 10u);
+    EXPECT_GT(lit, 10u);
+}
+
+TEST(Visibility, BackFacingParticlesAreNotSeenOrLit) {
+    const std::vector<Camera> below = {make_camera({0.1, -3, 0.2}, {0, 0, 0})};
+    const Scene s(test::plane(1.0f, 4), below);
+    const std::vector<PointLight> lights = {light_at({0, -2, 0}), light_at({0, 2, 0})};
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(below), lights);
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        EXPECT_FALSE(vis.sees(i, 0));
+        EXPECT_FALSE(vis.lights(i, 0));
+        EXPECT_TRUE(vis.lights(i, 1));
+        EXPECT_EQ(vis.best_view[i], -1);
+    }
+    EXPECT_EQ(vis.stats.seen_by_no_view, s.particles.particles.size());
+    EXPECT_EQ(vis.stats.lit_by_no_frame, 0u);
+    EXPECT_EQ(vis.stats.rays_cast, s.particles.particles.size()); // only the rays to the light above
+}
+
+TEST(Visibility, MaskedPixelsDoNotSee) {
+    const Camera above = make_camera({0, 3, 0.01}, {0, 0, 0});
+    const Scene s(test::plane(1.0f, 4), {above});
+    std::vector<VisibilityView> views = {{above, std::vector<std::uint8_t>(256 * 256, 0)}};
+    for (int y = 0; y < 256; ++y)
+        for (int x = 0; x < 128; ++x) views[0].flags[std::size_t(y) * 256 + x] = kOutsideMask | kClippedR;
+    const Visibility masked = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {});
+    std::size_t left = 0, right = 0;
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const auto q = above.project(glm::dvec3(s.particles.particles[i].p()));
+        ASSERT_TRUE(q && above.inside(*q));
+        if (q->x < 127.0) {
+            ++left;
+            EXPECT_FALSE(masked.sees(i, 0));
+        } else if (q->x > 129.0) {
+            ++right;
+            EXPECT_TRUE(masked.sees(i, 0));
+        }
+    }
+    EXPECT_GT(left, 10u);
+    EXPECT_GT(right, 10u);
+    // Only the chosen flags reject: clipping alone does not hide a particle.
+    VisibilityOptions clipped_only;
+    clipped_only.reject_flags = kClippedR;
+    for (auto& f : views[0].flags) f &= kClippedR;
+    const Visibility by_clip = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}, clipped_only);
+    VisibilityOptions mask_only;
+    const Visibility by_mask = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}, mask_only);
+    EXPECT_EQ(by_clip.seen, masked.seen);
+    EXPECT_EQ(by_mask.stats.seen_by_no_view, 0u);
+    // Flags of the wrong size are refused.
+    views[0].flags.resize(10);
+    EXPECT_THROW((void)compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}), Error);
+}
+
+TEST(Visibility, OutsideTheImageIsNotSeen) {
+    const Camera narrow = make_camera({0, 3, 0.01}, {0, 0, 0}, 64, 200.0); // sees |x|, |z| < ~0.48
+    const Scene s(test::plane(1.0f, 4), {narrow});
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of({narrow}), {});
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const glm::vec3 x = s.particles.particles[i].p();
+        if (std::abs(x.x) > 0.6f || std::abs(x.z) > 0.6f) {
+            EXPECT_FALSE(vis.sees(i, 0));
+        }
+        if (std::abs(x.x) < 0.4f && std::abs(x.z) < 0.4f) {
+            EXPECT_TRUE(vis.sees(i, 0));
+        }
+    }
+}
+
+std::vector<Camera> cameras_around(int count, double distance) {
+    std::vector<Camera> cams;
+    for (int i = 0; i < count; ++i) {
+        const double a = 2.0 * 3.14159265358979 * i / count;
+        cams.push_back(make_camera({distance * std::cos(a), distance * 0.5 * std::sin(2.0 * a), distance * std::sin(a)}, {0, 0, 0}));
+    }
+    return cams;
+}
+
+std::vector<PointLight> lights_around(int count, double distance) {
+    std::vector<PointLight> lights;
+    for (int i = 0; i < count; ++i) {
+        const double a = 2.0 * 3.14159265358979 * (i + 0.3) / count;
+        lights.push_back(light_at({distance * std::cos(a), distance * std::cos(3.0 * a), distance * std::sin(a)}));
+    }
+    return lights;
+}
+
+TEST(Visibility, ConvexSphereSkipsRaysAndAgreesWithForcedRays) {
+    const std::vector<Camera> cams = cameras_around(6, 3.5);
+    const Scene s(test::sphere(1.0f, 24, 32), cams);
+    const std::vector<PointLight> lights = lights_around(10, 4.0);
+    const Visibility fast = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights);
+    VisibilityOptions force;
+    force.force_rays = true;
+    const Visibility slow = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, force);
+
+    EXPECT_TRUE(fast.stats.convexity.convex);
+    EXPECT_FALSE(fast.stats.skipped.empty());
+    EXPECT_EQ(fast.stats.rays_cast, 0u);
+    EXPECT_GT(fast.stats.rays_avoided, 0u);
+    EXPECT_TRUE(slow.stats.skipped.empty());
+    EXPECT_EQ(slow.stats.rays_cast, fast.stats.rays_avoided);
+    EXPECT_EQ(slow.stats.rays_occluded, 0u);
+    EXPECT_EQ(fast.seen, slow.seen);
+    EXPECT_EQ(fast.lit, slow.lit);
+    EXPECT_EQ(fast.best_view, slow.best_view);
+    EXPECT_NE(describe(fast.stats).find("skipped"), std::string::npos);
+}
+
+TEST(Visibility, ResultsDoNotDependOnTheThreadCount) {
+    const std::vector<Camera> cams = cameras_around(5, 3.0);
+    const Scene s(test::torus(1.0f, 0.35f, 24, 12), cams);
+    const std::vector<PointLight> lights = lights_around(7, 3.0);
+    VisibilityOptions one, three;
+    one.threads = 1;
+    three.threads = 3;
+    const Visibility a = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, one);
+    const Visibility b = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, three);
+    EXPECT_FALSE(a.stats.convexity.convex);
+    EXPECT_GT(a.stats.rays_occluded, 0u); // the torus shadows and hides itself
+    EXPECT_EQ(a.seen, b.seen);
+    EXPECT_EQ(a.lit, b.lit);
+    EXPECT_EQ(a.best_view, b.best_view);
+    EXPECT_EQ(a.stats.rays_cast, b.stats.rays_cast);
+    EXPECT_EQ(b.stats.threads, 3u);
+}
+
+TEST(Visibility, BestViewIsTheSeeingViewClosestToTheNormal) {
+    const std::vector<Camera> cams = cameras_around(4, 3.0);
+    const Scene s(test::sphere(1.0f, 12, 16), cams);
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {});
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const Particle& p = s.particles.particles[i];
+        int expected = -1;
+        float best = -2.0f;
+        for (std::size_t v = 0; v < cams.size(); ++v) {
+            if (!vis.sees(i, v)) continue;
+            const float c = glm::dot(p.n(), glm::normalize(glm::vec3(cams[v].center()) - p.p()));
+            if (c > best) {
+                best = c;
+                expected = int(v);
+            }
+        }
+        EXPECT_EQ(vis.best_view[i], expected);
+    }
+}
+
+TEST(Visibility, BitsetsSpanSeveralWords) {
+    const std::vector<Camera> cams = cameras_around(40, 4.0);
+    const Scene s(test::sphere(1.0f, 10, 12), {cams[0]});
+    const std::vector<PointLight> lights = lights_around(70, 4.0);
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights);
+    EXPECT_EQ(vis.view_words, 2u);
+    EXPECT_EQ(vis.frame_words, 3u);
+    ASSERT_EQ(vis.seen.size(), s.particles.particles.size() * 2);
+    ASSERT_EQ(vis.lit.size(), s.particles.particles.size() * 3);
+    // On a convex sphere, view v sees p exactly when p faces it (the images are wide enough to hold the sphere).
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        const Particle& p = s.particles.particles[i];
+        const glm::uvec3 t = s.mesh.triangles[p.triangle];
+        const glm::vec3 face = glm::cross(s.mesh.positions[t.y] - s.mesh.positions[t.x], s.mesh.positions[t.z] - s.mesh.positions[t.x]);
+        for (std::size_t v = 0; v < cams.size(); ++v) {
+            const glm::vec3 d = glm::vec3(cams[v].center()) - p.p();
+            const bool faces = glm::dot(p.n(), d) > 0.0f && glm::dot(face, d) > 0.0f;
+            ASSERT_EQ(vis.sees(i, v), faces) << "particle " << i << " view " << v;
+        }
+        for (std::size_t f = 0; f < lights.size(); ++f) {
+            const glm::vec3 u = glm::vec3(lights[f].position) - p.p();
+            ASSERT_EQ(vis.lights(i, f), glm::dot(p.n(), u) > 0.0f && glm::dot(face, u) > 0.0f);
+        }
+    }
+}
+
+TEST(Visibility, InputsFromACaptureCombineTheViewsMasks) {
+    Capture capture;
+    const Camera cam = make_camera({0, 0, 3}, {0, 0, 0}, 4, 4.0);
+    capture.views.push_back(View{0, cam, {0, 1}});
+    capture.views.push_back(View{1, make_camera({3, 0, 0}, {0, 0, 0}, 4, 4.0), {2}});
+    for (int f = 0; f < 3; ++f) {
+        FrameDesc d;
+        d.view_index = f < 2 ? 0 : 1;
+        d.light.position = glm::dvec3(f, 1, 2);
+        capture.desc.frames.push_back(d);
+        FrameImage img;
+        img.flags.assign(16, 0);
+        img.flags[std::size_t(f)] = kOutsideMask;
+        capture.images.push_back(img);
+    }
+    const VisibilityInputs in = visibility_inputs(capture);
+    ASSERT_EQ(in.views.size(), 2u);
+    ASSERT_EQ(in.lights.size(), 3u);
+    EXPECT_EQ(in.frame_view, (std::vector<std::uint32_t>{0, 0, 1}));
+    EXPECT_EQ(in.lights[2].position, glm::dvec3(2, 1, 2));
+    EXPECT_EQ(in.views[0].flags[0], kOutsideMask);
+    EXPECT_EQ(in.views[0].flags[1], kOutsideMask);
+    EXPECT_EQ(in.views[0].flags[2], 0);
+    EXPECT_EQ(in.views[1].flags[2], kOutsideMask);
+}
+
+} // namespace
+} // namespace specula
