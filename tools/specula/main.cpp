@@ -27,7 +27,8 @@ int main(int argc, char** argv) {
         app.parse(argc, argv);
         return 0;
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // --help and --version exit 0; every other parse error is a usage error (2).
+        return app.exit(e) == 0 ? 0 : 2;
     } catch (const specula::UsageError& e) {
         std::fprintf(stderr, "usage error: %s\n", e.what());
         return 2;

@@ -1,0 +1,266 @@
+#include "synth/render.h"
+
+#include "core/error.h"
+
+#include "shared/lafortune.h"
+#include "shared/tangent_frame.h"
+
+#include <embree3/rtcore.h>
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace specula::synth {
+
+glm::vec3 sample_albedo(const Image& texture, const glm::vec2& uv) {
+    const int w = texture.width, h = texture.height;
+    const float x = uv.x * static_cast<float>(w) - 0.5f;
+    const float y = std::clamp(uv.y * static_cast<float>(h) - 0.5f, 0.0f, static_cast<float>(h - 1));
+    const float x0f = std::floor(x), y0f = std::floor(y);
+    const float fx = x - x0f, fy = y - y0f;
+    const auto wrap = [w](int i) { return ((i % w) + w) % w; };
+    const int x0 = wrap(static_cast<int>(x0f)), x1 = wrap(static_cast<int>(x0f) + 1);
+    const int y0 = static_cast<int>(y0f), y1 = std::min(y0 + 1, h - 1);
+    glm::vec3 out(0.0f);
+    for (int c = 0; c < 3; ++c) {
+        const int cc = std::min(c, texture.channels - 1);
+        const float top = (1.0f - fx) * texture.at(x0, y0, cc) + fx * texture.at(x1, y0, cc);
+        const float bottom = (1.0f - fx) * texture.at(x0, y1, cc) + fx * texture.at(x1, y1, cc);
+        out[c] = (1.0f - fy) * top + fy * bottom;
+    }
+    return out;
+}
+
+struct Renderer::Impl {
+    Mesh mesh;
+    Material material;
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    float epsilon = 1e-4f;
+    std::mutex error_mutex;
+    std::string errors; // filled by the Embree callback, which must never throw
+
+    ~Impl() {
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+
+    static void on_embree_error(void* user, RTCError code, const char* message) noexcept {
+        try {
+            auto* self = static_cast<Impl*>(user);
+            const std::lock_guard lock(self->error_mutex);
+            self->errors += "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (message ? message : "") + "; ";
+        } catch (...) {
+            // Nothing may escape into Embree; the error code is still checked after commit.
+        }
+    }
+
+    void check(const char* what) {
+        const RTCError code = rtcGetDeviceError(device);
+        if (code != RTC_ERROR_NONE || !errors.empty())
+            throw Error(std::string("Embree failed while ") + what + ": code " + std::to_string(static_cast<int>(code)) + " " + errors);
+    }
+
+    void build() {
+        // threads=1: the BVH build is then sequential, so the hierarchy (and which of two
+        // triangles sharing an edge a ray reports) is the same on every run.
+        device = rtcNewDevice("threads=1");
+        if (!device) throw Error("cannot create an Embree device (error " + std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
+        rtcSetDeviceErrorFunction(device, &Impl::on_embree_error, this);
+        scene = rtcNewScene(device);
+        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        // Embree-owned buffers: they come padded for its 16-byte vector loads.
+        auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                     3 * sizeof(float), mesh.positions.size()));
+        auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                      3 * sizeof(unsigned), mesh.triangles.size()));
+        if (vertices && indices) {
+            for (std::size_t i = 0; i < mesh.positions.size(); ++i)
+                for (int k = 0; k < 3; ++k) vertices[3 * i + k] = mesh.positions[i][k];
+            for (std::size_t i = 0; i < mesh.triangles.size(); ++i)
+                for (int k = 0; k < 3; ++k) indices[3 * i + k] = mesh.triangles[i][k];
+        }
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(scene, geom);
+        rtcReleaseGeometry(geom);
+        rtcCommitScene(scene);
+        check("building the scene");
+    }
+
+    static RTCRay make_ray(const glm::vec3& org, const glm::vec3& dir, float tnear, float tfar) {
+        RTCRay ray{};
+        ray.org_x = org.x;
+        ray.org_y = org.y;
+        ray.org_z = org.z;
+        ray.dir_x = dir.x;
+        ray.dir_y = dir.y;
+        ray.dir_z = dir.z;
+        ray.tnear = tnear;
+        ray.tfar = tfar;
+        ray.mask = std::numeric_limits<unsigned>::max();
+        ray.flags = 0;
+        ray.time = 0.0f;
+        return ray;
+    }
+
+    // Primary hit through the centre of pixel (x, y); primID = RTC_INVALID_GEOMETRY_ID on a miss.
+    RTCRayHit trace_primary(const Camera& camera, int x, int y, glm::dvec3* dir_out) const {
+        const glm::dvec3 dir = camera.ray_direction(x + 0.5, y + 0.5);
+        if (dir_out) *dir_out = dir;
+        RTCRayHit rh{};
+        rh.ray = make_ray(glm::vec3(camera.center()), glm::vec3(dir), 0.0f, std::numeric_limits<float>::infinity());
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        rtcIntersect1(scene, &context, &rh);
+        return rh;
+    }
+
+    bool occluded(const glm::vec3& org, const glm::vec3& dir, float tfar) const {
+        RTCRay ray = make_ray(org, dir, 0.0f, tfar);
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        rtcOccluded1(scene, &context, &ray);
+        return ray.tfar < 0.0f; // Embree sets tfar to -inf when something is hit
+    }
+
+    struct Counts {
+        std::size_t lit = 0, shadowed = 0;
+    };
+
+    void shade_row(const Camera& camera, const PointLight& light, int y, RenderedFrame& out, Counts& counts) const {
+        const int w = camera.intrinsics.w;
+        const glm::dvec3 eye = camera.center();
+        for (int x = 0; x < w; ++x) {
+            glm::dvec3 ray_dir;
+            const RTCRayHit rh = trace_primary(camera, x, y, &ray_dir);
+            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            out.mask[static_cast<std::size_t>(y) * w + x] = 255;
+
+            const glm::uvec3 tri = mesh.triangles[rh.hit.primID];
+            const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.0f - b1 - b2; // Embree: p = (1-u-v) p0 + u p1 + v p2
+            const glm::vec3 p0 = mesh.positions[tri.x], p1 = mesh.positions[tri.y], p2 = mesh.positions[tri.z];
+            // The hit along the ray (more precise than the barycentric sum far from the origin).
+            const glm::dvec3 hit = eye + static_cast<double>(rh.ray.tfar) * ray_dir;
+            const glm::vec3 n = glm::normalize(b0 * mesh.normals[tri.x] + b1 * mesh.normals[tri.y] + b2 * mesh.normals[tri.z]);
+            glm::vec3 ng = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+            if (glm::dot(glm::dvec3(ng), ray_dir) > 0.0) ng = -ng; // the side the camera sees
+
+            const glm::dvec3 to_light = light.position - hit;
+            const double d = glm::length(to_light);
+            const glm::dvec3 u = to_light / d;
+            const double cos_theta = glm::dot(glm::dvec3(n), u);
+            if (!(cos_theta > 0.0)) continue;
+            // A light behind the geometric surface seen from the camera cannot reach this side.
+            if (glm::dot(glm::dvec3(ng), u) <= 0.0 ||
+                occluded(glm::vec3(hit) + epsilon * ng, glm::vec3(u), static_cast<float>(d) - epsilon)) {
+                ++counts.shadowed;
+                continue;
+            }
+            ++counts.lit;
+
+            glm::vec3 albedo = material.albedo_value;
+            if (!material.albedo_texture.empty()) {
+                const glm::vec2 uv = b0 * mesh.texcoords[tri.x] + b1 * mesh.texcoords[tri.y] + b2 * mesh.texcoords[tri.z];
+                albedo = sample_albedo(material.albedo_texture, uv);
+            }
+            glm::vec3 f = albedo / glm::pi<float>();
+            if (!material.lobe.is_zero()) {
+                const glm::vec3 u_local = shared::to_tangent_frame(n, glm::vec3(u));
+                const glm::vec3 v_local = shared::to_tangent_frame(n, glm::vec3(-ray_dir));
+                f += shared::lafortune_eval_rgb(material.lobe.cx, material.lobe.cz, material.lobe.n, u_local, v_local);
+            }
+            const glm::dvec3 radiance = glm::dvec3(f) * light.intensity * (cos_theta / (d * d));
+            for (int c = 0; c < 3; ++c) out.color.at(x, y, c) = static_cast<float>(radiance[c]);
+        }
+    }
+};
+
+namespace {
+
+// Runs row(y) for every row on `threads` threads. Rows are handed out dynamically,
+// but each pixel's value depends only on its own rays, so the image is the same
+// whatever the thread count or schedule.
+template <class RowFn>
+void for_rows(int height, int threads, RowFn&& row) {
+    threads = std::clamp(threads, 1, std::max(1, height));
+    std::atomic<int> next{0};
+    auto worker = [&](int id) {
+        for (int y = next++; y < height; y = next++) row(id, y);
+    };
+    std::vector<std::thread> pool;
+    pool.reserve(static_cast<std::size_t>(threads - 1));
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker, t);
+    worker(0);
+    for (std::thread& t : pool) t.join();
+}
+
+} // namespace
+
+Renderer::Renderer(Mesh mesh, Material material) : m_impl(std::make_unique<Impl>()) {
+    if (mesh.positions.empty() || mesh.triangles.empty()) throw Error("synth renderer: the mesh is empty");
+    if (mesh.normals.size() != mesh.positions.size()) mesh.normals = compute_vertex_normals(mesh.positions, mesh.triangles);
+    for (glm::vec3& n : mesh.normals) n = glm::normalize(n);
+    for (const glm::uvec3& t : mesh.triangles)
+        if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
+            throw Error("synth renderer: a triangle index is out of range");
+    if (!material.albedo_texture.empty()) {
+        if (!mesh.has_texcoords()) throw Error("synth renderer: an albedo texture needs texture coordinates (TEXCOORD_0) on the mesh");
+        if (material.albedo_texture.channels < 1) throw Error("synth renderer: the albedo texture has no channels");
+    }
+    const Bounds b = mesh_bounds(mesh);
+    // Scale-relative: well above float rounding at the hit, well below any feature of the object.
+    m_impl->epsilon = std::max(1e-4f * b.radius(), 1e-7f);
+    m_impl->mesh = std::move(mesh);
+    m_impl->material = std::move(material);
+    m_impl->build();
+}
+
+Renderer::~Renderer() = default;
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+
+const Mesh& Renderer::mesh() const noexcept { return m_impl->mesh; }
+const Material& Renderer::material() const noexcept { return m_impl->material; }
+float Renderer::shadow_epsilon() const noexcept { return m_impl->epsilon; }
+
+RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, int threads) const {
+    const int w = camera.intrinsics.w, h = camera.intrinsics.h;
+    if (w <= 0 || h <= 0) throw Error("synth renderer: the camera has no pixels");
+    RenderedFrame out;
+    out.color = Image(w, h, 3, 0.0f);
+    out.mask.assign(static_cast<std::size_t>(w) * h, 0);
+    std::vector<Impl::Counts> counts(static_cast<std::size_t>(std::max(threads, 1)));
+    for_rows(h, threads, [&](int id, int y) { m_impl->shade_row(camera, light, y, out, counts[static_cast<std::size_t>(id)]); });
+    for (const Impl::Counts& c : counts) {
+        out.lit_pixels += c.lit;
+        out.shadowed_pixels += c.shadowed;
+    }
+    return out;
+}
+
+std::vector<std::uint8_t> Renderer::render_mask(const Camera& camera, int threads) const {
+    const int w = camera.intrinsics.w, h = camera.intrinsics.h;
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(w) * h, 0);
+    for_rows(h, threads, [&](int, int y) {
+        for (int x = 0; x < w; ++x)
+            if (m_impl->trace_primary(camera, x, y, nullptr).hit.geomID != RTC_INVALID_GEOMETRY_ID)
+                mask[static_cast<std::size_t>(y) * w + x] = 255;
+    });
+    return mask;
+}
+
+RenderedFrame render_frame(const Mesh& mesh, const Material& material, const Camera& camera, const PointLight& light, int threads) {
+    return Renderer(mesh, material).render(camera, light, threads);
+}
+
+} // namespace specula::synth

@@ -1,0 +1,68 @@
+#pragma once
+// The acquisition rig of the thesis (Erdem 2003, section 5.2: 20 views, each
+// lit in turn by six point lights placed around the camera), made synthetic:
+//  - train views on a circle around the object, azimuth evenly spaced, elevation
+//    alternating over [elevation_min, elevation_max] (four levels in a zig-zag,
+//    so neighbouring views differ in height), all looking at the object's centre;
+//  - the camera distance makes the object's bounding sphere subtend `fill` of the
+//    half field of view, so it fills most of the image;
+//  - each train view's lights lie on a ring around the camera's optical axis, in
+//    the camera's image plane, at radius `ring_radius` x camera distance;
+//  - test views sit between train views (azimuth halfway, elevation between
+//    levels), lit by `test_lights` lights off every ring: at `test_ring_radius`
+//    x distance, pushed `test_forward` x distance toward the object, at angles
+//    halfway between ring lights.
+// Light intensity: a Lambertian surface of albedo `reference_albedo` facing the
+// light at the object's point nearest to it gets `target_value` x `exposure`
+// (linear, full scale 1.0): I = exposure * target * pi * d_min^2 / reference_albedo.
+#include "capture/camera.h"
+#include "capture/capture.h"
+#include "capture/mesh.h"
+
+#include <vector>
+
+namespace specula::synth {
+
+struct RigOptions {
+    int size = 512;           // image width and height, pixels
+    int views = 20;           // train views
+    int lights = 6;           // lights per train view
+    int test_views = 4;
+    int test_lights = 2;      // lights per test view
+    double fov_deg = 40.0;    // horizontal (= vertical) field of view
+    double fill = 0.9;        // bounding sphere's angular radius / half field of view
+    double elevation_min_deg = -20.0;
+    double elevation_max_deg = 50.0;
+    double ring_radius = 0.25; // train light ring radius / camera distance
+    double test_ring_radius = 0.45;
+    double test_forward = 0.15;
+    double exposure = 1.0;
+    double target_value = 0.6;
+    double reference_albedo = 0.8;
+};
+
+struct RigView {
+    int view_index = 0;
+    Split split = Split::Train;
+    Camera camera;
+    std::vector<PointLight> lights;
+};
+
+struct Rig {
+    Intrinsics intrinsics;
+    glm::dvec3 center{0.0};     // the object's bounding-box centre, where every camera looks
+    double radius = 0.0;        // bounding sphere about `center` (farthest vertex)
+    double camera_distance = 0.0;
+    std::vector<RigView> views; // train views first, then test views; view_index = position
+
+    [[nodiscard]] std::size_t frame_count() const;
+    [[nodiscard]] std::size_t frame_count(Split split) const;
+};
+
+/// Builds the rig around `mesh`. Throws UsageError on out-of-range options.
+[[nodiscard]] Rig make_rig(const Mesh& mesh, const RigOptions& options);
+
+/// Intensity that exposes `mesh` as described above for a light at `position`.
+[[nodiscard]] double exposure_intensity(const Mesh& mesh, const glm::dvec3& position, const RigOptions& options);
+
+} // namespace specula::synth
