@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job on the bundled demo capture: installs dependencies, builds, makes
 # the demo capture (the `can` preset, 20 views x 6 lights + test frames, 512x512)
-# under out/demo/capture, and validates it.
+# under out/demo/capture, validates it, and reconstructs it into out/demo/result
+# (albedo.exr, albedo.png, report.json).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 "$root/tools/install-deps.sh"
@@ -11,4 +12,5 @@ out="$root/out/demo"
 mkdir -p "$out"
 "$specula" synth --preset can --out "$out/capture" --force
 "$specula" validate "$out/capture"
-echo "demo: capture in $out/capture"
+"$specula" reconstruct "$out/capture" -o "$out/result"
+echo "demo: capture in $out/capture, reconstruction in $out/result"

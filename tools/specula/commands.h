@@ -8,5 +8,6 @@ namespace specula::cli {
 void add_validate_command(CLI::App& app); // cmd_validate.cpp
 void add_synth_command(CLI::App& app);    // cmd_synth.cpp
 void add_devices_command(CLI::App& app);  // cmd_devices.cpp
+void add_reconstruct_command(CLI::App& app); // cmd_reconstruct.cpp
 
 } // namespace specula::cli

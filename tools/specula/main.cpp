@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
         specula::log::set_level(quiet ? specula::log::Level::Quiet
                                       : (verbose ? specula::log::Level::Verbose : specula::log::Level::Normal));
     });
+    specula::cli::add_reconstruct_command(app);
     specula::cli::add_validate_command(app);
     specula::cli::add_synth_command(app);
     specula::cli::add_devices_command(app);

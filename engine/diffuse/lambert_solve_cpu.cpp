@@ -1,0 +1,262 @@
+// Reference of the Lambert solve: the method of shared/lambert.h, step for step as
+// shaders/diffuse/lambert_solve.comp and lambert_solve_combine.comp do it, with the shared
+// helpers instantiated in double (shared::f64) and every sum accumulated in double.
+// Results are rounded to the float layouts the GPU writes.
+#include "diffuse/lambert_solve.h"
+#include "diffuse/lambert_solve_detail.h"
+
+#include "core/error.h"
+#include "core/timer.h"
+#include "shared/solve3.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace specula {
+
+namespace {
+
+namespace f64 = shared::f64;
+constexpr double kPi = 3.14159265358979323846;
+
+struct Sample {
+    glm::dvec3 c;   // bilinear pixel value
+    glm::dvec3 e;   // E = I max(0, n.u) / d^2
+    glm::dvec3 i;   // I
+    glm::dvec3 a;   // u / d^2
+    bool kept = false;
+};
+
+glm::dvec3 pixel(const FrameImage& im, int x, int y) {
+    const float* p = &im.color.pixels[im.color.index(x, y)];
+    return {p[0], p[1], p[2]};
+}
+
+bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+double lower_median(std::vector<double> v) { // rank (n - 1) / 2 in ascending order
+    const std::size_t k = (v.size() - 1) / 2;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k];
+}
+
+} // namespace
+
+namespace detail {
+
+shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const LambertOptions& o, std::uint32_t particle,
+                                           std::uint32_t view_index) {
+    const Particle& part = in.particles[particle];
+    const LambertView& view = in.views[view_index];
+    const Visibility& vis = *in.visibility;
+    const glm::dvec3 P(part.p());
+    const glm::dvec3 n(part.n());
+    const Intrinsics& k = view.camera.intrinsics;
+    // The float camera the GPU gets: world_to_camera, centre, intrinsics and lights rounded to float.
+    const glm::dmat4 w2c = glm::dmat4(glm::mat4(view.camera.world_to_camera));
+    const glm::dvec3 xc(w2c * glm::dvec4(P, 1.0));
+    const glm::dvec4 kf(glm::vec4(static_cast<float>(k.fl_x), static_cast<float>(k.fl_y), static_cast<float>(k.cx),
+                                  static_cast<float>(k.cy)));
+    const glm::dvec2 pos(kf.z + kf.x * xc.x / (-xc.z), kf.w - kf.y * xc.y / (-xc.z));
+    const f64::LambertTaps t = f64::lambert_taps(pos, k.w, k.h);
+    const glm::dvec3 center(glm::vec3(view.camera.center()));
+
+    shared::LambertPairResult r{};
+    r.view = view_index;
+    r.albedo = glm::vec4(0.0f, 0.0f, 0.0f, static_cast<float>(glm::dot(n, glm::normalize(center - P))));
+    r.normal = glm::vec4(glm::vec3(n), 0.0f);
+    std::uint32_t shadow = 0, clipped = 0, missing = 0, grazing = 0;
+    std::vector<Sample> samples;
+    const std::size_t w = static_cast<std::size_t>(k.w);
+    for (std::uint32_t f : view.frames) {
+        if (!vis.lights(particle, f)) { ++shadow; continue; }
+        const PointLight& light = in.lights[f];
+        const glm::dvec3 L = glm::dvec3(glm::vec3(light.position)) - P;
+        const double d2 = glm::dot(L, L);
+        const glm::dvec3 u = L / std::sqrt(d2);
+        const double cosl = glm::dot(n, u);
+        if (!(cosl >= static_cast<double>(o.min_light_cos))) { ++grazing; continue; }
+        const FrameImage& im = in.images[f];
+        const std::uint32_t fl = im.flags[std::size_t(t.y0) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y0) * w + std::size_t(t.x1)] |
+                                 im.flags[std::size_t(t.y1) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y1) * w + std::size_t(t.x1)];
+        const glm::dvec3 px[4] = {pixel(im, t.x0, t.y0), pixel(im, t.x1, t.y0), pixel(im, t.x0, t.y1), pixel(im, t.x1, t.y1)};
+        bool finite = true;
+        for (const auto& v : px) finite = finite && finite3(v);
+        if ((fl & (shared::kLambertPixMissing | shared::kLambertPixOutside)) || !finite) { ++missing; continue; }
+        const double sat = static_cast<double>(std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
+        bool clip = (fl & shared::kLambertPixClipped) != 0;
+        for (const auto& v : px) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
+        if (clip) { ++clipped; continue; }
+        Sample s;
+        s.c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]);
+        s.i = glm::dvec3(glm::vec3(light.intensity));
+        s.e = s.i * (cosl / d2);
+        s.a = u / d2;
+        samples.push_back(s);
+    }
+
+    // Highlights: robust fit on the channel sums (shared/lambert.h).
+    std::size_t kept = 0;
+    std::uint32_t low = 0;
+    if (!samples.empty()) {
+        std::vector<double> q, es;
+        for (const Sample& s : samples) {
+            es.push_back(s.e.x + s.e.y + s.e.z);
+            q.push_back((s.c.x + s.c.y + s.c.z) / es.back());
+        }
+        double est = lower_median(q);
+        for (auto& s : samples) s.kept = true;
+        const double k_sigma = static_cast<double>(o.highlight_k) * static_cast<double>(o.noise_sigma);
+        for (std::uint32_t it = 0; it < o.highlight_iterations; ++it) {
+            bool changed = false;
+            double num = 0.0, den = 0.0;
+            for (std::size_t i = 0; i < samples.size(); ++i) {
+                const bool keep = f64::lambert_keep(q[i], es[i], est, static_cast<double>(o.highlight_tau), k_sigma) &&
+                                  !f64::lambert_low(q[i], es[i], est, static_cast<double>(o.highlight_tau), k_sigma);
+                changed = changed || keep != samples[i].kept;
+                samples[i].kept = keep;
+                if (keep) {
+                    num += q[i] * es[i] * es[i]; // = cs es
+                    den += es[i] * es[i];
+                }
+            }
+            if (den > 0.0) est = num / den;
+            if (!changed && it > 0) break;
+        }
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+            kept += samples[i].kept ? 1u : 0u;
+            if (!samples[i].kept && q[i] < est) ++low;
+        }
+    }
+    const std::uint32_t highlight = static_cast<std::uint32_t>(samples.size() - kept) - low;
+
+    if (kept > 0) {
+        r.status |= shared::kLambertPairHasSample;
+        glm::dvec3 rho(0.0);
+        bool solved = false;
+        if (o.mode == LambertMode::Photometric) {
+            if (kept >= shared::kLsq3MinRows) {
+                std::array<f64::Lsq3Normal, 3> ne{f64::lsq3_normal_zero(), f64::lsq3_normal_zero(), f64::lsq3_normal_zero()};
+                for (const Sample& s : samples)
+                    if (s.kept)
+                        for (int c = 0; c < 3; ++c) f64::lsq3_accumulate(ne[std::size_t(c)], s.i[c] * s.a, s.c[c], 1.0);
+                bool ok = true;
+                glm::dvec3 g[3];
+                for (int c = 0; c < 3; ++c) {
+                    const f64::Lsq3Solution sol = f64::lsq3_solve_normal(ne[std::size_t(c)]);
+                    ok = ok && sol.status == shared::kLsq3Ok && sol.rcond >= static_cast<double>(o.min_rcond);
+                    g[c] = sol.g;
+                }
+                const glm::dvec3 sum = g[0] + g[1] + g[2];
+                const double len = glm::length(sum);
+                if (ok && len > 0.0 && glm::dot(sum, n) > 0.0) {
+                    const glm::dvec3 nr = sum / len;
+                    rho = kPi * glm::dvec3(glm::length(g[0]), glm::length(g[1]), glm::length(g[2]));
+                    r.normal = glm::vec4(glm::vec3(nr), static_cast<float>(f64::lambert_angle_deg(nr, n)));
+                    r.status |= shared::kLambertPairPhotometric;
+                    solved = true;
+                }
+            }
+            if (!solved) r.status |= shared::kLambertPairFallback;
+        }
+        if (!solved) {
+            glm::dvec3 num(0.0), den(0.0);
+            for (const Sample& s : samples)
+                if (s.kept) {
+                    num += s.c * s.e;
+                    den += s.e * s.e;
+                }
+            for (int c = 0; c < 3; ++c) rho[c] = den[c] > 0.0 ? kPi * num[c] / den[c] : 0.0;
+        }
+        r.albedo = glm::vec4(glm::vec3(rho), r.albedo.w);
+    }
+    r.counts0 = shared::lambert_pack4(static_cast<std::uint32_t>(kept), shadow, clipped, missing);
+    r.counts1 = shared::lambert_pack4(grazing, highlight, static_cast<std::uint32_t>(view.frames.size()), low);
+    return r;
+}
+
+LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairResult> pairs, const LambertOptions& o,
+                                          const Particle& particle) {
+    LambertParticleResult r{};
+    r.albedo_best = glm::vec4(0.0f, 0.0f, 0.0f, -1.0f);
+    r.albedo_robust = glm::vec4(0.0f);
+    r.normal = glm::vec4(particle.n(), 0.0f);
+    r.best_view = shared::kLambertNoView;
+    r.views = static_cast<std::uint32_t>(pairs.size());
+    std::vector<double> lum;
+    for (const auto& p : pairs) {
+        r.rejected_shadow += shared::lambert_byte(p.counts0, 1u);
+        r.rejected_clipped += shared::lambert_byte(p.counts0, 2u);
+        r.rejected_missing += shared::lambert_byte(p.counts0, 3u);
+        r.rejected_grazing += shared::lambert_byte(p.counts1, 0u);
+        r.rejected_highlight += shared::lambert_byte(p.counts1, 1u);
+        r.rejected_low += shared::lambert_byte(p.counts1, 3u);
+        if (p.status & shared::kLambertPairHasSample)
+            lum.push_back(double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z));
+    }
+    if (pairs.empty()) {
+        r.status = shared::kLambertNotSeen;
+        return r;
+    }
+    if (lum.empty()) {
+        r.status = shared::kLambertNoSample;
+        return r;
+    }
+    const double ref = lower_median(lum);
+    glm::dvec3 sum(0.0);
+    double weight = 0.0;
+    double best_cos = -2.0;
+    std::uint32_t kept_views = 0;
+    const shared::LambertPairResult* best = nullptr;
+    for (const auto& p : pairs) {
+        if (!(p.status & shared::kLambertPairHasSample)) continue;
+        const double l = double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z);
+        const std::uint32_t used = shared::lambert_byte(p.counts0, 0u);
+        if (f64::lambert_view_outlier(l, ref, static_cast<double>(o.view_tau), static_cast<double>(o.view_abs))) {
+            r.rejected_view += used;
+            r.status |= shared::kLambertViewsRejected;
+            continue;
+        }
+        ++kept_views;
+        r.used += used;
+        sum += double(used) * glm::dvec3(glm::vec3(p.albedo));
+        weight += double(used);
+        if (double(p.albedo.w) > best_cos) { // pairs come in view order: ties keep the lower index
+            best_cos = double(p.albedo.w);
+            best = &p;
+        }
+    }
+    // ref is one of the kept views, so best != nullptr and weight > 0.
+    r.status |= shared::kLambertOk;
+    r.best_view = best->view;
+    r.albedo_best = glm::vec4(glm::vec3(best->albedo), static_cast<float>(best->view));
+    r.albedo_robust = glm::vec4(glm::vec3(sum / weight), static_cast<float>(kept_views));
+    r.normal = best->normal;
+    if (best->status & shared::kLambertPairFallback) r.status |= shared::kLambertFallback;
+    return r;
+}
+
+} // namespace detail
+
+LambertOutputs lambert_solve_cpu(const LambertInputs& in, const LambertOptions& options) {
+    const Stopwatch sw;
+    lambert_validate(in);
+    const Visibility& vis = *in.visibility;
+    LambertOutputs out;
+    out.mode = options.mode;
+    out.choice = options.choice;
+    out.particles.resize(in.particles.size());
+    std::vector<shared::LambertPairResult> pairs;
+    for (std::uint32_t p = 0; p < in.particles.size(); ++p) {
+        pairs.clear();
+        for (std::uint32_t v = 0; v < in.views.size(); ++v)
+            if (!in.views[v].frames.empty() && vis.sees(p, v)) pairs.push_back(detail::lambert_pair_cpu(in, options, p, v));
+        out.particles[p] = detail::lambert_combine_cpu(pairs, options, in.particles[p]);
+    }
+    out.summary.seconds = sw.seconds();
+    summarize(out);
+    return out;
+}
+
+} // namespace specula

@@ -1,0 +1,221 @@
+#include "pipeline/reconstruct.h"
+
+#include "capture/capture.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/log.h"
+#include "core/timer.h"
+#include "diffuse/albedo_texture.h"
+#include "geometry/particles.h"
+#include "geometry/ray_scene.h"
+#include "gpu/context.h"
+#include "visibility/visibility.h"
+
+#include <memory>
+#include <optional>
+#include <utility>
+
+namespace specula {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// Times one stage, logs it, and records it in the result.
+template <class Fn>
+auto run_stage(ReconstructResult& result, const std::string& name, Fn&& fn) {
+    log::info("[" + name + "] ...");
+    Stopwatch watch;
+    if constexpr (std::is_void_v<decltype(fn())>) {
+        fn();
+        result.stages.push_back({name, watch.seconds()});
+        log::info("[" + name + "] " + std::to_string(result.stages.back().seconds) + " s");
+    } else {
+        auto value = fn();
+        result.stages.push_back({name, watch.seconds()});
+        log::info("[" + name + "] " + std::to_string(result.stages.back().seconds) + " s");
+        return value;
+    }
+}
+
+json atlas_json(const AtlasSummary& s, const AtlasOptions& o) {
+    return {{"width", s.width},
+            {"height", s.height},
+            {"size_source", s.size_source},
+            {"texels_per_pixel", o.texels_per_pixel},
+            {"budget", {o.max_width, o.max_height}},
+            {"budget_clipped", s.budget_clipped},
+            {"budget_scale", s.budget_scale},
+            {"patch_leg", {{"min", s.patch_min}, {"median", s.patch_median}, {"mean", s.patch_mean}, {"max", s.patch_max}}},
+            {"interior_texels", s.interior_texels},
+            {"gutter_texels", s.gutter_texels},
+            {"fill_ratio", s.fill_ratio},
+            {"triangles_seen_by_no_camera", s.triangles_seen_by_no_camera},
+            {"notes", s.notes}};
+}
+
+json visibility_json(const VisibilityStats& s) {
+    return {{"particles", s.particles},
+            {"views", s.views},
+            {"frames", s.frames},
+            {"seen_by_no_view", s.seen_by_no_view},
+            {"lit_by_no_frame", s.lit_by_no_frame},
+            {"rays_cast", s.rays_cast},
+            {"rays_occluded", s.rays_occluded},
+            {"rays_avoided", s.rays_avoided},
+            {"convex", s.convexity.convex},
+            {"convexity_reason", s.convexity.reason},
+            {"occlusion_rays_skipped", s.skipped},
+            {"seconds", s.seconds}};
+}
+
+json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBackend backend) {
+    const LambertSummary& s = out.summary;
+    json j = {{"backend", to_string(backend)},
+              {"mode", to_string(o.mode)},
+              {"view_choice", o.choice == ViewChoice::BestView ? "best_view" : "robust"},
+              {"particles", s.particles},
+              {"pairs", s.pairs},
+              {"ok", s.ok},
+              {"fallback_to_albedo_mode", s.fallback},
+              {"no_valid_sample", s.no_sample},
+              {"not_seen", s.not_seen},
+              {"particles_with_outlier_views", s.views_rejected},
+              {"samples",
+               {{"used", s.used},
+                {"rejected_shadow", s.rejected_shadow},
+                {"rejected_clipped", s.rejected_clipped},
+                {"rejected_missing", s.rejected_missing},
+                {"rejected_grazing", s.rejected_grazing},
+                {"rejected_highlight", s.rejected_highlight},
+                {"rejected_outlier_view", s.rejected_view}}},
+              {"thresholds",
+               {{"min_light_cos", o.min_light_cos},
+                {"highlight_tau", o.highlight_tau},
+                {"highlight_k_sigma", o.highlight_k},
+                {"noise_sigma", o.noise_sigma},
+                {"min_rcond", o.min_rcond},
+                {"view_tau", o.view_tau},
+                {"view_abs", o.view_abs}}},
+              {"view_batches", s.view_batches},
+              {"seconds", s.seconds}};
+    if (o.mode == LambertMode::Photometric) j["mean_normal_angle_deg"] = s.mean_normal_angle_deg;
+    if (s.gpu_ms) {
+        j["gpu_ms"] = *s.gpu_ms;
+        json d = json::array();
+        for (const auto& [label, ms] : s.gpu_dispatch_ms) d.push_back({{"label", label}, {"ms", ms}});
+        j["gpu_dispatches"] = d;
+    }
+    return j;
+}
+
+} // namespace
+
+ReconstructResult reconstruct(const ReconstructConfig& config) {
+    ReconstructResult result;
+    Stopwatch total;
+    if (config.out_dir.empty()) throw UsageError("no output folder given");
+
+    // 1. Capture: description, mesh, train and test images (test frames are only counted here).
+    const Capture capture = run_stage(result, "load", [&] {
+        return load_capture(config.capture, CaptureLoadOptions{.threads = static_cast<int>(config.threads)});
+    });
+    result.warnings = capture.warnings;
+    for (const std::string& w : capture.warnings) log::warn(w);
+    if (capture.frame_count(Split::Train) == 0)
+        throw InputError(capture_json_path(config.capture), "frames", "no train frames: nothing to reconstruct from");
+
+    // Cameras of the views that have train frames size the atlas (test views must not).
+    std::vector<Camera> train_cameras;
+    for (const View& view : capture.views)
+        for (std::size_t f : view.frames)
+            if (capture.desc.frames[f].split == Split::Train) {
+                train_cameras.push_back(view.camera);
+                break;
+            }
+
+    // 2. Atlas and particles.
+    const Atlas atlas = run_stage(result, "atlas", [&] { return build_atlas(capture.mesh, train_cameras, config.atlas); });
+    log::info(describe(atlas.summary));
+    const ParticleSet particles = run_stage(result, "particles", [&] { return build_particles(capture.mesh, atlas); });
+
+    // 3. Visibility: Embree occlusion rays unless the mesh is convex.
+    const Visibility visibility = run_stage(result, "visibility", [&] {
+        const RayScene scene(capture.mesh);
+        const VisibilityInputs inputs = visibility_inputs(capture);
+        return compute_visibility(particles.particles, capture.mesh, scene, inputs.views, inputs.lights,
+                                  VisibilityOptions{.threads = config.threads, .force_rays = config.force_occlusion_rays});
+    });
+    if (!visibility.stats.skipped.empty())
+        result.left_out.push_back({"occlusion rays (visibility and shadows)", visibility.stats.skipped});
+
+    // 4. Diffuse solve on the chosen backend.
+    std::unique_ptr<gpu::Context> ctx;
+    json device = nullptr;
+    if (config.backend == LambertBackend::Vulkan) {
+        ctx = run_stage(result, "vulkan init", [&] { return std::make_unique<gpu::Context>(gpu::ContextOptions{.device = config.device}); });
+        device = {{"name", ctx->info().name},
+                  {"kind", gpu::device_kind_name(ctx->info().kind)},
+                  {"api_version", gpu::version_string(ctx->info().api_version)},
+                  {"validation", ctx->validation_enabled()}};
+        log::info("Vulkan device: " + ctx->info().name);
+    }
+    const LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
+        const LambertInputs inputs = lambert_inputs(capture, particles.particles, visibility);
+        return lambert_solve(inputs, config.lambert, config.backend, ctx.get());
+    });
+    log::info(describe(solve.summary, config.lambert.mode));
+    if (ctx) device["validation_messages"] = ctx->validation_message_count();
+    if (solve.summary.fallback > 0)
+        result.left_out.push_back({"photometric solve for " + std::to_string(solve.summary.fallback) + " particles",
+                                   "fewer than three usable, non-coplanar light directions in their best view: "
+                                   "albedo mode (known normals) used instead"});
+
+    // 5. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
+    const AlbedoTexture texture = run_stage(result, "albedo texture", [&] {
+        AlbedoTexture t = make_albedo_texture(atlas, particles.particles, solve);
+        write_albedo_texture(t, config.out_dir / "albedo");
+        return t;
+    });
+
+    result.left_out.push_back({"specular fit, factorization, rendering and evaluation",
+                               "not built yet in this version of Specula (pipeline.md sections 4-8)"});
+
+    // report.json, written last: its presence means the outputs above are complete.
+    result.total_seconds = total.seconds();
+    json stages = json::array();
+    for (const StageRecord& s : result.stages) stages.push_back({{"name", s.name}, {"seconds", s.seconds}});
+    json left_out = json::array();
+    for (const LeftOut& l : result.left_out) left_out.push_back({{"what", l.what}, {"why", l.why}});
+    result.report = {
+        {"specula_version", "0.1.0"},
+        {"capture",
+         {{"path", fs::absolute(capture.desc.dir).string()},
+          {"views", capture.views.size()},
+          {"train_frames", capture.frame_count(Split::Train)},
+          {"test_frames", capture.frame_count(Split::Test)},
+          {"mesh_triangles", capture.mesh.triangle_count()}}},
+        {"device", device},
+        {"stages", stages},
+        {"total_seconds", result.total_seconds},
+        {"atlas", atlas_json(atlas.summary, config.atlas)},
+        {"particles", {{"count", particles.particles.size()}, {"interior", particles.interior}, {"gutter", particles.gutter}}},
+        {"visibility", visibility_json(visibility.stats)},
+        {"diffuse", lambert_json(solve, config.lambert, config.backend)},
+        {"albedo_texture",
+         {{"files", {"albedo.exr", "albedo.png"}},
+          {"width", texture.image.width},
+          {"height", texture.image.height},
+          {"texels", texture.stats.texels},
+          {"solved", texture.stats.solved},
+          {"filled_same_patch", texture.stats.filled_same_patch},
+          {"filled_across_patches", texture.stats.filled_across},
+          {"filled_global_mean", texture.stats.filled_global}}},
+        {"left_out", left_out},
+        {"warnings", result.warnings}};
+    write_text_file(config.out_dir / "report.json", result.report.dump(2) + "\n");
+    return result;
+}
+
+} // namespace specula

@@ -1,0 +1,54 @@
+#pragma once
+// The pipeline: the only code that knows the stage order (pipeline.md; style.md
+// layout). `specula reconstruct` maps its arguments to a ReconstructConfig and
+// calls reconstruct(); everything is timed, counted, and written to report.json
+// with what was left out for this scene and why.
+//
+//   load capture -> atlas -> particles -> visibility (Embree) -> diffuse solve -> albedo texture
+#include "diffuse/lambert_solve.h"
+#include "geometry/atlas.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+struct ReconstructConfig {
+    std::filesystem::path capture;  ///< folder or capture.json
+    std::filesystem::path out_dir;  ///< albedo.exr, albedo.png, report.json go here
+    LambertBackend backend = LambertBackend::Vulkan;
+    std::string device;             ///< Vulkan device selector (empty: SPECULA_DEVICE, then the default)
+    LambertOptions lambert;         ///< solve mode, view choice, rejection thresholds
+    AtlasOptions atlas;             ///< texture budget and texels per pixel
+    bool force_occlusion_rays = false; ///< cast occlusion rays even where the mesh is convex
+    unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
+};
+
+struct StageRecord {
+    std::string name;
+    double seconds = 0.0;
+};
+
+/// Something the pipeline did not do for this scene, and why.
+struct LeftOut {
+    std::string what;
+    std::string why;
+};
+
+struct ReconstructResult {
+    std::vector<StageRecord> stages;
+    std::vector<LeftOut> left_out;
+    std::vector<std::string> warnings;
+    nlohmann::json report; ///< the content of report.json
+    double total_seconds = 0.0;
+};
+
+/// Runs every stage built so far and writes the outputs into config.out_dir
+/// (each file atomically; report.json last, so its presence means a complete run).
+/// Throws InputError for a bad capture, Error for a failed stage.
+ReconstructResult reconstruct(const ReconstructConfig& config);
+
+} // namespace specula

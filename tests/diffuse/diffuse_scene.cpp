@@ -1,0 +1,150 @@
+#include "diffuse_scene.h"
+
+#include "core/timer.h"
+#include "geometry/ray_scene.h"
+#include "visibility/visibility.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace specula::test {
+
+namespace {
+
+float quantize(float v, synth::ImageFormat format) {
+    if (format == synth::ImageFormat::Exr) return v;
+    const float levels = format == synth::ImageFormat::Png8 ? 255.0f : 65535.0f;
+    const float s = linear_to_srgb(std::clamp(v, 0.0f, 1.0f));
+    return srgb_to_linear(std::round(s * levels) / levels);
+}
+
+glm::vec2 particle_uv(const Mesh& mesh, const Particle& p) {
+    const glm::uvec3 t = mesh.triangles[p.triangle];
+    const float s = p.bary.x, u = p.bary.y;
+    return (1.0f - s - u) * mesh.texcoords[t.x] + s * mesh.texcoords[t.y] + u * mesh.texcoords[t.z];
+}
+
+} // namespace
+
+DiffuseScene make_scene(const SceneOptions& o) {
+    const Stopwatch sw;
+    DiffuseScene s;
+    s.preset = synth::make_preset(o.preset, o.lambertian);
+    synth::RigOptions ro;
+    ro.size = o.size;
+    ro.views = o.views;
+    ro.lights = o.lights;
+    ro.test_views = 0;
+    ro.exposure = o.exposure;
+    const synth::Rig rig = synth::make_rig(s.preset.mesh, ro);
+    const synth::Renderer renderer(s.preset.mesh, s.preset.material);
+    const bool is_float = o.format == synth::ImageFormat::Exr;
+    const float sat = is_float ? std::numeric_limits<float>::infinity() : 1.0f;
+
+    Capture& c = s.capture;
+    c.mesh = s.preset.mesh;
+    c.desc.color_space = is_float ? ColorSpace::Linear : ColorSpace::Srgb;
+    if (!is_float) c.desc.saturation = 1.0;
+    std::size_t frame_index = 0;
+    for (const synth::RigView& rv : rig.views) {
+        View view;
+        view.view_index = rv.view_index;
+        view.camera = rv.camera;
+        for (std::size_t l = 0; l < rv.lights.size(); ++l) {
+            synth::RenderedFrame fr = renderer.render(rv.camera, rv.lights[l], 2);
+            synth::apply_noise(fr.color, {o.noise_sigma, 0.0}, 1, frame_index);
+            FrameImage im;
+            im.saturation = sat;
+            im.color = std::move(fr.color);
+            im.flags.assign(fr.mask.size(), 0);
+            for (std::size_t p = 0; p < fr.mask.size(); ++p) {
+                std::uint8_t flag = 0;
+                for (int ch = 0; ch < 3; ++ch) {
+                    float& v = im.color.pixels[3 * p + std::size_t(ch)];
+                    v = quantize(v, o.format);
+                    if (v >= sat) flag |= static_cast<std::uint8_t>(kClippedR << ch);
+                }
+                if (!fr.mask[p]) flag |= kOutsideMask;
+                if (flag & kClippedAny) ++s.clipped_pixels;
+                im.flags[p] = flag;
+            }
+            FrameDesc f;
+            f.view_index = rv.view_index;
+            f.transform = rv.camera.camera_to_world;
+            f.intrinsics = rv.camera.intrinsics;
+            f.light = rv.lights[l];
+            f.split = Split::Train;
+            c.desc.frames.push_back(f);
+            view.frames.push_back(frame_index++);
+            c.images.push_back(std::move(im));
+        }
+        c.views.push_back(std::move(view));
+    }
+
+    std::vector<Camera> cameras;
+    for (const View& v : c.views) cameras.push_back(v.camera);
+    AtlasOptions ao;
+    ao.texels_per_pixel = o.texels_per_pixel;
+    s.atlas = build_atlas(c.mesh, cameras, ao);
+    s.particles = build_particles(c.mesh, s.atlas);
+    const RayScene scene(c.mesh);
+    const VisibilityInputs vi = visibility_inputs(c);
+    VisibilityOptions vo;
+    vo.force_rays = o.force_rays;
+    s.visibility = compute_visibility(s.particles.particles, c.mesh, scene, vi.views, vi.lights, vo);
+    s.truth.resize(s.particles.particles.size());
+    for (std::size_t p = 0; p < s.truth.size(); ++p)
+        s.truth[p] = synth::sample_albedo(s.preset.material.albedo_texture, particle_uv(c.mesh, s.particles.particles[p]));
+    s.seconds = sw.seconds();
+    return s;
+}
+
+AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out, const std::vector<std::uint8_t>& select) {
+    AlbedoError e;
+    double sum = 0.0;
+    for (std::size_t p = 0; p < scene.truth.size(); ++p) {
+        if (!select[p]) continue;
+        const glm::vec3 d = out.albedo(p) - scene.truth[p];
+        sum += double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+        e.max_abs = std::max<double>(e.max_abs, std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)}));
+        ++e.count;
+    }
+    e.rmse = e.count ? std::sqrt(sum / (3.0 * double(e.count))) : 0.0;
+    return e;
+}
+
+std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol) {
+    // Image pixels sample the texture at their centres; a particle's bilinear value mixes the
+    // pixels within sqrt(2) pixels of it. The texture footprint of one image pixel, per
+    // triangle, in its best view: sqrt(uv area in texels / projected area in pixels).
+    const Image& tex = scene.preset.material.albedo_texture;
+    const Mesh& mesh = scene.capture.mesh;
+    std::vector<Camera> cameras;
+    for (const View& v : scene.capture.views) cameras.push_back(v.camera);
+    const std::vector<double> px_area = best_pixel_footprint(mesh, cameras);
+    std::vector<std::uint8_t> flat(scene.truth.size(), 0);
+    for (std::size_t p = 0; p < flat.size(); ++p) {
+        const Particle& part = scene.particles.particles[p];
+        const glm::uvec3 t = mesh.triangles[part.triangle];
+        const glm::vec2 e1 = (mesh.texcoords[t.y] - mesh.texcoords[t.x]) * glm::vec2(tex.width, tex.height);
+        const glm::vec2 e2 = (mesh.texcoords[t.z] - mesh.texcoords[t.x]) * glm::vec2(tex.width, tex.height);
+        const double uv_area = 0.5 * std::abs(double(e1.x) * e2.y - double(e1.y) * e2.x);
+        const double pa = px_area[part.triangle];
+        const double texels_per_pixel = pa > 0.0 ? std::sqrt(uv_area / pa) : 1e9;
+        const int r = static_cast<int>(std::ceil(radius_pixels * texels_per_pixel + 1.0));
+        if (r > 64) continue;
+        const glm::vec2 uv = particle_uv(mesh, part);
+        const int cx = static_cast<int>(std::floor(uv.x * float(tex.width))), cy = static_cast<int>(std::floor(uv.y * float(tex.height)));
+        bool ok = true;
+        for (int dy = -r; dy <= r && ok; ++dy)
+            for (int dx = -r; dx <= r && ok; ++dx) {
+                const int x = ((cx + dx) % tex.width + tex.width) % tex.width;
+                const int y = std::clamp(cy + dy, 0, tex.height - 1);
+                for (int ch = 0; ch < 3; ++ch) ok = ok && std::abs(tex.at(x, y, ch) - scene.truth[p][ch]) <= tol;
+            }
+        flat[p] = ok ? 1 : 0;
+    }
+    return flat;
+}
+
+} // namespace specula::test

@@ -1,0 +1,60 @@
+#pragma once
+// In-memory synthetic scenes for the diffuse tests: a preset rendered by engine/synth under
+// the thesis rig (train views only), quantized as the chosen file format would be (png8 /
+// png16 sRGB, or exr float) and flagged exactly as load_capture flags pixels, then the atlas,
+// particles and visibility. Truth: the preset's albedo texture at each particle's mesh UV.
+#include "diffuse/lambert_solve.h"
+#include "geometry/atlas.h"
+#include "synth/synth.h"
+
+#include <string>
+#include <vector>
+
+namespace specula::test {
+
+struct SceneOptions {
+    std::string preset = "can";
+    bool lambertian = true;
+    int size = 128;
+    int views = 8;
+    int lights = 6;
+    double exposure = 1.0;
+    synth::ImageFormat format = synth::ImageFormat::Exr;
+    double noise_sigma = 0.0;
+    double texels_per_pixel = 1.0;
+    bool force_rays = false;
+};
+
+struct DiffuseScene {
+    synth::Preset preset;
+    Capture capture;
+    Atlas atlas;
+    ParticleSet particles;
+    Visibility visibility;
+    std::vector<glm::vec3> truth; // per particle, linear rho
+    std::size_t clipped_pixels = 0;
+    double seconds = 0.0;
+
+    [[nodiscard]] LambertInputs inputs() const {
+        return lambert_inputs(capture, particles.particles, visibility);
+    }
+};
+
+[[nodiscard]] DiffuseScene make_scene(const SceneOptions& options);
+
+/// RMSE of rho over the particles in `select` (all channels), and the count.
+struct AlbedoError {
+    double rmse = 0.0;
+    double max_abs = 0.0;
+    std::size_t count = 0;
+};
+[[nodiscard]] AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out,
+                                       const std::vector<std::uint8_t>& select);
+
+/// Particles whose truth the images resolve: every texture texel within `radius_pixels`
+/// image pixels (converted to texels with the triangle's footprint in its best view) of the
+/// particle's UV differs by at most `tol` from the truth. Elsewhere the error is the images'
+/// resampling of a texture finer than their pixels, not the solve's (see diffuse_test.cpp).
+[[nodiscard]] std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol);
+
+} // namespace specula::test

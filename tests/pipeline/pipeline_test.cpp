@@ -1,0 +1,126 @@
+// The pipeline end to end on small synthetic captures: outputs exist, the report is
+// complete and honest about what it left out, and both backends agree.
+#include "core/error.h"
+#include "core/image.h"
+#include "pipeline/reconstruct.h"
+#include "synth/presets.h"
+#include "synth/synth.h"
+#include "test_dirs.h"
+#include "vulkan_env.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+namespace specula {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path make_capture(const test::TempDir& dir, const std::string& preset, bool lambertian = false) {
+    synth::SynthOptions o;
+    o.size = 96;
+    o.views = 6;
+    o.lights = 4;
+    o.test_views = 1;
+    o.test_lights = 1;
+    o.format = synth::ImageFormat::Png16;
+    o.lambertian = lambertian;
+    const fs::path out = dir / preset;
+    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset(preset, lambertian)), out, o);
+    return out;
+}
+
+bool left_out_mentions(const nlohmann::json& report, const std::string& what) {
+    for (const auto& item : report["left_out"])
+        if (item["what"].get<std::string>().find(what) != std::string::npos) return true;
+    return false;
+}
+
+TEST(Reconstruct, ConvexSphereSkipsOcclusionRaysAndSaysWhy) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "sphere");
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    const ReconstructResult r = reconstruct(c);
+    EXPECT_TRUE(left_out_mentions(r.report, "occlusion rays"));
+    EXPECT_TRUE(r.report["visibility"]["convex"].get<bool>());
+    EXPECT_EQ(r.report["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(r.report["visibility"]["rays_avoided"].get<std::uint64_t>(), 0u);
+}
+
+TEST(Reconstruct, WritesOutputsAndACompleteReport) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "can");
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    const ReconstructResult r = reconstruct(c);
+    ASSERT_TRUE(fs::exists(c.out_dir / "albedo.exr"));
+    ASSERT_TRUE(fs::exists(c.out_dir / "albedo.png"));
+    ASSERT_TRUE(fs::exists(c.out_dir / "report.json"));
+    const nlohmann::json saved = nlohmann::json::parse(std::ifstream(c.out_dir / "report.json"));
+    EXPECT_EQ(saved, r.report);
+    // The can is not convex: rays are cast, and the report does not claim otherwise.
+    EXPECT_FALSE(left_out_mentions(saved, "occlusion rays"));
+    EXPECT_GT(saved["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
+    // Every stage is timed; the texture has the atlas's size.
+    for (const char* stage : {"load", "atlas", "particles", "visibility", "diffuse solve", "albedo texture"}) {
+        bool found = false;
+        for (const auto& s : saved["stages"])
+            if (s["name"] == stage) {
+                found = true;
+                EXPECT_GE(s["seconds"].get<double>(), 0.0);
+            }
+        EXPECT_TRUE(found) << stage;
+    }
+    const Image albedo = read_image(c.out_dir / "albedo.exr", ColorSpace::Linear);
+    EXPECT_EQ(albedo.width, saved["atlas"]["width"].get<int>());
+    EXPECT_EQ(albedo.height, saved["atlas"]["height"].get<int>());
+    for (float v : albedo.pixels) ASSERT_TRUE(std::isfinite(v));
+    EXPECT_GT(saved["diffuse"]["ok"].get<std::size_t>(), saved["particles"]["count"].get<std::size_t>() * 9 / 10);
+}
+
+TEST(Reconstruct, VulkanAndCpuBackendsAgree) {
+    SPECULA_REQUIRE_VULKAN();
+    test::TempDir dir("pipe");
+    const fs::path capture = make_capture(dir, "can");
+    ReconstructConfig c;
+    c.capture = capture;
+    c.out_dir = dir / "cpu";
+    c.backend = LambertBackend::Cpu;
+    (void)reconstruct(c);
+    c.out_dir = dir / "vk";
+    c.backend = LambertBackend::Vulkan;
+    const ReconstructResult vk = reconstruct(c);
+    EXPECT_EQ(vk.report["device"]["validation_messages"].get<std::size_t>(), 0u);
+    const Image a = read_image(dir / "cpu" / "albedo.exr", ColorSpace::Linear);
+    const Image b = read_image(dir / "vk" / "albedo.exr", ColorSpace::Linear);
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    // fp32 on the GPU against the double reference; a texel may differ where a sample sits
+    // at a rejection threshold, so bound the mean and count the large differences.
+    double sum = 0.0;
+    std::size_t large = 0;
+    for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+        const double d = std::abs(static_cast<double>(a.pixels[i]) - b.pixels[i]);
+        sum += d;
+        if (d > 1e-3) ++large;
+    }
+    EXPECT_LT(sum / static_cast<double>(a.pixels.size()), 1e-4);
+    EXPECT_LT(static_cast<double>(large), 1e-3 * static_cast<double>(a.pixels.size()));
+}
+
+TEST(Reconstruct, MissingCaptureFailsWithoutWritingOutputs) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = dir / "nothing-here";
+    c.out_dir = dir / "out";
+    EXPECT_THROW((void)reconstruct(c), InputError);
+    EXPECT_FALSE(fs::exists(c.out_dir / "report.json"));
+}
+
+} // namespace
+} // namespace specula

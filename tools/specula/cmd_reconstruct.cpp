@@ -1,0 +1,77 @@
+// specula reconstruct CAPTURE -o OUT: maps options onto a ReconstructConfig and runs the pipeline.
+#include "commands.h"
+
+#include "core/error.h"
+#include "core/log.h"
+#include "pipeline/reconstruct.h"
+
+#include <map>
+#include <memory>
+#include <string>
+
+namespace specula::cli {
+
+namespace {
+
+struct ReconstructArgs {
+    ReconstructConfig config;
+    std::string backend = "vulkan";
+    std::string mode = "albedo";
+    std::string views = "best";
+    std::uint32_t texture_size = 4096;
+};
+
+void run_reconstruct(ReconstructArgs& args) {
+    ReconstructConfig& c = args.config;
+    c.backend = args.backend == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan;
+    c.lambert.mode = args.mode == "photometric" ? LambertMode::Photometric : LambertMode::Albedo;
+    c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
+    c.atlas.max_width = args.texture_size;
+    c.atlas.max_height = args.texture_size;
+    const ReconstructResult result = reconstruct(c);
+    log::info("wrote " + (c.out_dir / "albedo.exr").string() + ", albedo.png and report.json in " +
+              std::to_string(result.total_seconds) + " s");
+    for (const LeftOut& l : result.left_out) log::info("left out: " + l.what + " (" + l.why + ")");
+}
+
+} // namespace
+
+void add_reconstruct_command(CLI::App& app) {
+    auto args = std::make_shared<ReconstructArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "reconstruct",
+        "Recover the diffuse albedo texture of a capture. Writes OUT/albedo.exr (linear), OUT/albedo.png (sRGB)\n"
+        "and OUT/report.json (stage times, counts, choices, and what was left out for this scene and why).");
+    cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
+    cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
+    cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
+        ->check(CLI::IsMember({"vulkan", "cpu"}))
+        ->capture_default_str();
+    cmd->add_option("-d,--device", args->config.device, "Vulkan device: index or name substring (see `specula devices`)");
+    cmd->add_option("--mode", args->mode,
+                    "albedo: known mesh normals, one unknown per channel; photometric: the thesis's eq. 3.1, also refines\n"
+                    "normals, falls back to albedo per particle when its light directions are nearly coplanar")
+        ->check(CLI::IsMember({"albedo", "photometric"}))
+        ->capture_default_str();
+    cmd->add_option("--views", args->views,
+                    "best: the thesis's choice, the seeing view closest to the normal; robust: combine all views")
+        ->check(CLI::IsMember({"best", "robust"}))
+        ->capture_default_str();
+    cmd->add_option("--texture-size", args->texture_size, "Largest albedo texture side (texels)")
+        ->check(CLI::Range(16u, 32767u))
+        ->capture_default_str();
+    cmd->add_option("--texels-per-pixel", args->config.atlas.texels_per_pixel,
+                    "Atlas texels per image pixel of a triangle's best view (more adds cost, no information)")
+        ->check(CLI::Range(0.05, 8.0))
+        ->capture_default_str();
+    cmd->add_option("--noise", args->config.lambert.noise_sigma,
+                    "Image noise sigma (full scale 1) used in the highlight-rejection margin")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    cmd->add_flag("--force-occlusion-rays", args->config.force_occlusion_rays,
+                  "Cast occlusion rays even when the mesh is convex (the default skips them there)");
+    cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
+    cmd->callback([args] { run_reconstruct(*args); });
+}
+
+} // namespace specula::cli
