@@ -1,18 +1,19 @@
 #include "synth/render.h"
 
 #include "core/error.h"
+#include "geometry/ray_scene.h"
 
 #include "shared/lafortune.h"
 #include "shared/tangent_frame.h"
 
-#include <embree3/rtcore.h>
 #include <glm/gtc/constants.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
-#include <mutex>
+#include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -40,97 +41,24 @@ glm::vec3 sample_albedo(const Image& texture, const glm::vec2& uv) {
 struct Renderer::Impl {
     Mesh mesh;
     Material material;
-    RTCDevice device = nullptr;
-    RTCScene scene = nullptr;
+    std::unique_ptr<RayScene> scene; // the engine's one Embree owner (engine/geometry)
     float epsilon = 1e-4f;
-    std::mutex error_mutex;
-    std::string errors; // filled by the Embree callback, which must never throw
-
-    ~Impl() {
-        if (scene) rtcReleaseScene(scene);
-        if (device) rtcReleaseDevice(device);
-    }
-
-    static void on_embree_error(void* user, RTCError code, const char* message) noexcept {
-        try {
-            auto* self = static_cast<Impl*>(user);
-            const std::lock_guard lock(self->error_mutex);
-            self->errors += "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (message ? message : "") + "; ";
-        } catch (...) {
-            // Nothing may escape into Embree; the error code is still checked after commit.
-        }
-    }
-
-    void check(const char* what) {
-        const RTCError code = rtcGetDeviceError(device);
-        if (code != RTC_ERROR_NONE || !errors.empty())
-            throw Error(std::string("Embree failed while ") + what + ": code " + std::to_string(static_cast<int>(code)) + " " + errors);
-    }
 
     void build() {
-        // threads=1: the BVH build is then sequential, so the hierarchy (and which of two
-        // triangles sharing an edge a ray reports) is the same on every run.
-        device = rtcNewDevice("threads=1");
-        if (!device) throw Error("cannot create an Embree device (error " + std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
-        rtcSetDeviceErrorFunction(device, &Impl::on_embree_error, this);
-        scene = rtcNewScene(device);
-        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        // Embree-owned buffers: they come padded for its 16-byte vector loads.
-        auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                                     3 * sizeof(float), mesh.positions.size()));
-        auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                      3 * sizeof(unsigned), mesh.triangles.size()));
-        if (vertices && indices) {
-            for (std::size_t i = 0; i < mesh.positions.size(); ++i)
-                for (int k = 0; k < 3; ++k) vertices[3 * i + k] = mesh.positions[i][k];
-            for (std::size_t i = 0; i < mesh.triangles.size(); ++i)
-                for (int k = 0; k < 3; ++k) indices[3 * i + k] = mesh.triangles[i][k];
-        }
-        rtcCommitGeometry(geom);
-        rtcAttachGeometry(scene, geom);
-        rtcReleaseGeometry(geom);
-        rtcCommitScene(scene);
-        check("building the scene");
+        // One build thread: the BVH build is then sequential, so the hierarchy (and which of
+        // two triangles sharing an edge a ray reports) is the same on every run.
+        scene = std::make_unique<RayScene>(mesh, RaySceneOptions{.build_threads = 1});
     }
 
-    static RTCRay make_ray(const glm::vec3& org, const glm::vec3& dir, float tnear, float tfar) {
-        RTCRay ray{};
-        ray.org_x = org.x;
-        ray.org_y = org.y;
-        ray.org_z = org.z;
-        ray.dir_x = dir.x;
-        ray.dir_y = dir.y;
-        ray.dir_z = dir.z;
-        ray.tnear = tnear;
-        ray.tfar = tfar;
-        ray.mask = std::numeric_limits<unsigned>::max();
-        ray.flags = 0;
-        ray.time = 0.0f;
-        return ray;
-    }
-
-    // Primary hit through the centre of pixel (x, y); primID = RTC_INVALID_GEOMETRY_ID on a miss.
-    RTCRayHit trace_primary(const Camera& camera, int x, int y, glm::dvec3* dir_out) const {
+    // Primary hit through the centre of pixel (x, y), or nothing.
+    std::optional<RayHit> trace_primary(const Camera& camera, int x, int y, glm::dvec3* dir_out) const {
         const glm::dvec3 dir = camera.ray_direction(x + 0.5, y + 0.5);
         if (dir_out) *dir_out = dir;
-        RTCRayHit rh{};
-        rh.ray = make_ray(glm::vec3(camera.center()), glm::vec3(dir), 0.0f, std::numeric_limits<float>::infinity());
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        rtcIntersect1(scene, &context, &rh);
-        return rh;
+        return scene->intersect(glm::vec3(camera.center()), glm::vec3(dir), 0.0f, std::numeric_limits<float>::infinity());
     }
 
     bool occluded(const glm::vec3& org, const glm::vec3& dir, float tfar) const {
-        RTCRay ray = make_ray(org, dir, 0.0f, tfar);
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        rtcOccluded1(scene, &context, &ray);
-        return ray.tfar < 0.0f; // Embree sets tfar to -inf when something is hit
+        return scene->occluded(org, dir, 0.0f, tfar);
     }
 
     struct Counts {
@@ -142,15 +70,15 @@ struct Renderer::Impl {
         const glm::dvec3 eye = camera.center();
         for (int x = 0; x < w; ++x) {
             glm::dvec3 ray_dir;
-            const RTCRayHit rh = trace_primary(camera, x, y, &ray_dir);
-            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            const std::optional<RayHit> rh = trace_primary(camera, x, y, &ray_dir);
+            if (!rh) continue;
             out.mask[static_cast<std::size_t>(y) * w + x] = 255;
 
-            const glm::uvec3 tri = mesh.triangles[rh.hit.primID];
-            const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.0f - b1 - b2; // Embree: p = (1-u-v) p0 + u p1 + v p2
+            const glm::uvec3 tri = mesh.triangles[rh->triangle];
+            const float b1 = rh->u, b2 = rh->v, b0 = 1.0f - b1 - b2; // Embree: p = (1-u-v) p0 + u p1 + v p2
             const glm::vec3 p0 = mesh.positions[tri.x], p1 = mesh.positions[tri.y], p2 = mesh.positions[tri.z];
             // The hit along the ray (more precise than the barycentric sum far from the origin).
-            const glm::dvec3 hit = eye + static_cast<double>(rh.ray.tfar) * ray_dir;
+            const glm::dvec3 hit = eye + static_cast<double>(rh->t) * ray_dir;
             const glm::vec3 n = glm::normalize(b0 * mesh.normals[tri.x] + b1 * mesh.normals[tri.y] + b2 * mesh.normals[tri.z]);
             glm::vec3 ng = glm::normalize(glm::cross(p1 - p0, p2 - p0));
             if (glm::dot(glm::dvec3(ng), ray_dir) > 0.0) ng = -ng; // the side the camera sees
@@ -253,7 +181,7 @@ std::vector<std::uint8_t> Renderer::render_mask(const Camera& camera, int thread
     std::vector<std::uint8_t> mask(static_cast<std::size_t>(w) * h, 0);
     for_rows(h, threads, [&](int, int y) {
         for (int x = 0; x < w; ++x)
-            if (m_impl->trace_primary(camera, x, y, nullptr).hit.geomID != RTC_INVALID_GEOMETRY_ID)
+            if (m_impl->trace_primary(camera, x, y, nullptr))
                 mask[static_cast<std::size_t>(y) * w + x] = 255;
     });
     return mask;
