@@ -64,6 +64,8 @@ json visibility_json(const VisibilityStats& s) {
             {"rays_cast", s.rays_cast},
             {"rays_occluded", s.rays_occluded},
             {"rays_avoided", s.rays_avoided},
+            {"depth_rays", s.depth_rays},
+            {"footprint_rejected_pairs", s.footprint_rejected},
             {"convex", s.convexity.convex},
             {"convexity_reason", s.convexity.reason},
             {"occlusion_rays_skipped", s.skipped},

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -21,7 +22,58 @@ struct ThreadCounts {
     std::uint64_t rays_cast = 0;
     std::uint64_t rays_occluded = 0;
     std::uint64_t rays_avoided = 0;
+    std::uint64_t footprint_rejected = 0;
 };
+
+constexpr float kNoHit = std::numeric_limits<float>::infinity();
+
+// Distance along the ray through each pixel center to the first surface (kNoHit on a miss).
+std::vector<float> depth_map(const RayScene& scene, const Camera& cam, unsigned threads) {
+    const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+    std::vector<float> depth(std::size_t(w) * std::size_t(h), kNoHit);
+    const glm::vec3 eye(cam.center());
+    std::atomic<int> next_row{0};
+    auto rows = [&] {
+        for (int y = next_row++; y < h; y = next_row++)
+            for (int x = 0; x < w; ++x) {
+                const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
+                if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit)) depth[std::size_t(y) * w + x] = hit->t;
+            }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows);
+    rows();
+    for (std::thread& t : pool) t.join();
+    return depth;
+}
+
+// True when the 4 pixels a bilinear sample at image position q reads all show the
+// surface through `pos` with normal `n`: each pixel's depth matches where its ray meets
+// the particle's tangent plane, within `tolerance` pixel footprints (curvature over a
+// pixel is far below that; an occluder or a surface behind an edge is far above it).
+bool footprint_on_surface(const Camera& cam, const std::vector<float>& depth, const glm::dvec2& q, const glm::vec3& pos,
+                          const glm::vec3& n, float tolerance) {
+    const glm::dvec3 eye = cam.center();
+    const glm::dvec3 to_p = glm::dvec3(pos) - eye;
+    const double dist = glm::length(to_p);
+    const double cos_view = std::max(static_cast<double>(kFootprintMinCos), -glm::dot(glm::dvec3(n), to_p / dist));
+    const double footprint = dist / std::min(cam.intrinsics.fl_x, cam.intrinsics.fl_y); // world size of a pixel at pos
+    const double allowed = tolerance * footprint / cos_view;
+    const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+    const int x0 = static_cast<int>(std::floor(q.x - 0.5)), y0 = static_cast<int>(std::floor(q.y - 0.5));
+    for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+            const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+            const float t_hit = depth[std::size_t(y) * w + x];
+            if (t_hit == kNoHit) return false;
+            const glm::dvec3 dir = cam.ray_direction(x + 0.5, y + 0.5);
+            const double denom = glm::dot(dir, glm::dvec3(n));
+            if (!(denom < 0.0)) return false; // the tap's ray does not meet the front of the plane
+            const double t_plane = glm::dot(glm::dvec3(pos) - eye, glm::dvec3(n)) / denom;
+            if (std::abs(static_cast<double>(t_hit) - t_plane) > allowed) return false;
+        }
+    return true;
+}
 
 struct Target {
     bool is_view;
@@ -70,6 +122,16 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     std::vector<glm::vec3> view_center(views.size());
     for (std::size_t v = 0; v < views.size(); ++v) view_center[v] = glm::vec3(views[v].camera.center());
 
+    // A convex mesh has no occluders and no surface behind an edge: the test would be exact and is skipped.
+    // (On a convex mesh a tap off the particle's surface can only be background, which the
+    // capture's mask already flags.)
+    const bool footprint_test = options.footprint_test && !st.convexity.convex;
+    std::vector<std::vector<float>> depth(footprint_test ? views.size() : 0);
+    for (std::size_t v = 0; v < depth.size(); ++v) {
+        depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));
+        st.depth_rays += depth[v].size();
+    }
+
     const std::size_t chunks = (particles.size() + kChunk - 1) / kChunk;
     std::atomic<std::size_t> next_chunk{0};
     const unsigned thread_count = std::max(1u, std::min<unsigned>(options.threads, unsigned(std::max<std::size_t>(chunks, 1))));
@@ -104,6 +166,10 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                         if (!views[v].flags.empty()) {
                             const std::size_t px = static_cast<std::size_t>(q->x), py = static_cast<std::size_t>(q->y);
                             if (views[v].flags[py * std::size_t(cam.intrinsics.w) + px] & options.reject_flags) continue;
+                        }
+                        if (footprint_test && !footprint_on_surface(cam, depth[v], *q, pos, n, options.footprint_tolerance)) {
+                            ++c.footprint_rejected;
+                            continue;
                         }
                         if (skip_rays) {
                             seen[v / 32] |= 1u << (v % 32);
@@ -173,6 +239,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.rays_cast += c.rays_cast;
         st.rays_occluded += c.rays_occluded;
         st.rays_avoided += c.rays_avoided;
+        st.footprint_rejected += c.footprint_rejected;
     }
     for (std::size_t p = 0; p < particles.size(); ++p) {
         if (vis.best_view[p] < 0) ++st.seen_by_no_view;
@@ -219,6 +286,10 @@ std::string describe(const VisibilityStats& s) {
                   static_cast<unsigned long long>(s.rays_cast), static_cast<unsigned long long>(s.rays_occluded),
                   static_cast<unsigned long long>(s.rays_avoided));
     std::string out = buf;
+    if (s.depth_rays > 0)
+        out += "  footprint test: " + std::to_string(s.footprint_rejected) +
+               " (particle, view) pairs dropped (a bilinear tap shows another surface); " + std::to_string(s.depth_rays) +
+               " depth rays\n";
     out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
                              : "  occlusion rays skipped: " + s.skipped + "\n";
     return out;

@@ -49,7 +49,17 @@ struct VisibilityOptions {
     unsigned threads = 2;
     bool force_rays = false;                  ///< cast occlusion rays even on a convex mesh
     std::uint8_t reject_flags = kOutsideMask; ///< pixel flags that make a view not see a particle
+    /// Footprint test (on meshes that can occlude themselves): a view sees a particle only
+    /// when the 4 pixels its bilinear sample reads show the particle's own surface, not an
+    /// occluder in front of it or a surface behind an edge. Each view's depth map (one
+    /// primary ray per pixel center) is compared with the particle's tangent plane.
+    bool footprint_test = true;
+    /// Tolerance of that test, in pixel footprints at the particle (divided by the view
+    /// cosine, floored at kFootprintMinCos, since depth varies faster at grazing views).
+    float footprint_tolerance = 2.0f;
 };
+
+inline constexpr float kFootprintMinCos = 0.2f;
 
 struct VisibilityStats {
     std::size_t particles = 0;
@@ -60,6 +70,8 @@ struct VisibilityStats {
     std::uint64_t rays_cast = 0;     ///< occlusion rays traced
     std::uint64_t rays_occluded = 0; ///< of those, how many hit something
     std::uint64_t rays_avoided = 0;  ///< rays the convexity test made unnecessary
+    std::uint64_t depth_rays = 0;    ///< primary rays of the per-view depth maps (footprint test)
+    std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     ConvexityReport convexity;
     std::string skipped;             ///< why occlusion rays were skipped; empty when they were cast
     unsigned threads = 0;

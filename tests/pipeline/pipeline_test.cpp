@@ -81,7 +81,10 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     EXPECT_EQ(albedo.width, saved["atlas"]["width"].get<int>());
     EXPECT_EQ(albedo.height, saved["atlas"]["height"].get<int>());
     for (float v : albedo.pixels) ASSERT_TRUE(std::isfinite(v));
-    EXPECT_GT(saved["diffuse"]["ok"].get<std::size_t>(), saved["particles"]["count"].get<std::size_t>() * 9 / 10);
+    // At 96 px most particles are gutters of tiny patches; the footprint test drops the
+    // (particle, view) pairs whose taps straddle an occluding edge, and those are counted.
+    EXPECT_GT(saved["diffuse"]["ok"].get<std::size_t>(), saved["particles"]["count"].get<std::size_t>() * 85 / 100);
+    EXPECT_GT(saved["visibility"]["footprint_rejected_pairs"].get<std::uint64_t>(), 0u);
 }
 
 TEST(Reconstruct, VulkanAndCpuBackendsAgree) {

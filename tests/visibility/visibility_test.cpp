@@ -62,6 +62,38 @@ TEST(Visibility, BoxHidesTheFloorBehindIt) {
     EXPECT_GT(vis.stats.rays_occluded, 0u);
 }
 
+TEST(Visibility, FootprintTestDropsFloorTexelsWhoseBilinearTapsReachTheBox) {
+    // Floor particles just beside the box's silhouette are unoccluded (their ray to the
+    // camera passes the box), but a bilinear sample of their pixel reads box pixels.
+    const std::vector<Camera> cams = {make_camera({0, 0.5, 5}, {0, 0.5, 0})};
+    const Scene s(test::plane_with_box(), cams);
+    VisibilityOptions plain;
+    plain.footprint_test = false;
+    const Visibility without = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {}, plain);
+    const Visibility with = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {});
+    EXPECT_EQ(without.stats.depth_rays, 0u);
+    EXPECT_EQ(with.stats.depth_rays, 256u * 256u);
+    EXPECT_GT(with.stats.footprint_rejected, 0u);
+    const double pixel_at_box = 4.5 / 300.0; // world size of a pixel at the box's front face
+    std::size_t dropped_floor = 0, kept_far_from_edge = 0;
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        ASSERT_FALSE(with.sees(i, 0) && !without.sees(i, 0)) << "the test only removes pairs";
+        const Particle& p = s.particles.particles[i];
+        const glm::vec3 x = p.p();
+        if (p.triangle >= kPlaneTriangles || x.z > 0.4f) continue; // floor behind the box's front face
+        if (std::abs(x.x) > 1.8f || x.z < -1.8f) continue;         // taps past the plane's border read background
+        // Where the line of sight crosses the front face's plane z = 0.5: |s| = 0.5 is the silhouette.
+        const double sx = std::abs(x.x * (5.0 - 0.5) / (5.0 - x.z));
+        if (without.sees(i, 0) && !with.sees(i, 0)) {
+            ++dropped_floor;
+            EXPECT_LT(sx - 0.5, 2.5 * pixel_at_box) << "dropped far from the silhouette at x=" << x.x << " z=" << x.z;
+        }
+        if (without.sees(i, 0) && sx - 0.5 > 3.0 * pixel_at_box && with.sees(i, 0)) ++kept_far_from_edge;
+    }
+    EXPECT_GT(dropped_floor, 5u);
+    EXPECT_GT(kept_far_from_edge, 10u);
+}
+
 TEST(Visibility, BoxShadowsTheFloor) {
     const std::vector<Camera> cams = {make_camera({0, 4, 4}, {0, 0, 0})};
     const Scene s(test::plane_with_box(), cams);
@@ -115,7 +147,11 @@ TEST(Visibility, MaskedPixelsDoNotSee) {
     std::vector<VisibilityView> views = {{above, std::vector<std::uint8_t>(256 * 256, 0)}};
     for (int y = 0; y < 256; ++y)
         for (int x = 0; x < 128; ++x) views[0].flags[std::size_t(y) * 256 + x] = kOutsideMask | kClippedR;
-    const Visibility masked = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {});
+    // The open plane's border texels read background pixels: the footprint test (tested
+    // on its own above) would drop them; this test is about the mask alone.
+    VisibilityOptions no_footprint;
+    no_footprint.footprint_test = false;
+    const Visibility masked = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}, no_footprint);
     std::size_t left = 0, right = 0;
     for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
         const auto q = above.project(glm::dvec3(s.particles.particles[i].p()));
@@ -131,11 +167,11 @@ TEST(Visibility, MaskedPixelsDoNotSee) {
     EXPECT_GT(left, 10u);
     EXPECT_GT(right, 10u);
     // Only the chosen flags reject: clipping alone does not hide a particle.
-    VisibilityOptions clipped_only;
+    VisibilityOptions clipped_only = no_footprint;
     clipped_only.reject_flags = kClippedR;
     for (auto& f : views[0].flags) f &= kClippedR;
     const Visibility by_clip = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}, clipped_only);
-    VisibilityOptions mask_only;
+    VisibilityOptions mask_only = no_footprint;
     const Visibility by_mask = compute_visibility(s.particles.particles, s.mesh, s.rays, views, {}, mask_only);
     EXPECT_EQ(by_clip.seen, masked.seen);
     EXPECT_EQ(by_mask.stats.seen_by_no_view, 0u);
