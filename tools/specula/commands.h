@@ -9,5 +9,6 @@ void add_validate_command(CLI::App& app); // cmd_validate.cpp
 void add_synth_command(CLI::App& app);    // cmd_synth.cpp
 void add_devices_command(CLI::App& app);  // cmd_devices.cpp
 void add_reconstruct_command(CLI::App& app); // cmd_reconstruct.cpp
+void add_bench_command(CLI::App& app);    // cmd_bench.cpp
 
 } // namespace specula::cli

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
     specula::cli::add_validate_command(app);
     specula::cli::add_synth_command(app);
     specula::cli::add_devices_command(app);
+    specula::cli::add_bench_command(app);
     try {
         app.parse(argc, argv);
         return 0;

@@ -1,0 +1,82 @@
+// Default resolutions from the lobe's width.
+//
+// Width of the lobe. Near its peak a Lafortune lobe behaves like cos^N of the angle theta
+// between v and the (off-)specular direction, and cos^N theta ~ exp(-N theta^2 / 2), which
+// falls to 1/e at the angular half-width w = sqrt(2 / N). (Along h the peak is narrower,
+// about w/2 in the plane of incidence, since turning h by a turns v by 2a; the rule below
+// with k = 2 cells per w thus puts about one cell per half-width of G's peak. The sweep,
+// tests/factorization/factorization_sweep.cpp, shows the error of the thesis's lobes is at
+// its separability floor from R = 16 on, so the rule is not made finer.)
+//
+// Cell size of the hemispherical octahedral grid (shared/gshd.h) at the pole, where a
+// specular G peaks: a step of 2/R in e.x moves p by (1/R, 1/R), i.e. sqrt(2)/R radians.
+// k cells per half-width: sqrt(2)/R = w / k  =>  R = k sqrt(2) / w = k sqrt(N).
+//
+// Along d the lobe varies with u.h only (at h = n: f = ((Cx + Cz) dz^2 - Cx)^N), whose
+// logarithmic rate in dz^2 is about N |Cx + Cz| / max(|Cx|, |Cz|) =: N_d: a mirror-like
+// lobe (Cx = -Cz) is flat along d, an off-specular one (|Cx| != |Cz|) is not. The same
+// rule with N_d gives R_d.
+//
+// Cube faces: a texel at a face centre spans (pi/2)/R_cube radians; matching a grid cell
+// (sqrt(2)/R) gives R_cube = R pi / (2 sqrt 2) ~ 1.11 R.
+#include "factorization/resolution.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace specula::factorization {
+
+namespace {
+
+double sane_exponent(float n) { return std::isfinite(n) && n > 1.0f ? static_cast<double>(n) : 1.0; }
+
+uint32_t res_for(double exponent, uint32_t lo, uint32_t hi) {
+    const double r = std::ceil(kCellsPerHalfWidth * std::sqrt(std::max(exponent, 1.0)));
+    return static_cast<uint32_t>(std::clamp(r, static_cast<double>(lo), static_cast<double>(hi)));
+}
+
+} // namespace
+
+uint32_t cube_res_for_grid(uint32_t grid_res) {
+    const double pi = 3.14159265358979323846;
+    const auto r = static_cast<uint32_t>(std::ceil(grid_res * pi / (2.0 * std::sqrt(2.0))));
+    return std::max<uint32_t>(8, (r + 7u) / 8u * 8u);
+}
+
+FactorizationResolution default_resolution(const LafortuneRgb& lobe) {
+    double n_max = 1.0;
+    double n_d = 1.0;
+    for (int c = 0; c < 3; ++c) {
+        const double n = sane_exponent(lobe.n[c]);
+        n_max = std::max(n_max, n);
+        const double ax = std::abs(static_cast<double>(lobe.cx[c]));
+        const double az = std::abs(static_cast<double>(lobe.cz[c]));
+        const double big = std::max(ax, az);
+        if (big > 0.0 && std::isfinite(big))
+            n_d = std::max(n_d, n * std::abs(static_cast<double>(lobe.cx[c]) + lobe.cz[c]) / big);
+    }
+    FactorizationResolution r;
+    r.grid_h = res_for(n_max, kMinGridRes, kMaxGridResH);
+    r.grid_d = res_for(n_d, kMinGridRes, kMaxGridResD);
+    bool limited = false;
+    while (r.grid_h * r.grid_d > kMaxGridProduct) {
+        limited = true;
+        if (r.grid_d > kMinGridRes) --r.grid_d; else --r.grid_h;
+    }
+    r.cube_g = cube_res_for_grid(r.grid_h);
+    r.cube_h = cube_res_for_grid(r.grid_d);
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "lobe half-width sqrt(2/N) = %.3f rad (N = %.4g) -> h grid %u (%.0f cells per half-width, clamped "
+                  "[%u, %u]); variation along d N|Cx+Cz|/max|C| = %.3g -> d grid %u (clamped [%u, %u])%s; cube faces "
+                  "%u (G) and %u (H): texel <= grid cell",
+                  std::sqrt(2.0 / n_max), n_max, r.grid_h, kCellsPerHalfWidth, kMinGridRes, kMaxGridResH, n_d, r.grid_d,
+                  kMinGridRes, kMaxGridResD,
+                  limited ? "; reduced so that F (3 R_h^2 R_d^2 floats) fits one 128 MiB storage binding" : "",
+                  r.cube_g, r.cube_h);
+    r.reason = buf;
+    return r;
+}
+
+} // namespace specula::factorization

@@ -1,0 +1,38 @@
+#pragma once
+// Default grid and cube-map resolutions of the factorization, chosen from the lobe's
+// width (pipeline.md section 9: "a factorization grid no finer than the lobe's width needs").
+//
+// The rule (derivation in resolution.cpp):
+//   h grid:  R_h = ceil(kCellsPerHalfWidth * sqrt(N_max)),   clamped to [16, 128]
+//   d grid:  R_d = ceil(kCellsPerHalfWidth * sqrt(N_d)),     clamped to [16, 64],
+//            N_d = max over channels of N |Cx + Cz| / max(|Cx|, |Cz|)
+//   and R_h R_d <= kMaxGridProduct (F must fit one storage binding: 3 R_h^2 R_d^2 floats);
+//   cube faces: R_cube = ceil(R * pi / (2 sqrt 2)) rounded up to a multiple of 8.
+#include "factorization/lobe.h"
+
+#include <cstdint>
+#include <string>
+
+namespace specula::factorization {
+
+struct FactorizationResolution {
+    uint32_t grid_h = 0; ///< h grid is grid_h x grid_h cells (hemispherical octahedral map)
+    uint32_t grid_d = 0; ///< d grid is grid_d x grid_d cells
+    uint32_t cube_g = 0; ///< face size of the G cube-map
+    uint32_t cube_h = 0; ///< face size of the H cube-map
+    std::string reason;  ///< how the numbers were chosen, for the report
+};
+
+inline constexpr double kCellsPerHalfWidth = 2.0;
+inline constexpr uint32_t kMinGridRes = 16;
+inline constexpr uint32_t kMaxGridResH = 128;
+inline constexpr uint32_t kMaxGridResD = 64;
+inline constexpr uint32_t kMaxGridProduct = 3072; // 3 (R_h R_d)^2 floats <= 108 MiB
+
+/// The default rule above. Non-finite or non-positive exponents count as N = 1.
+[[nodiscard]] FactorizationResolution default_resolution(const LafortuneRgb& lobe);
+
+/// Cube-map face size that resolves a grid of resolution `grid_res` (texel no larger than a cell).
+[[nodiscard]] uint32_t cube_res_for_grid(uint32_t grid_res);
+
+} // namespace specula::factorization

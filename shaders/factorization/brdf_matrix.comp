@@ -1,0 +1,41 @@
+#version 450
+// brdf_matrix: one invocation per entry F[h, d] of the sampled lobe (thesis appendix A,
+// step 1; math: shared/gshd.h). Rows are the cells of the h grid (res_h x res_h),
+// columns the cells of the d grid (res_d x res_d); element e = row * cols + col.
+// Output is channel-planar: f[c * rows * cols + e]. Entries whose (u, v) leaves the upper
+// hemisphere are kGshdInvalid; values are flushed below kGshdMinValue and clamped at
+// kGshdMaxValue. Reference: engine/factorization/brdf_matrix_cpu.cpp.
+#extension GL_GOOGLE_include_directive : require
+#include "shared/dispatch.h"
+#include "shared/gshd.h"
+#include "shared/lafortune.h"
+
+layout(local_size_x_id = 0) in;
+
+layout(std430, set = 0, binding = 0) writeonly buffer Matrix { float f[]; };
+
+layout(push_constant) uniform Push {
+    SPECULA_DISPATCH_HEADER
+    uint res_h;
+    uint res_d;
+    vec4 cx; // rgb in xyz
+    vec4 cz;
+    vec4 n;
+} pc;
+
+void main() {
+    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.element_count) return;
+    uint cols = pc.res_d * pc.res_d;
+    uint row = e / cols;
+    uint col = e - row * cols;
+    GshdPair p = gshd_to_uv(gshd_grid_dir(row, pc.res_h), gshd_grid_dir(col, pc.res_d));
+    vec3 value = vec3(kGshdInvalid);
+    if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos) {
+        value = gshd_clamp_value(lafortune_eval_rgb(pc.cx.xyz, pc.cz.xyz, pc.n.xyz, p.u, p.v));
+    }
+    uint plane = pc.element_count;
+    f[e] = value.x;
+    f[plane + e] = value.y;
+    f[2u * plane + e] = value.z;
+}

@@ -1,0 +1,134 @@
+// Factorization sweep (not a test): approximation error and time against grid and
+// cube-map resolution for the thesis's four lobes (table 5.2) and a near-mirror lobe.
+//   factorization_sweep [--quick] [--pairs N]
+// Errors: "matrix" = relative RMS of G H against F over the valid entries; "direct" =
+// relative RMS of G(h) H(d) against the lobe for uniformly random (u, v) pairs, with G and H
+// interpolated from the grids ("grid") or from the cube-maps ("cube"). Times: the CPU
+// reference (wall), the Vulkan path (wall, including upload/readback) and the sum of its
+// dispatches' GPU timestamps. Run with SPECULA_VALIDATION=0 for meaningful Vulkan times.
+#include "factorization/factorization.h"
+#include "vulkan_env.h"
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+using namespace specula;
+using namespace specula::factorization;
+
+namespace {
+
+struct NamedLobe {
+    const char* name;
+    LafortuneRgb lobe;
+};
+
+LafortuneRgb gray(float cx, float cz, float n) { return {glm::vec3(cx), glm::vec3(cz), glm::vec3(n)}; }
+
+std::string ms(std::optional<double> ns) {
+    if (!ns) return "n/a";
+    char b[32];
+    std::snprintf(b, sizeof b, "%.2f", *ns * 1e-6);
+    return b;
+}
+
+} // namespace
+
+int main(int argc, char** argv) try {
+    bool quick = false;
+    uint32_t pairs = 1u << 20;
+    for (int i = 1; i < argc; ++i) {
+        if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+        else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
+    }
+    const std::vector<NamedLobe> lobes = {
+        {"pepsi", gray(-0.8962f, 0.7587f, 10.11f)},
+        {"cologne", gray(-0.8874f, 1.1162f, 18.09f)},
+        {"vase", gray(-1.2127f, 0.5653f, 20.36f)},
+        {"woodenpot", gray(-1.4299f, -0.7763f, 9.74f)},
+        {"mirror", gray(-1.0f, 1.0f, 1000.0f)},
+    };
+    gpu::Context* ctx = test::vulkan_context();
+    std::optional<FactorizeVk> vk;
+    if (ctx) {
+        vk.emplace(*ctx);
+        std::printf("Vulkan device: %s (validation %s)\n", ctx->info().name.c_str(), ctx->validation_enabled() ? "on" : "off");
+    } else {
+        std::printf("no Vulkan device: %s\n", test::vulkan_unavailable_reason().c_str());
+    }
+    std::printf("direct error over %u random (u, v) pairs\n\n", pairs);
+
+    const std::vector<uint32_t> grids = quick ? std::vector<uint32_t>{8, 16, 32} : std::vector<uint32_t>{8, 16, 24, 32, 48};
+    std::printf("## Error and time against grid resolution (R_h = R_d = R, cube faces from the rule), p = 2\n\n");
+    std::printf("| lobe | R | cube | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan gpu ms |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|\n");
+    for (const auto& l : lobes) {
+        for (uint32_t r : grids) {
+            const FactorizationOptions o{.grid_h = r, .grid_d = r, .keep_matrix = true};
+            const Factorization c = factorize_cpu(l.lobe, o);
+            const double em = matrix_relative_rms(*c.matrix, c.decomposition);
+            const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+            std::string vk_ms = "n/a", vk_gpu = "n/a";
+            if (vk) {
+                const Factorization g = vk->run(l.lobe, {.grid_h = r, .grid_d = r});
+                vk_ms = ms(g.timings.total_s * 1e9);
+                vk_gpu = ms(g.timings.gpu_total_ns());
+            }
+            std::printf("| %s | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, r, c.resolution.cube_g, em,
+                        ed.grid, ed.cube, c.timings.total_s * 1e3, vk_ms.c_str(), vk_gpu.c_str());
+            std::fflush(stdout);
+        }
+    }
+
+    const uint32_t fixed = 32;
+    const std::vector<uint32_t> cubes = quick ? std::vector<uint32_t>{8, 32, 128} : std::vector<uint32_t>{8, 16, 32, 64, 128};
+    std::printf("\n## Direct error against cube-map resolution (grid R = %u), p = 2\n\n", fixed);
+    std::printf("| lobe | cube | direct (grid) | direct (cube) | cpu cube ms | vulkan cube gpu ms |\n|---|---|---|---|---|---|\n");
+    for (const auto& l : lobes) {
+        for (uint32_t cr : cubes) {
+            const FactorizationOptions o{.grid_h = fixed, .grid_d = fixed, .cube_g = cr, .cube_h = cr};
+            const Factorization c = factorize_cpu(l.lobe, o);
+            const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+            std::string gpu = "n/a";
+            if (vk) {
+                const Factorization g = vk->run(l.lobe, o);
+                if (g.timings.cube_g_gpu_ns && g.timings.cube_h_gpu_ns)
+                    gpu = ms(*g.timings.cube_g_gpu_ns + *g.timings.cube_h_gpu_ns);
+            }
+            std::printf("| %s | %u | %.4f | %.4f | %.2f | %s |\n", l.name, cr, ed.grid, ed.cube, c.timings.cubemaps_s * 1e3,
+                        gpu.c_str());
+            std::fflush(stdout);
+        }
+    }
+
+    std::printf("\n## p and H weighting of the normalized decomposition (R = %u)\n\n| lobe | p | weighting | matrix rel RMS | direct (grid) |\n|---|---|---|---|---|\n", fixed);
+    for (const auto& l : lobes)
+        for (auto w : {DecompositionWeighting::Uniform, DecompositionWeighting::Energy})
+            for (float p : {1.0f, 2.0f, 4.0f}) {
+                const Factorization c =
+                    factorize_cpu(l.lobe, {.grid_h = fixed, .grid_d = fixed, .p = p, .weighting = w, .keep_matrix = true});
+                const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, nullptr, nullptr, pairs);
+                std::printf("| %s | %g | %s | %.4f | %.4f |\n", l.name, p, to_string(w),
+                            matrix_relative_rms(*c.matrix, c.decomposition), ed.grid);
+                std::fflush(stdout);
+            }
+
+    std::printf("\n## Default resolution rule\n\n| lobe | R_h | R_d | cube G | cube H | matrix | direct (grid) | direct (cube) | cpu ms | vulkan gpu ms |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    for (const auto& l : lobes) {
+        const Factorization c = factorize_cpu(l.lobe, {.keep_matrix = true});
+        const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+        std::string gpu = "n/a";
+        if (vk) gpu = ms(vk->run(l.lobe, {}).timings.gpu_total_ns());
+        const auto& r = c.resolution;
+        std::printf("| %s | %u | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s |\n", l.name, r.grid_h, r.grid_d, r.cube_g,
+                    r.cube_h, matrix_relative_rms(*c.matrix, c.decomposition), ed.grid, ed.cube, c.timings.total_s * 1e3,
+                    gpu.c_str());
+    }
+    for (const auto& l : lobes) std::printf("\n%s: %s", l.name, default_resolution(l.lobe).reason.c_str());
+    std::printf("\n");
+    return 0;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+}

@@ -1,0 +1,111 @@
+// brdf_matrix: CPU reference (double) vs Vulkan (float) conformance.
+//
+// Tolerance, per entry, from a float error analysis of the shader's steps:
+// - the GSHD directions (decode, normalize, Gram-Schmidt, cross, u = .., v = 2 (u.h) h - u)
+//   carry an error of a few tens of eps32 per component, so the lobe's base
+//   b = Cx (ux vx + uy vy) + Cz uz vz is off by at most
+//       db = kSafety * 32 eps32 (|Cx| + |Cz|);
+// - Vulkan's pow(b, N) is exp2(N log2 b) with log2's absolute error 2^-21 (b in [0.5, 2],
+//   else 3 ulp) and exp2's (3 + 2|x|) ulp, i.e. a relative error of at most
+//       r = kSafety ((N (2^-21 + 3 eps32 |log2 b|)) ln 2 + (4 + 3 N |log2 b|) eps32).
+// So F_vk must lie in [flush((b - db)^N (1 - r)), flush((b + db)^N (1 + r))] (flush: the
+// kGshdMinValue / kGshdMaxValue clamping, monotone). A near-mirror lobe (N = 1000) is
+// allowed ~1% at its peak: the float base's own rounding, amplified N times, not slack.
+// Validity (u.z, v.z > kGshdMinCos) may differ only within 1e-6 of the threshold.
+#include "factorization/brdf_matrix.h"
+#include "vulkan_env.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace specula::factorization {
+namespace {
+
+constexpr double kEps32 = 5.96e-8;
+constexpr double kSafety = 4.0;
+
+double flush(double x) {
+    if (x < shared::kGshdMinValue) return 0.0;
+    return std::min(x, static_cast<double>(shared::kGshdMaxValue));
+}
+
+struct Case {
+    const char* name;
+    LafortuneRgb lobe;
+    uint32_t res_h;
+    uint32_t res_d;
+};
+
+LafortuneRgb gray(float cx, float cz, float n) { return {glm::vec3(cx), glm::vec3(cz), glm::vec3(n)}; }
+
+class BrdfMatrixConformance : public test::VulkanTest, public ::testing::WithParamInterface<Case> {};
+
+TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
+    const Case& c = GetParam();
+    const BrdfMatrixInputs in{.lobe = c.lobe, .res_h = c.res_h, .res_d = c.res_d};
+    const BrdfMatrix ref = brdf_matrix_cpu(in);
+    BrdfMatrixVk kernel(ctx());
+    const BrdfMatrix vk = kernel.run(in);
+    ASSERT_EQ(vk.values.size(), ref.values.size());
+    const std::size_t rows = ref.rows(), cols = ref.cols();
+    std::size_t flips = 0, bad = 0, valid = 0;
+    double worst_rel = 0.0;
+    for (std::size_t row = 0; row < rows; ++row) {
+        const glm::dvec3 h = shared::f64::gshd_grid_dir(static_cast<uint32_t>(row), c.res_h);
+        for (std::size_t col = 0; col < cols; ++col) {
+            const glm::dvec3 d = shared::f64::gshd_grid_dir(static_cast<uint32_t>(col), c.res_d);
+            const auto p = shared::f64::gshd_to_uv(h, d);
+            for (uint32_t ch = 0; ch < 3; ++ch) {
+                const float fr = ref.at(ch, row, col);
+                const float fv = vk.at(ch, row, col);
+                ASSERT_TRUE(std::isfinite(fv));
+                if ((fr < 0.0f) != (fv < 0.0f)) {
+                    ++flips;
+                    const double m = shared::kGshdMinCos;
+                    EXPECT_LT(std::min(std::abs(p.u.z - m), std::abs(p.v.z - m)), 1e-6)
+                        << "validity differs away from the horizon threshold";
+                    continue;
+                }
+                if (fr < 0.0f) {
+                    EXPECT_EQ(fv, shared::kGshdInvalid);
+                    continue;
+                }
+                ++valid;
+                const double cx = c.lobe.cx[static_cast<int>(ch)], cz = c.lobe.cz[static_cast<int>(ch)];
+                const double n = c.lobe.n[static_cast<int>(ch)];
+                const double b = cx * (p.u.x * p.v.x + p.u.y * p.v.y) + cz * p.u.z * p.v.z;
+                const double db = kSafety * 32.0 * kEps32 * (std::abs(cx) + std::abs(cz));
+                const double lb = b > 0.0 ? std::abs(std::log2(b)) : 0.0;
+                const double r = kSafety * (n * (std::ldexp(1.0, -21) + 3.0 * kEps32 * lb) * std::log(2.0) +
+                                            (4.0 + 3.0 * n * lb) * kEps32);
+                const double lo = flush(std::pow(std::max(b - db, 0.0), n) * (1.0 - r));
+                const double hi = flush(std::pow(std::max(b + db, 0.0), n) * (1.0 + r));
+                if (fv < lo || fv > hi) {
+                    if (++bad < 10)
+                        ADD_FAILURE() << c.name << " F[" << ch << "][" << row << "][" << col << "] vk " << fv << " ref "
+                                      << fr << " allowed [" << lo << ", " << hi << "]";
+                }
+                if (fr > 0.0f) worst_rel = std::max(worst_rel, std::abs(static_cast<double>(fv) - fr) / fr);
+            }
+        }
+    }
+    EXPECT_EQ(bad, 0u);
+    EXPECT_LE(flips, rows * cols / 1000 + 3);
+    EXPECT_GT(valid, rows * cols);
+    std::printf("[ %s ] valid %zu, validity flips %zu, worst relative difference %.3g\n", c.name, valid, flips,
+                worst_rel);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Lobes, BrdfMatrixConformance,
+    ::testing::Values(Case{"pepsi", gray(-0.8962f, 0.7587f, 10.11f), 16, 12},
+                      Case{"woodenpot_cz_negative", gray(-1.4299f, -0.7763f, 9.74f), 12, 16},
+                      Case{"mirror_n1000_odd_grid", gray(-1.0f, 1.0f, 1000.0f), 17, 9},
+                      Case{"rgb_mixed", LafortuneRgb{{-0.9f, -1.2f, -1.0f}, {0.8f, 0.5f, 1.0f}, {5.0f, 20.0f, 100.0f}}, 10, 10},
+                      Case{"overflowing_height", gray(-1.5f, 1.5f, 10000.0f), 8, 8}),
+    [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
+
+} // namespace
+} // namespace specula::factorization
