@@ -236,6 +236,12 @@ Sequence& Sequence::fill(const Buffer& dst, uint32_t value, VkDeviceSize offset,
     return *this;
 }
 
+Sequence& Sequence::record(const std::function<void(VkCommandBuffer)>& commands) {
+    require_recording("record");
+    commands(m_cmd);
+    return *this;
+}
+
 void Sequence::write_timestamp(uint32_t query) {
     vkCmdWriteTimestamp(m_cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, m_queries.get(), query);
 }

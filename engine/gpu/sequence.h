@@ -84,6 +84,11 @@ public:
     /// Fills `bytes` (multiple of 4, or VK_WHOLE_SIZE) with a 32-bit pattern.
     Sequence& fill(const Buffer& dst, uint32_t value, VkDeviceSize offset = 0, VkDeviceSize bytes = VK_WHOLE_SIZE);
 
+    /// Records raw commands into the sequence's command buffer: graphics passes, image
+    /// copies and their barriers (render_target.h). The callback records every barrier
+    /// it needs and leaves no render pass open. Spans (time_begin/end) may surround it.
+    Sequence& record(const std::function<void(VkCommandBuffer)>& commands);
+
     /// Labelled GPU timing span (not nested). Timestamps are written at the bottom of
     /// the pipe, after all earlier commands complete, so a span measures its own work.
     Sequence& time_begin(std::string label);

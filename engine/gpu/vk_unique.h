@@ -80,6 +80,12 @@ using UniqueDescriptorPool = VkUnique<VkDescriptorPool, vkDestroyDescriptorPool>
 using UniqueCommandPool = VkUnique<VkCommandPool, vkDestroyCommandPool>;
 using UniqueFence = VkUnique<VkFence, vkDestroyFence>;
 using UniqueQueryPool = VkUnique<VkQueryPool, vkDestroyQueryPool>;
+// Graphics (image.h, graphics_pipeline.h, render_target.h).
+using UniqueImage = VkUnique<VkImage, vkDestroyImage>;
+using UniqueImageView = VkUnique<VkImageView, vkDestroyImageView>;
+using UniqueSampler = VkUnique<VkSampler, vkDestroySampler>;
+using UniqueRenderPass = VkUnique<VkRenderPass, vkDestroyRenderPass>;
+using UniqueFramebuffer = VkUnique<VkFramebuffer, vkDestroyFramebuffer>;
 
 /// Owner of a VkDebugUtilsMessengerEXT (an extension object: destroyed through
 /// the instance's function pointer, so it is not a VkUnique).

@@ -1,0 +1,196 @@
+#include "gpu/graphics_pipeline.h"
+
+#include <algorithm>
+#include <array>
+
+namespace specula::gpu {
+
+namespace {
+
+UniqueShaderModule make_module(VkDevice dev, std::span<const uint32_t> spirv, const std::string& what) {
+    if (spirv.empty() || spirv[0] != 0x07230203u)
+        throw Error(what + ": the SPIR-V code is empty or lacks the SPIR-V magic number");
+    const VkShaderModuleCreateInfo info{.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
+                                        .codeSize = spirv.size_bytes(),
+                                        .pCode = spirv.data()};
+    VkShaderModule module = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateShaderModule(dev, &info, nullptr, &module), what);
+    return UniqueShaderModule(dev, module);
+}
+
+constexpr VkShaderStageFlags kPushStages = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+
+} // namespace
+
+GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& desc)
+    : m_name(desc.name), m_bindings(desc.bindings), m_push_constant_bytes(desc.push_constant_bytes) {
+    const VkDevice dev = ctx.device();
+    const std::string what = "graphics pipeline '" + m_name + "'";
+    if (desc.render_pass == VK_NULL_HANDLE) throw Error(what + ": no render pass given");
+    const uint32_t push_limit = std::min<uint32_t>(128u, ctx.limits().maxPushConstantsSize);
+    if (desc.push_constant_bytes > push_limit || desc.push_constant_bytes % 4 != 0)
+        throw LimitError(what + ": " + std::to_string(desc.push_constant_bytes) +
+                         " push-constant bytes (must be a multiple of 4 and at most " + std::to_string(push_limit) + ")");
+
+    std::vector<VkDescriptorSetLayoutBinding> bindings;
+    for (uint32_t i = 0; i < desc.bindings.size(); ++i)
+        bindings.push_back({.binding = i,
+                            .descriptorType = desc.bindings[i].type,
+                            .descriptorCount = 1,
+                            .stageFlags = desc.bindings[i].stages});
+    const VkDescriptorSetLayoutCreateInfo set_info{.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
+                                                   .bindingCount = static_cast<uint32_t>(bindings.size()),
+                                                   .pBindings = bindings.data()};
+    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateDescriptorSetLayout(dev, &set_info, nullptr, &set_layout), what + ": set layout");
+    m_set_layout = UniqueDescriptorSetLayout(dev, set_layout);
+
+    const VkPushConstantRange range{.stageFlags = kPushStages, .offset = 0, .size = desc.push_constant_bytes};
+    const VkPipelineLayoutCreateInfo layout_info{.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
+                                                 .setLayoutCount = 1,
+                                                 .pSetLayouts = &set_layout,
+                                                 .pushConstantRangeCount = desc.push_constant_bytes > 0 ? 1u : 0u,
+                                                 .pPushConstantRanges = &range};
+    VkPipelineLayout layout = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreatePipelineLayout(dev, &layout_info, nullptr, &layout), what + ": pipeline layout");
+    m_layout = UniquePipelineLayout(dev, layout);
+
+    // The modules are only needed until the pipeline exists.
+    const UniqueShaderModule vert = make_module(dev, desc.vertex_spirv, what + ": vertex shader module");
+    const UniqueShaderModule frag = make_module(dev, desc.fragment_spirv, what + ": fragment shader module");
+    const std::array stages{
+        VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+                                        .stage = VK_SHADER_STAGE_VERTEX_BIT,
+                                        .module = vert.get(),
+                                        .pName = "main"},
+        VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+                                        .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
+                                        .module = frag.get(),
+                                        .pName = "main"}};
+
+    const VkPipelineVertexInputStateCreateInfo vertex_input{
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO}; // vertex pulling: none
+    const VkPipelineInputAssemblyStateCreateInfo assembly{
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
+        .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
+    const VkPipelineViewportStateCreateInfo viewport{.sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
+                                                     .viewportCount = 1,
+                                                     .scissorCount = 1};
+    const VkPipelineRasterizationStateCreateInfo raster{
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
+        .depthClampEnable = VK_FALSE,
+        .rasterizerDiscardEnable = VK_FALSE,
+        .polygonMode = VK_POLYGON_MODE_FILL,
+        .cullMode = desc.cull_mode,
+        .frontFace = desc.front_face,
+        .depthBiasEnable = VK_FALSE,
+        .lineWidth = 1.0f};
+    const VkPipelineMultisampleStateCreateInfo multisample{
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
+        .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
+    const VkPipelineDepthStencilStateCreateInfo depth{
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
+        .depthTestEnable = desc.depth_test ? VK_TRUE : VK_FALSE,
+        .depthWriteEnable = desc.depth_write ? VK_TRUE : VK_FALSE,
+        .depthCompareOp = desc.depth_compare,
+        .depthBoundsTestEnable = VK_FALSE,
+        .stencilTestEnable = VK_FALSE,
+        .minDepthBounds = 0.0f,
+        .maxDepthBounds = 1.0f};
+    const VkColorComponentFlags rgba = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                                       VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    VkPipelineColorBlendAttachmentState attachment{.blendEnable = VK_FALSE, .colorWriteMask = rgba};
+    if (desc.blend == BlendMode::Additive)
+        attachment = {.blendEnable = VK_TRUE,
+                      .srcColorBlendFactor = VK_BLEND_FACTOR_ONE,
+                      .dstColorBlendFactor = VK_BLEND_FACTOR_ONE,
+                      .colorBlendOp = VK_BLEND_OP_ADD,
+                      .srcAlphaBlendFactor = VK_BLEND_FACTOR_ZERO,
+                      .dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
+                      .alphaBlendOp = VK_BLEND_OP_ADD,
+                      .colorWriteMask = rgba};
+    const VkPipelineColorBlendStateCreateInfo blend{.sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
+                                                    .logicOpEnable = VK_FALSE,
+                                                    .attachmentCount = 1,
+                                                    .pAttachments = &attachment};
+    const std::array dynamic_states{VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+    const VkPipelineDynamicStateCreateInfo dynamic{.sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
+                                                   .dynamicStateCount = static_cast<uint32_t>(dynamic_states.size()),
+                                                   .pDynamicStates = dynamic_states.data()};
+    const VkGraphicsPipelineCreateInfo info{.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
+                                            .stageCount = static_cast<uint32_t>(stages.size()),
+                                            .pStages = stages.data(),
+                                            .pVertexInputState = &vertex_input,
+                                            .pInputAssemblyState = &assembly,
+                                            .pViewportState = &viewport,
+                                            .pRasterizationState = &raster,
+                                            .pMultisampleState = &multisample,
+                                            .pDepthStencilState = &depth,
+                                            .pColorBlendState = &blend,
+                                            .pDynamicState = &dynamic,
+                                            .layout = layout,
+                                            .renderPass = desc.render_pass,
+                                            .subpass = 0};
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline), what);
+    m_pipeline = UniquePipeline(dev, pipeline);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+DescriptorSet::DescriptorSet(Context& ctx, const GraphicsPipeline& pipeline)
+    : m_ctx(&ctx), m_name(pipeline.name()), m_bindings(pipeline.bindings()) {
+    const VkDevice dev = ctx.device();
+    uint32_t buffers = 0, images = 0;
+    for (const DescriptorBinding& b : m_bindings) (b.type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER ? buffers : images) += 1;
+    std::vector<VkDescriptorPoolSize> sizes;
+    if (buffers > 0) sizes.push_back({VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffers});
+    if (images > 0) sizes.push_back({VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, images});
+    const VkDescriptorPoolCreateInfo pool_info{.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
+                                               .maxSets = 1,
+                                               .poolSizeCount = static_cast<uint32_t>(sizes.size()),
+                                               .pPoolSizes = sizes.data()};
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateDescriptorPool(dev, &pool_info, nullptr, &pool), "descriptor pool of '" + m_name + "'");
+    m_pool = UniqueDescriptorPool(dev, pool);
+    const VkDescriptorSetLayout layout = pipeline.set_layout();
+    const VkDescriptorSetAllocateInfo alloc{.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
+                                            .descriptorPool = pool,
+                                            .descriptorSetCount = 1,
+                                            .pSetLayouts = &layout};
+    SPECULA_VK_CHECK(vkAllocateDescriptorSets(dev, &alloc, &m_set), "descriptor set of '" + m_name + "'");
+}
+
+void DescriptorSet::check_binding(uint32_t binding, VkDescriptorType type) const {
+    if (binding >= m_bindings.size() || m_bindings[binding].type != type)
+        throw Error("descriptor set of '" + m_name + "': binding " + std::to_string(binding) +
+                    " does not exist or has another type");
+}
+
+void DescriptorSet::write_buffer(uint32_t binding, const Buffer& buffer) {
+    check_binding(binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+    const VkDescriptorBufferInfo info{.buffer = buffer.handle(), .offset = 0, .range = VK_WHOLE_SIZE};
+    const VkWriteDescriptorSet write{.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+                                     .dstSet = m_set,
+                                     .dstBinding = binding,
+                                     .descriptorCount = 1,
+                                     .descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                     .pBufferInfo = &info};
+    vkUpdateDescriptorSets(m_ctx->device(), 1, &write, 0, nullptr);
+}
+
+void DescriptorSet::write_image(uint32_t binding, const Image& image, VkSampler sampler) {
+    check_binding(binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER);
+    const VkDescriptorImageInfo info{.sampler = sampler,
+                                     .imageView = image.view(),
+                                     .imageLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    const VkWriteDescriptorSet write{.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+                                     .dstSet = m_set,
+                                     .dstBinding = binding,
+                                     .descriptorCount = 1,
+                                     .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                                     .pImageInfo = &info};
+    vkUpdateDescriptorSets(m_ctx->device(), 1, &write, 0, nullptr);
+}
+
+} // namespace specula::gpu

@@ -1,0 +1,65 @@
+#pragma once
+// An offscreen colour + depth target for raster passes, with two compatible
+// render passes and the host readback of the colour:
+//
+//   begin(cmd, Load::Clear) ... draws ... end(cmd)    first pass: clears colour and depth
+//   begin(cmd, Load::Keep)  ... draws ... end(cmd)    later passes: test against the depth,
+//                                                     blend onto the colour
+//   record_readback(cmd)                              colour -> host buffer (barriers included)
+//   ... submit and wait ...
+//   read_color()                                      RGBA per pixel, row 0 at the top
+//
+// Depth is reversed-Z (clears to 0, nearer fragments have larger depth): with a
+// float depth buffer it keeps precision at every distance.
+//
+// Synchronization: the render passes' external dependencies order each pass after
+// the previous one's attachment writes and after the previous frame's readback;
+// record_readback moves the colour to TRANSFER_SRC, copies it, and makes the copy
+// visible to the host. Nothing else may use the images between frames.
+#include "gpu/image.h"
+
+#include <glm/glm.hpp>
+
+#include <string>
+#include <vector>
+
+namespace specula::gpu {
+
+class RenderTarget {
+public:
+    enum class Load { Clear, Keep };
+
+    /// Formats: choose_color_target_format / choose_depth_format.
+    RenderTarget(Context& ctx, uint32_t width, uint32_t height, std::string name);
+    RenderTarget(RenderTarget&&) noexcept = default;
+    RenderTarget& operator=(RenderTarget&&) noexcept = default;
+    RenderTarget(const RenderTarget&) = delete;
+    RenderTarget& operator=(const RenderTarget&) = delete;
+
+    /// Build pipelines against this (both passes are compatible with it).
+    [[nodiscard]] VkRenderPass render_pass() const noexcept { return m_clear_pass.get(); }
+    [[nodiscard]] uint32_t width() const noexcept { return m_color.width(); }
+    [[nodiscard]] uint32_t height() const noexcept { return m_color.height(); }
+    [[nodiscard]] const Image& color() const noexcept { return m_color; }
+    [[nodiscard]] const Image& depth() const noexcept { return m_depth; }
+
+    /// Begins a render pass over the whole target and sets the viewport and scissor
+    /// (viewport depth range [0, 1]). Clear: colour to `clear_color`, depth to 0.
+    void begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_color = glm::vec4(0.0f)) const;
+    void end(VkCommandBuffer cmd) const;
+    /// After the last pass of a frame: colour -> TRANSFER_SRC -> host buffer -> host.
+    void record_readback(VkCommandBuffer cmd) const;
+    /// The colour copied by the last submitted record_readback (call after the wait).
+    [[nodiscard]] std::vector<glm::vec4> read_color() const;
+
+private:
+    Image m_color;
+    Image m_depth;
+    UniqueRenderPass m_clear_pass;
+    UniqueRenderPass m_keep_pass;
+    UniqueFramebuffer m_clear_framebuffer;
+    UniqueFramebuffer m_keep_framebuffer;
+    HostBuffer m_readback;
+};
+
+} // namespace specula::gpu

@@ -1,0 +1,323 @@
+#include "render/renderer.h"
+
+#include "core/error.h"
+#include "core/timer.h"
+#include "render/projection.h"
+
+#include "render/diffuse.frag.h"
+#include "render/raster.vert.h"
+#include "render/specular_analytic.frag.h"
+#include "render/specular_factorized.frag.h"
+
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <tuple>
+
+namespace specula::render {
+
+namespace {
+
+// Set 0 of every raster pipeline: the per-frame parameters, the vertices, then the
+// textures the pass samples (shaders/render/*.{vert,frag}).
+constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingCubeG = 3, kBindingCubeH = 4;
+
+std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count) {
+    const gpu::DescriptorBinding params{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT};
+    const gpu::DescriptorBinding vertices{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT};
+    const gpu::DescriptorBinding texture{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_SHADER_STAGE_FRAGMENT_BIT};
+    std::vector<gpu::DescriptorBinding> all{params, vertices, texture, texture, texture};
+    all.resize(count);
+    return all;
+}
+
+double to_ms(const std::optional<double>& ns) { return *ns * 1e-6; }
+
+gpu::Image upload_cube(gpu::Context& ctx, const CubeMapRgb& cube, const char* name) {
+    const std::size_t texels = std::size_t{6} * cube.resolution * cube.resolution;
+    if (cube.resolution == 0 || cube.rgb.size() != texels * 3)
+        throw Error(std::string("cube-map ") + name + ": expected 6 x " + std::to_string(cube.resolution) + "^2 x 3 floats, got " +
+                    std::to_string(cube.rgb.size()));
+    const VkFormat format = gpu::choose_float_texture_format(ctx);
+    gpu::Image image(ctx, {.name = name, .kind = gpu::ImageKind::CubeMap, .width = cube.resolution,
+                           .height = cube.resolution, .format = format});
+    image.upload(gpu::pack_rgba(cube.rgb, 3, texels, format));
+    return image;
+}
+
+} // namespace
+
+const char* mode_name(Mode mode) noexcept {
+    switch (mode) {
+    case Mode::Diffuse: return "diffuse";
+    case Mode::Specular: return "specular";
+    case Mode::Both: return "both";
+    }
+    return "?";
+}
+
+const char* specular_model_name(SpecularModel model) noexcept {
+    return model == SpecularModel::Analytic ? "analytic" : "factorized";
+}
+
+std::vector<shared::RenderVertex> expand_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv) {
+    if (corner_uv.size() != 3 * mesh.triangles.size())
+        throw Error("renderer: " + std::to_string(corner_uv.size()) + " corner texture coordinates for " +
+                    std::to_string(mesh.triangles.size()) + " triangles (3 per triangle expected)");
+    if (mesh.normals.size() != mesh.positions.size())
+        throw Error("renderer: the mesh needs one normal per position");
+    std::vector<shared::RenderVertex> out(3 * mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const glm::uvec3 tri = mesh.triangles[t];
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = tri[k];
+            if (v >= mesh.positions.size()) throw Error("renderer: triangle " + std::to_string(t) + " has an index out of range");
+            const glm::vec2 uv = corner_uv[3 * t + static_cast<std::size_t>(k)];
+            out[3 * t + static_cast<std::size_t>(k)] = {glm::vec4(mesh.positions[v], uv.x),
+                                                        glm::vec4(glm::normalize(mesh.normals[v]), uv.y)};
+        }
+    }
+    return out;
+}
+
+bool is_closed_outward(const Mesh& mesh) {
+    if (mesh.triangles.empty()) return false;
+    // Weld by exact position: texture seams duplicate vertices at the same place.
+    std::map<std::tuple<float, float, float>, uint32_t> ids;
+    std::vector<uint32_t> welded(mesh.positions.size());
+    for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+        const glm::vec3& p = mesh.positions[i];
+        welded[i] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
+    }
+    std::map<std::pair<uint32_t, uint32_t>, int> directed; // count of each directed edge
+    double volume6 = 0.0;
+    for (const glm::uvec3& t : mesh.triangles) {
+        const uint32_t v[3] = {welded[t.x], welded[t.y], welded[t.z]};
+        for (int k = 0; k < 3; ++k)
+            if (++directed[{v[k], v[(k + 1) % 3]}] > 1) return false;
+        volume6 += glm::dot(glm::dvec3(mesh.positions[t.x]),
+                            glm::cross(glm::dvec3(mesh.positions[t.y]), glm::dvec3(mesh.positions[t.z])));
+    }
+    for (const auto& [edge, count] : directed)
+        if (directed.find({edge.second, edge.first}) == directed.end()) return false;
+    return volume6 > 0.0;
+}
+
+struct Renderer::Impl {
+    gpu::Context* ctx;
+    Options options;
+    bool cull = false;
+    Lobe lobe;
+    Bounds bounds;
+    std::size_t triangles = 0;
+    uint32_t vertex_count = 0;
+
+    gpu::Buffer params;
+    gpu::Buffer vertices;
+    gpu::Image albedo;
+    std::optional<gpu::Image> cube_g, cube_h;
+    gpu::UniqueSampler sampler;
+
+    std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
+    gpu::GraphicsPipeline diffuse;
+    gpu::GraphicsPipeline specular_analytic;
+    gpu::GraphicsPipeline specular_factorized;
+    gpu::DescriptorSet diffuse_set;
+    gpu::DescriptorSet analytic_set;
+    gpu::DescriptorSet factorized_set; // textures written by set_factorization
+    gpu::Sequence sequence;
+
+    Impl(gpu::Context& c, const Scene& scene, const Options& opts)
+        : ctx(&c), options(opts),
+          cull(opts.culling == Culling::Always ||
+               (opts.culling == Culling::Auto && is_closed_outward(*checked_mesh(scene)))),
+          lobe(scene.lobe), bounds(mesh_bounds(*checked_mesh(scene))),
+          triangles(scene.mesh->triangles.size()),
+          params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
+          vertices(upload_vertices(c, scene)),
+          albedo(upload_albedo(c, scene)),
+          sampler(gpu::make_linear_clamp_sampler(c, "render textures")),
+          // Pipelines are built against a 1x1 target's render pass; every target has the
+          // same formats, so its passes are compatible with them.
+          target(std::make_unique<gpu::RenderTarget>(c, 1, 1, "render target")),
+          diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, 3, false)),
+          specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, 3, true)),
+          specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, 5, true)),
+          diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
+          sequence(c, 8) {
+        vertex_count = static_cast<uint32_t>(3 * triangles);
+        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set}) {
+            set->write_buffer(kBindingParams, params);
+            set->write_buffer(kBindingVertices, vertices);
+        }
+        diffuse_set.write_image(kBindingAlbedo, albedo, sampler.get());
+        analytic_set.write_image(kBindingAlbedo, albedo, sampler.get());
+        factorized_set.write_image(kBindingAlbedo, albedo, sampler.get());
+    }
+
+    static const Mesh* checked_mesh(const Scene& scene) {
+        if (scene.mesh == nullptr || scene.mesh->triangles.empty()) throw Error("renderer: the scene has no mesh");
+        return scene.mesh;
+    }
+
+    static gpu::Buffer upload_vertices(gpu::Context& c, const Scene& scene) {
+        const std::vector<shared::RenderVertex> data = expand_vertices(*scene.mesh, scene.corner_uv);
+        gpu::Buffer buffer = gpu::Buffer::of<shared::RenderVertex>(c, data.size(), "render vertices");
+        buffer.upload(data);
+        return buffer;
+    }
+
+    static gpu::Image upload_albedo(gpu::Context& c, const Scene& scene) {
+        const Image* img = scene.albedo;
+        if (img == nullptr || img->empty() || img->channels < 1 || img->channels > 4)
+            throw Error("renderer: the scene needs an albedo atlas image (linear RGB)");
+        const VkFormat format = gpu::choose_float_texture_format(c);
+        gpu::Image image(c, {.name = "albedo atlas", .kind = gpu::ImageKind::Texture2D,
+                             .width = static_cast<uint32_t>(img->width), .height = static_cast<uint32_t>(img->height),
+                             .format = format});
+        image.upload(gpu::pack_rgba(img->pixels, img->channels, static_cast<std::size_t>(img->width) * img->height, format));
+        return image;
+    }
+
+    gpu::GraphicsPipelineDesc pipeline_desc(const char* name, std::span<const uint32_t> frag, uint32_t bindings,
+                                            bool additive) const {
+        gpu::GraphicsPipelineDesc d;
+        d.name = name;
+        d.vertex_spirv = render_raster_vert;
+        d.fragment_spirv = frag;
+        d.bindings = bindings_for(bindings);
+        d.render_pass = target->render_pass();
+        d.cull_mode = cull ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE;
+        // The projection keeps the image's orientation (camera +Y up = row 0 at the top), so
+        // a triangle counter-clockwise seen from outside is counter-clockwise on screen, which
+        // is what Vulkan's VK_FRONT_FACE_COUNTER_CLOCKWISE means with y pointing down.
+        d.front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+        if (additive) {
+            // Pass 2 shades exactly the fragments pass 1 kept: same vertex shader module,
+            // `precise` position, so the depths are bit-identical and EQUAL selects them.
+            d.depth_compare = VK_COMPARE_OP_EQUAL;
+            d.depth_write = false;
+            d.blend = gpu::BlendMode::Additive;
+        } else {
+            d.depth_compare = VK_COMPARE_OP_GREATER; // reversed-Z
+        }
+        return d;
+    }
+
+    void draw(VkCommandBuffer cmd, const gpu::GraphicsPipeline& pipeline, const gpu::DescriptorSet& set,
+              gpu::RenderTarget::Load load) const {
+        target->begin(cmd, load);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.pipeline());
+        const VkDescriptorSet s = set.get();
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
+        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        target->end(cmd);
+    }
+};
+
+Renderer::Renderer(gpu::Context& ctx, const Scene& scene, const Options& options)
+    : m_impl(std::make_unique<Impl>(ctx, scene, options)) {}
+Renderer::~Renderer() = default;
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+
+void Renderer::set_lobe(const Lobe& lobe) { m_impl->lobe = lobe; }
+const Lobe& Renderer::lobe() const noexcept { return m_impl->lobe; }
+std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
+bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
+VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
+bool Renderer::has_factorization() const noexcept { return m_impl->cube_g.has_value(); }
+
+void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
+    Impl& m = *m_impl;
+    // Nothing is in flight between frames (render() waits), so the set can be rewritten.
+    m.cube_g.reset();
+    m.cube_h.reset();
+    m.cube_g.emplace(upload_cube(*m.ctx, g, "G cube-map"));
+    m.cube_h.emplace(upload_cube(*m.ctx, h, "H cube-map"));
+    m.factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
+    m.factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
+}
+
+Frame Renderer::render(const Camera& camera, const PointLight& light, const Settings& settings) {
+    const Stopwatch wall;
+    Impl& m = *m_impl;
+    const Intrinsics& k = camera.intrinsics;
+    if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
+        throw Error("renderer: the camera needs a positive image size and focal lengths");
+
+    Frame frame;
+    FrameInfo& info = frame.info;
+    info.triangles = m.triangles;
+    const bool want_diffuse = settings.mode != Mode::Specular;
+    const bool want_specular = settings.mode != Mode::Diffuse;
+    info.diffuse_pass = want_diffuse;
+    if (!want_specular) {
+        info.specular_note = "mode diffuse";
+    } else if (m.lobe.is_zero()) {
+        info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
+    } else if (settings.specular == SpecularModel::Factorized && !m.cube_g) {
+        throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
+    } else {
+        info.specular_pass = true;
+    }
+
+    if (m.target->width() != static_cast<uint32_t>(k.w) || m.target->height() != static_cast<uint32_t>(k.h))
+        m.target = std::make_unique<gpu::RenderTarget>(*m.ctx, static_cast<uint32_t>(k.w), static_cast<uint32_t>(k.h),
+                                                       "render target");
+
+    const double near = settings.near.value_or(near_plane_for(camera, m.bounds));
+    shared::RenderParams p{};
+    p.world_to_clip = glm::mat4(world_to_clip(camera, near));
+    p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
+    p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
+    p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
+    p.lobe_cx = glm::vec4(m.lobe.cx, 0.0f);
+    p.lobe_cz = glm::vec4(m.lobe.cz, 0.0f);
+    p.lobe_n = glm::vec4(m.lobe.n, 0.0f);
+    p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
+    m.params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
+
+    gpu::Sequence& seq = m.sequence;
+    seq.reset();
+    // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
+    seq.time_begin("diffuse pass")
+        .record([&](VkCommandBuffer cmd) { m.draw(cmd, m.diffuse, m.diffuse_set, gpu::RenderTarget::Load::Clear); })
+        .time_end();
+    if (info.specular_pass) {
+        const bool analytic = settings.specular == SpecularModel::Analytic;
+        seq.time_begin("specular pass")
+            .record([&](VkCommandBuffer cmd) {
+                m.draw(cmd, analytic ? m.specular_analytic : m.specular_factorized,
+                       analytic ? m.analytic_set : m.factorized_set, gpu::RenderTarget::Load::Keep);
+            })
+            .time_end();
+    }
+    seq.time_begin("readback").record([&](VkCommandBuffer cmd) { m.target->record_readback(cmd); }).time_end();
+    seq.submit_and_wait();
+    for (const gpu::GpuTiming& t : seq.timings()) {
+        if (!t.ns) continue;
+        if (t.label == "diffuse pass") info.diffuse_gpu_ms = to_ms(t.ns);
+        if (t.label == "specular pass") info.specular_gpu_ms = to_ms(t.ns);
+        if (t.label == "readback") info.readback_gpu_ms = to_ms(t.ns);
+    }
+
+    const std::vector<glm::vec4> rgba = m.target->read_color();
+    frame.color = Image(k.w, k.h, 3);
+    frame.mask.assign(rgba.size(), 0);
+    for (std::size_t i = 0; i < rgba.size(); ++i) {
+        const glm::vec4& c = rgba[i];
+        if (c.a > 0.5f) {
+            frame.mask[i] = 255;
+            ++info.covered_pixels;
+        }
+        frame.color.pixels[3 * i + 0] = c.r;
+        frame.color.pixels[3 * i + 1] = c.g;
+        frame.color.pixels[3 * i + 2] = c.b;
+    }
+    info.wall_ms = wall.seconds() * 1e3;
+    return frame;
+}
+
+} // namespace specula::render

@@ -1,0 +1,167 @@
+#pragma once
+/// \file
+/// Offscreen raster renderer of a reconstruction (pipeline.md section 7, thesis
+/// chapter 4): two passes over the mesh, as in the thesis.
+///
+///   pass 1, diffuse:   (rho / pi) I max(0, n.u) / d^2, rho from the albedo atlas
+///   pass 2, specular:  f_s(u, v) I max(0, n.u) / d^2, blended additively, with f_s
+///                      the Lafortune lobe (`analytic`) or G(h) H(d) from two
+///                      cube-maps (`factorized`, Kautz-McCool, shared/gshd.h)
+///
+/// The formulas live once in shaders/shared/render.h (with lafortune.h,
+/// tangent_frame.h, gshd.h); the synth renderer (engine/synth) evaluates the same
+/// definitions by ray casting and is the reference of the analytic mode.
+///
+/// No shadows: the reconstruction renders unshadowed, like the thesis. Pixels that
+/// a capture shows in shadow (or lit only by a light behind the geometric surface)
+/// will differ from a render.
+///
+/// Usage:
+///   render::Renderer r(ctx, {.mesh = &mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image, .lobe = lobe});
+///   r.set_factorization(g, h);                                 // optional: enables `factorized`
+///   render::Frame f = r.render(camera, light, {.mode = render::Mode::Both});
+///   f.color (linear RGB, w x h, row 0 at the top), f.mask (255 = covered), f.info (passes, timings)
+#include "capture/camera.h"
+#include "capture/capture.h"
+#include "capture/mesh.h"
+#include "core/image.h"
+#include "gpu/buffer.h"
+#include "gpu/graphics_pipeline.h"
+#include "gpu/image.h"
+#include "gpu/render_target.h"
+#include "gpu/sequence.h"
+#include "shared/render.h"
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace specula::render {
+
+/// One isotropic Lafortune lobe per RGB channel (thesis eq. 2.1 with rho_d = 0).
+struct Lobe {
+    glm::vec3 cx{0.0f};
+    glm::vec3 cz{0.0f};
+    glm::vec3 n{1.0f};
+    /// Cx = Cz = 0: no specular term; the specular pass is left out.
+    [[nodiscard]] bool is_zero() const noexcept { return cx == glm::vec3(0.0f) && cz == glm::vec3(0.0f); }
+};
+
+/// A float RGB cube-map: 6 faces of resolution x resolution texels, laid out
+/// [face][row][col][rgb] in Vulkan's face order (+X, -X, +Y, -Y, +Z, -Z) and
+/// orientation: exactly shared/gshd.h's cube_texel_dir convention, so the
+/// factorization's arrays plug in unchanged.
+struct CubeMapRgb {
+    uint32_t resolution = 0;
+    std::vector<float> rgb; // 6 * resolution^2 * 3
+};
+
+/// What the renderer draws. Pointers and spans are read during construction only.
+struct Scene {
+    const Mesh* mesh = nullptr;            ///< positions, smooth unit normals (one per position), triangles
+    std::span<const glm::vec2> corner_uv;  ///< 3 per triangle (Atlas::corner_uv): atlas coordinates in [0, 1]
+    const Image* albedo = nullptr;         ///< linear RGB rho, the atlas (AlbedoTexture::image); 1 to 4 channels
+    Lobe lobe;                             ///< zero: no specular pass
+};
+
+enum class Mode {
+    Diffuse,  ///< pass 1 only
+    Specular, ///< pass 2 only (pass 1 still lays down depth and coverage, with zero colour)
+    Both,     ///< pass 1 + pass 2
+};
+enum class SpecularModel {
+    Analytic,   ///< the lobe, evaluated per fragment
+    Factorized, ///< G(h) H(d) cube-map lookups (needs set_factorization)
+};
+[[nodiscard]] const char* mode_name(Mode mode) noexcept;
+[[nodiscard]] const char* specular_model_name(SpecularModel model) noexcept;
+
+struct Settings {
+    Mode mode = Mode::Both;
+    SpecularModel specular = SpecularModel::Analytic;
+    std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
+};
+
+enum class Culling {
+    Auto,   ///< cull back faces when the mesh is closed and outward-facing (is_closed_outward)
+    Never,  ///< draw both sides: like ray casting, the nearest surface wins whichever way it faces
+    Always, ///< cull back faces (counter-clockwise seen from outside = front)
+};
+
+struct Options {
+    /// Culling halves the raster work of a closed mesh (the back half is never visible
+    /// from outside it) and changes no pixel; open meshes need both sides.
+    Culling culling = Culling::Auto;
+};
+
+/// What a frame drew and what it cost.
+struct FrameInfo {
+    bool diffuse_pass = false;        ///< pass 1 wrote the diffuse term (it always writes depth and coverage)
+    bool specular_pass = false;       ///< pass 2 ran
+    std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
+    std::optional<double> diffuse_gpu_ms;  ///< GPU time of pass 1 (timestamps); nullopt without timestamps
+    std::optional<double> specular_gpu_ms; ///< GPU time of pass 2
+    std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer
+    double wall_ms = 0.0;             ///< render(): parameters, recording, submit, wait, readback, conversion
+    std::size_t covered_pixels = 0;
+    std::size_t triangles = 0;
+};
+
+struct Frame {
+    Image color;                    ///< linear RGB, w x h, row 0 at the top; 0 where not covered
+    std::vector<std::uint8_t> mask; ///< w * h, 255 where the mesh covers the pixel centre
+    FrameInfo info;
+};
+
+/// Owns the pipelines, the mesh and texture on the GPU, and a render target (resized
+/// to each camera's image). Move-only; the Context must outlive it. Not thread-safe.
+class Renderer {
+public:
+    /// Uploads the scene. Throws Error on inconsistent inputs (sizes, missing albedo),
+    /// gpu::LimitError when the mesh exceeds one storage binding (about 1.3M triangles on lavapipe).
+    Renderer(gpu::Context& ctx, const Scene& scene, const Options& options = {});
+    ~Renderer();
+    Renderer(Renderer&&) noexcept;
+    Renderer& operator=(Renderer&&) noexcept;
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    /// Replaces the lobe (zero: no specular pass).
+    void set_lobe(const Lobe& lobe);
+    [[nodiscard]] const Lobe& lobe() const noexcept;
+
+    /// Uploads the two factorization cube-maps (G looked up by h, H by d; both may have
+    /// their own resolution). Enables SpecularModel::Factorized.
+    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h);
+    [[nodiscard]] bool has_factorization() const noexcept;
+
+    /// Renders one frame and reads it back. Throws Error when `settings` asks for the
+    /// factorized model before set_factorization().
+    [[nodiscard]] Frame render(const Camera& camera, const PointLight& light, const Settings& settings = {});
+
+    [[nodiscard]] std::size_t triangle_count() const noexcept;
+    /// Whether back faces are culled (Options::culling, resolved for this mesh).
+    [[nodiscard]] bool culls_back_faces() const noexcept;
+    /// Format of the albedo texture on the GPU (RGBA32F where filterable, else RGBA16F).
+    [[nodiscard]] VkFormat albedo_format() const noexcept;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+/// True when the mesh is closed (vertices welded by exact position, every edge used by
+/// exactly two triangles, once in each direction) and its signed volume is positive
+/// (counter-clockwise seen from outside). A camera outside such a mesh sees no back face.
+[[nodiscard]] bool is_closed_outward(const Mesh& mesh);
+
+/// Non-indexed vertices of the raster passes (3 per triangle, in triangle order), with
+/// the per-corner atlas coordinates; what Renderer uploads. For tests and the viewer.
+[[nodiscard]] std::vector<shared::RenderVertex> expand_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv);
+
+} // namespace specula::render

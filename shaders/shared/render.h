@@ -1,0 +1,57 @@
+// The raster passes' shared layouts and shading math (pipeline.md section 7; C++:
+// engine/render/renderer.cpp fills the layouts, tests evaluate the functions).
+//
+// Radiometry (capture-format.md, "Radiometry"), for a surface point p with unit
+// shading normal n, a point light at l with RGB intensity I, u = (l - p) / d,
+// d = |l - p|, v the unit direction from p to the camera:
+//     pass 1 (diffuse):   (rho / pi) * I max(0, n.u) / d^2
+//     pass 2 (specular):  f_s(u, v)  * I max(0, n.u) / d^2      added by blending
+// with f_s the Lafortune lobe in the appendix-B tangent frame (analytic mode) or
+// G(h) H(d) from the two Kautz-McCool cube-maps (factorized mode, shared/gshd.h).
+// No shadows: the reconstruction renders unshadowed, as the thesis does, so
+// pixels that a capture shows in shadow will differ.
+#ifndef SPECULA_SHARED_RENDER_H
+#define SPECULA_SHARED_RENDER_H
+#include "shared/prelude.h"
+
+SPECULA_SHARED_BEGIN
+
+// Per-frame parameters (one std430 storage buffer, set 0 binding 0).
+struct RenderParams {
+    mat4 world_to_clip;   // Vulkan projection (engine/render/projection.h) * world_to_camera
+    vec4 eye;             // xyz: camera centre (world)
+    vec4 light_position;  // xyz: point light (world)
+    vec4 light_intensity; // rgb: radiant intensity
+    vec4 lobe_cx;         // rgb: Lafortune Cx per channel
+    vec4 lobe_cz;         // rgb: Lafortune Cz
+    vec4 lobe_n;          // rgb: Lafortune N
+    uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only
+};
+
+// One vertex of the non-indexed triangle list (set 0 binding 1), pulled by gl_VertexIndex.
+struct RenderVertex {
+    vec4 position_u; // xyz: world position; w: atlas u
+    vec4 normal_v;   // xyz: vertex normal (unit); w: atlas v
+};
+
+// I max(0, n.u) / d^2 for a point light at `light_position` seen from `p`.
+SHARED_FN vec3 point_light_irradiance(vec3 n, vec3 p, vec3 light_position, vec3 intensity) {
+    vec3 to_light = light_position - p;
+    float d2 = dot(to_light, to_light);
+    float cos_theta = dot(n, to_light) / sqrt(d2);
+    return intensity * (max(cos_theta, 0.0f) / d2);
+}
+
+// Unit direction from p toward a point q.
+SHARED_FN vec3 direction_to(vec3 p, vec3 q) {
+    return normalize(q - p);
+}
+
+SPECULA_SHARED_END
+
+#ifdef __cplusplus
+static_assert(sizeof(specula::shared::RenderParams) == 176, "std430 size of RenderParams");
+static_assert(sizeof(specula::shared::RenderVertex) == 32, "std430 stride of RenderVertex");
+#endif
+
+#endif

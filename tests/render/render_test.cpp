@@ -1,0 +1,498 @@
+// The offscreen raster renderer (engine/render) against the synth ray caster (the
+// golden reference of the analytic mode: same radiometry, normal interpolation,
+// tangent frame and lobe), plus the pixel convention, the pass bookkeeping, the
+// factorized mode's cube-map plumbing, and determinism. Every test runs on lavapipe
+// with the validation layer; a validation message fails it (VulkanTest).
+//
+// Golden tolerance: masked PSNR >= 40 dB, peak = the reference's largest value in the
+// compared region. Compared region: pixels both renderers cover, minus a 1-pixel band
+// around either mask's edge (rasterization and ray casting resolve a pixel centre that
+// sits within float rounding of a silhouette edge differently, and an edge pixel can then
+// show a different surface), minus pixels the reference shows black while covered
+// (synth's shadowed or light-behind-the-geometric-surface pixels: the renderer does not
+// shadow, by design). Failing comparisons write actual/reference/diff EXRs to
+// ${build}/test_out/render/.
+#include "capture/camera.h"
+#include "core/image.h"
+#include "geometry/atlas.h"
+#include "geometry/particles.h"
+#include "gpu/image.h"
+#include "render/projection.h"
+#include "render/renderer.h"
+#include "synth/presets.h"
+#include "synth/render.h"
+#include "vulkan_env.h"
+
+#include <gtest/gtest.h>
+
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+namespace specula::render {
+namespace {
+
+using test::VulkanTest;
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+Camera make_camera(int w, int h, double fl_x, double fl_y, double cx, double cy, const glm::dvec3& eye,
+                   const glm::dvec3& target) {
+    return Camera(Intrinsics{w, h, fl_x, fl_y, cx, cy}, look_at_camera_to_world(eye, target, glm::dvec3(0, 1, 0)));
+}
+
+Lobe to_lobe(const synth::LafortuneRgb& l) { return Lobe{l.cx, l.cz, l.n}; }
+
+/// A smooth albedo texture (periodic in u, like the sphere's longitude). The preset's
+/// checker is discontinuous: any resampling into an atlas (which a reconstruction must
+/// do) blurs its edges differently from the synth renderer's own bilinear lookup, which
+/// would test the resampling, not the renderer. A smooth texture keeps the atlas exact up
+/// to bilinear interpolation error while still checking every atlas coordinate.
+Image smooth_texture() {
+    Image t(512, 256, 3);
+    for (int y = 0; y < t.height; ++y)
+        for (int x = 0; x < t.width; ++x) {
+            const float u = (static_cast<float>(x) + 0.5f) / static_cast<float>(t.width);
+            const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(t.height);
+            const float a = 6.2831853f * u, b = 3.1415927f * v;
+            t.at(x, y, 0) = 0.45f + 0.30f * std::sin(a) * std::sin(b);
+            t.at(x, y, 1) = 0.40f + 0.25f * std::cos(2.0f * a) * std::sin(b);
+            t.at(x, y, 2) = 0.35f + 0.25f * std::cos(2.0f * b);
+        }
+    return t;
+}
+
+/// The albedo atlas of a mesh built from the truth: every owned texel gets the
+/// synth material's albedo at its particle (eq. 3.2's point, texture coordinates
+/// interpolated with the same (s, t)). This is what a perfect diffuse solve yields.
+struct TruthAtlas {
+    Atlas atlas;
+    Image image;
+};
+TruthAtlas atlas_from_truth(const Mesh& mesh, const synth::Material& material, std::span<const Camera> cameras) {
+    TruthAtlas out;
+    out.atlas = build_atlas(mesh, cameras, {.max_width = 2048, .max_height = 2048, .texels_per_pixel = 2.0});
+    const ParticleSet particles = build_particles(mesh, out.atlas);
+    out.image = Image(static_cast<int>(out.atlas.width), static_cast<int>(out.atlas.height), 3, 0.0f);
+    for (const Particle& p : particles.particles) {
+        glm::vec3 rho = material.albedo_value;
+        if (!material.albedo_texture.empty()) {
+            const glm::uvec3 t = mesh.triangles[p.triangle];
+            const float s = p.bary.x, tt = p.bary.y;
+            const glm::vec2 uv = (1.0f - s - tt) * mesh.texcoords[t.x] + s * mesh.texcoords[t.y] + tt * mesh.texcoords[t.z];
+            rho = synth::sample_albedo(material.albedo_texture, uv);
+        }
+        for (int c = 0; c < 3; ++c)
+            out.image.at(static_cast<int>(p.texel_x()), static_cast<int>(p.texel_y()), c) = rho[c];
+    }
+    return out;
+}
+
+struct Comparison {
+    double psnr = 0.0;
+    double max_abs = 0.0;
+    double max_rel = 0.0; // |a - r| / r over pixels with r > 10% of the peak
+    glm::ivec2 max_rel_at{-1};
+    double peak = 0.0;
+    std::size_t compared = 0;
+    std::size_t excluded_black = 0; // covered by both, black in the reference
+    std::size_t coverage_mismatch = 0;
+};
+
+bool interior(const std::vector<std::uint8_t>& mask, int w, int h, int x, int y) {
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || yy < 0 || xx >= w || yy >= h || mask[static_cast<std::size_t>(yy) * w + xx] == 0) return false;
+        }
+    return true;
+}
+
+std::filesystem::path out_dir() {
+    const std::filesystem::path dir = std::filesystem::path(SPECULA_TEST_OUT_DIR) / "render";
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+Comparison compare(const Frame& actual, const synth::RenderedFrame& ref, const std::string& name, double min_psnr) {
+    const int w = ref.color.width, h = ref.color.height;
+    Comparison c;
+    double sse = 0.0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * w + x;
+            if ((actual.mask[i] != 0) != (ref.mask[i] != 0)) ++c.coverage_mismatch;
+            if (!interior(actual.mask, w, h, x, y) || !interior(ref.mask, w, h, x, y)) continue;
+            if (ref.color.at(x, y, 0) == 0.0f && ref.color.at(x, y, 1) == 0.0f && ref.color.at(x, y, 2) == 0.0f) {
+                ++c.excluded_black;
+                continue;
+            }
+            for (int ch = 0; ch < 3; ++ch) c.peak = std::max(c.peak, static_cast<double>(ref.color.at(x, y, ch)));
+        }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            if (!interior(actual.mask, w, h, x, y) || !interior(ref.mask, w, h, x, y)) continue;
+            if (ref.color.at(x, y, 0) == 0.0f && ref.color.at(x, y, 1) == 0.0f && ref.color.at(x, y, 2) == 0.0f) continue;
+            ++c.compared;
+            for (int ch = 0; ch < 3; ++ch) {
+                const double r = ref.color.at(x, y, ch), a = actual.color.at(x, y, ch);
+                const double e = std::abs(a - r);
+                sse += e * e;
+                c.max_abs = std::max(c.max_abs, e);
+                if (r > 0.1 * c.peak && e / r > c.max_rel) {
+                    c.max_rel = e / r;
+                    c.max_rel_at = {x, y};
+                }
+            }
+        }
+    const double mse = sse / std::max<double>(1.0, 3.0 * static_cast<double>(c.compared));
+    c.psnr = mse > 0.0 ? 10.0 * std::log10(c.peak * c.peak / mse) : 999.0;
+    if (c.psnr < min_psnr) {
+        const std::filesystem::path dir = out_dir();
+        Image diff(w, h, 3);
+        for (std::size_t i = 0; i < diff.pixels.size(); ++i) diff.pixels[i] = std::abs(actual.color.pixels[i] - ref.color.pixels[i]);
+        write_image(dir / (name + ".actual.exr"), actual.color, ColorSpace::Linear);
+        write_image(dir / (name + ".reference.exr"), ref.color, ColorSpace::Linear);
+        write_image(dir / (name + ".diff.exr"), diff, ColorSpace::Linear);
+    }
+    return c;
+}
+
+void report(const std::string& name, const Comparison& c) {
+    std::printf("%s: PSNR %.2f dB over %zu pixels (peak %.4g, max |err| %.3g, max rel err %.3g at (%d, %d), %zu black reference "
+                "pixels excluded, %zu pixels differ in coverage)\n",
+                name.c_str(), c.psnr, c.compared, c.peak, c.max_abs, c.max_rel, c.max_rel_at.x, c.max_rel_at.y, c.excluded_black, c.coverage_mismatch);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Projection (CPU only)
+
+TEST(RenderProjection, MatchesTheCaptureFormula) {
+    const Camera cam = make_camera(200, 150, 180.0, 170.0, 91.3, 83.7, {0.4, 0.7, 2.5}, {0.0, 0.1, 0.0});
+    const glm::dmat4 m = world_to_clip(cam, 0.5);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (int i = 0; i < 1000; ++i) {
+        const glm::dvec3 p(u(rng), u(rng), u(rng));
+        const auto expected = cam.project(p);
+        const auto got = project_vulkan(m, cam.intrinsics, p);
+        ASSERT_TRUE(expected && got);
+        EXPECT_NEAR(got->x, expected->x, 1e-9);
+        EXPECT_NEAR(got->y, expected->y, 1e-9);
+        // Reversed-Z: near / distance along the view axis, in (0, 1] beyond the near plane.
+        EXPECT_NEAR(got->z, 0.5 / -cam.to_camera(p).z, 1e-12);
+    }
+    EXPECT_FALSE(project_vulkan(m, cam.intrinsics, glm::dvec3(0.8, 1.4, 5.0))); // behind the camera
+}
+
+// ---------------------------------------------------------------------------------------------
+// GPU images
+
+using RenderGpuImage = VulkanTest;
+
+TEST_F(RenderGpuImage, TextureAndCubeMapRoundTrip) {
+    const VkFormat format = gpu::choose_float_texture_format(ctx());
+    for (const gpu::ImageKind kind : {gpu::ImageKind::Texture2D, gpu::ImageKind::CubeMap}) {
+        const uint32_t w = 7, h = 7, layers = kind == gpu::ImageKind::CubeMap ? 6 : 1;
+        std::vector<float> values(std::size_t{w} * h * layers * 3);
+        for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.25f * static_cast<float>(i % 37);
+        gpu::Image image(ctx(), {.name = "round trip", .kind = kind, .width = w, .height = h, .format = format});
+        image.upload(gpu::pack_rgba(values, 3, std::size_t{w} * h * layers, format));
+        const std::vector<glm::vec4> back = gpu::unpack_rgba(image.download(), format);
+        ASSERT_EQ(back.size(), std::size_t{w} * h * layers);
+        for (std::size_t i = 0; i < back.size(); ++i) {
+            for (int c = 0; c < 3; ++c) ASSERT_EQ(back[i][c], values[3 * i + static_cast<std::size_t>(c)]) << i;
+            ASSERT_EQ(back[i].a, 1.0f);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Renderer
+
+struct SceneData {
+    Mesh mesh;
+    std::vector<glm::vec2> corner_uv;
+    Image albedo;
+    [[nodiscard]] Scene scene(const Lobe& lobe = {}) const {
+        return Scene{.mesh = &mesh, .corner_uv = corner_uv, .albedo = &albedo, .lobe = lobe};
+    }
+};
+
+/// A mesh with a constant 1x1 "atlas" (every corner samples the one texel).
+SceneData constant_albedo(Mesh mesh, const glm::vec3& rho) {
+    SceneData s;
+    s.corner_uv.assign(3 * mesh.triangles.size(), glm::vec2(0.5f));
+    s.mesh = std::move(mesh);
+    s.albedo = Image(1, 1, 3);
+    for (int c = 0; c < 3; ++c) s.albedo.at(0, 0, c) = rho[c];
+    return s;
+}
+
+using RenderTest = VulkanTest;
+
+TEST_F(RenderTest, PixelConventionMatchesTheCaptureFormula) {
+    // A rectangle facing the camera whose corners project to known sub-pixel positions,
+    // with an off-centre principal point and non-square pixels: the covered pixels must
+    // be exactly those whose centres (i + 0.5, j + 0.5) lie inside.
+    const Camera cam = make_camera(64, 48, 70.0, 55.0, 29.3, 21.6, {0.0, 0.0, 3.0}, {0.0, 0.0, 0.0});
+    const double depth = 2.0; // plane Z_cam = -2
+    const glm::dvec2 lo(10.25, 7.7), hi(40.6, 33.2);
+    const auto unproject = [&](double x, double y) {
+        const glm::dvec3 c((x - cam.intrinsics.cx) / cam.intrinsics.fl_x * depth,
+                           -(y - cam.intrinsics.cy) / cam.intrinsics.fl_y * depth, -depth);
+        return glm::vec3(glm::dvec3(cam.camera_to_world * glm::dvec4(c, 1.0)));
+    };
+    Mesh quad;
+    quad.positions = {unproject(lo.x, lo.y), unproject(hi.x, lo.y), unproject(hi.x, hi.y), unproject(lo.x, hi.y)};
+    quad.normals.assign(4, glm::vec3(0, 0, 1));
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    const glm::dvec2 corners[4] = {lo, {hi.x, lo.y}, hi, {lo.x, hi.y}};
+    for (int k = 0; k < 4; ++k) {
+        const auto px = cam.project(glm::dvec3(quad.positions[static_cast<std::size_t>(k)]));
+        ASSERT_TRUE(px);
+        EXPECT_NEAR(glm::distance(*px, corners[k]), 0.0, 1e-4);
+    }
+    EXPECT_FALSE(is_closed_outward(quad)); // open: Culling::Auto draws both sides
+    const SceneData data = constant_albedo(quad, glm::vec3(0.5f));
+    Renderer r(ctx(), data.scene());
+    EXPECT_FALSE(r.culls_back_faces());
+    const Frame f = r.render(cam, PointLight{{0.0, 0.0, 3.0}, {1.0, 1.0, 1.0}}, {.mode = Mode::Diffuse});
+    std::size_t wrong = 0, covered = 0;
+    for (int j = 0; j < 48; ++j)
+        for (int i = 0; i < 64; ++i) {
+            const bool inside = i + 0.5 > lo.x && i + 0.5 < hi.x && j + 0.5 > lo.y && j + 0.5 < hi.y;
+            const bool got = f.mask[static_cast<std::size_t>(j) * 64 + i] != 0;
+            wrong += inside != got;
+            covered += got;
+        }
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_EQ(covered, 31u * 25u); // columns 10..40, rows 8..32
+    EXPECT_EQ(f.info.covered_pixels, covered);
+
+    // Tiny triangles (0.3 pixel) around points p near pixel centres, p projected with the
+    // capture formula: each covers exactly the pixel floor(p), the one whose centre it holds.
+    // Half a pixel off (centres at integers) or a flipped row order would miss or move them.
+    Mesh tris;
+    std::vector<glm::ivec2> expected;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> jitter(-0.1, 0.1);
+    for (int k = 0; k < 24; ++k) {
+        const glm::ivec2 pixel(3 + (k * 7) % 58, 2 + (k * 5) % 44);
+        const glm::dvec2 p(pixel.x + 0.5 + jitter(rng), pixel.y + 0.5 + jitter(rng));
+        const auto base = static_cast<uint32_t>(tris.positions.size());
+        tris.positions.push_back(unproject(p.x - 0.3, p.y - 0.3));
+        tris.positions.push_back(unproject(p.x + 0.3, p.y - 0.3));
+        tris.positions.push_back(unproject(p.x, p.y + 0.3));
+        tris.triangles.push_back({base, base + 1, base + 2});
+        const auto back = cam.project(glm::dvec3(cam.camera_to_world * glm::dvec4(
+            (p.x - cam.intrinsics.cx) / cam.intrinsics.fl_x * depth, -(p.y - cam.intrinsics.cy) / cam.intrinsics.fl_y * depth,
+            -depth, 1.0)));
+        ASSERT_TRUE(back);
+        EXPECT_EQ(glm::ivec2(glm::floor(*back)), pixel);
+        expected.push_back(pixel);
+    }
+    tris.normals.assign(tris.positions.size(), glm::vec3(0, 0, 1));
+    const SceneData tdata = constant_albedo(tris, glm::vec3(0.5f));
+    Renderer rt(ctx(), tdata.scene());
+    const Frame ft = rt.render(cam, PointLight{{0.0, 0.0, 3.0}, {1.0, 1.0, 1.0}}, {.mode = Mode::Diffuse});
+    EXPECT_EQ(ft.info.covered_pixels, expected.size());
+    for (const glm::ivec2& px : expected) EXPECT_NE(ft.mask[static_cast<std::size_t>(px.y) * 64 + px.x], 0) << px.x << "," << px.y;
+}
+
+TEST_F(RenderTest, BackFaceCullingKeepsAConvexObject) {
+    // Front faces (counter-clockwise seen from outside) survive culling, so the projection's
+    // y flip kept the orientation Vulkan's front-face rule expects.
+    synth::Preset sphere = synth::make_preset("sphere");
+    const SceneData data = constant_albedo(sphere.mesh, glm::vec3(0.6f));
+    const Camera cam = make_camera(64, 64, 80.0, 80.0, 32.0, 32.0, {0.3, 0.4, 2.0}, {0, 0, 0});
+    const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
+    EXPECT_TRUE(is_closed_outward(sphere.mesh)); // welded across the texture seam and the poles
+    Renderer all(ctx(), data.scene(to_lobe(sphere.material.lobe)), {.culling = Culling::Never});
+    Renderer culled(ctx(), data.scene(to_lobe(sphere.material.lobe)), {.culling = Culling::Always});
+    Renderer automatic(ctx(), data.scene(to_lobe(sphere.material.lobe)));
+    EXPECT_FALSE(all.culls_back_faces());
+    EXPECT_TRUE(culled.culls_back_faces());
+    EXPECT_TRUE(automatic.culls_back_faces());
+    const Frame a = all.render(cam, light), b = culled.render(cam, light);
+    EXPECT_GT(a.info.covered_pixels, 1000u);
+    EXPECT_EQ(a.mask, b.mask);
+    EXPECT_EQ(a.color.pixels, b.color.pixels);
+}
+
+TEST_F(RenderTest, SphereAnalyticMatchesSynthWithAtlasFromTruth) {
+    // The sphere preset (pepsi lobe; smooth albedo, see smooth_texture) is convex: nothing is shadowed.
+    synth::Preset preset = synth::make_preset("sphere");
+    preset.material.albedo_texture = smooth_texture();
+    const Camera cam = make_camera(128, 128, 150.0, 150.0, 61.3, 66.8, {0.3, 0.4, 2.0}, {0, 0, 0});
+    const PointLight light{{1.0, 1.5, 2.2}, {5.0, 4.5, 4.0}};
+    const TruthAtlas atlas = atlas_from_truth(preset.mesh, preset.material, std::span<const Camera>(&cam, 1));
+    Renderer r(ctx(), {.mesh = &preset.mesh, .corner_uv = atlas.atlas.corner_uv, .albedo = &atlas.image,
+                       .lobe = to_lobe(preset.material.lobe)});
+    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
+    EXPECT_TRUE(f.info.diffuse_pass);
+    EXPECT_TRUE(f.info.specular_pass);
+    const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
+    const Comparison c = compare(f, ref, "sphere_analytic", 40.0);
+    report("sphere analytic vs synth", c);
+    EXPECT_GE(c.psnr, 40.0);
+    EXPECT_GT(c.compared, 4000u);
+}
+
+TEST_F(RenderTest, CanAnalyticMatchesSynthWithConstantAlbedo) {
+    synth::Preset preset = synth::make_preset("can");
+    preset.material.albedo_texture = Image(); // constant albedo: the atlas is one texel
+    preset.material.albedo_value = glm::vec3(0.62f, 0.05f, 0.06f);
+    const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
+    const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, {0.9, 0.9, 2.3}, {0.0, 0.55, 0.0});
+    const PointLight light{{1.6, 1.4, 1.8}, {6.0, 6.0, 6.0}};
+    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
+    const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
+    const Comparison c = compare(f, ref, "can_analytic", 40.0);
+    report("can analytic vs synth", c);
+    EXPECT_GE(c.psnr, 40.0);
+    EXPECT_GT(c.compared, 2000u);
+}
+
+TEST_F(RenderTest, DiffuseOnlyOfALambertianSphereMatchesSynth) {
+    const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, {-0.5, 0.3, 1.9}, {0, 0, 0});
+    const PointLight light{{-1.5, 1.0, 1.0}, {3.0, 3.0, 3.0}};
+    synth::Preset preset = synth::make_preset("sphere", /*lambertian=*/true);
+
+    // 1. Constant albedo: the renderer alone. Both sides evaluate the same float formula at
+    //    the same surface point, so the tolerance is float rounding: relative error <= 1e-4
+    //    on pixels brighter than 10% of the peak, PSNR >= 80 dB.
+    preset.material.albedo_texture = Image();
+    preset.material.albedo_value = glm::vec3(0.7f, 0.5f, 0.3f);
+    const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
+    Renderer rc(ctx(), data.scene());
+    const Frame fc = rc.render(cam, light, {.mode = Mode::Diffuse});
+    EXPECT_FALSE(fc.info.specular_pass);
+    EXPECT_EQ(fc.info.specular_note, "mode diffuse");
+    const synth::RenderedFrame refc = synth::Renderer(preset.mesh, preset.material).render(cam, light);
+    const Comparison cc = compare(fc, refc, "sphere_diffuse_constant", 80.0);
+    report("lambertian sphere (constant albedo) diffuse vs synth", cc);
+    EXPECT_GE(cc.psnr, 80.0);
+    EXPECT_LE(cc.max_rel, 1e-4);
+
+    // 2. Smooth albedo through an atlas built from the truth: adds the atlas resampling.
+    //    Tolerance: PSNR >= 50 dB and relative error <= 2%; the error sits on patch edges,
+    //    where gutter texels hold the value at the edge rather than its linear
+    //    continuation, so bilinear filtering there is not exact (measured: 63 dB, 1.4%).
+    preset.material.albedo_texture = smooth_texture();
+    const TruthAtlas atlas = atlas_from_truth(preset.mesh, preset.material, std::span<const Camera>(&cam, 1));
+    Renderer r(ctx(), {.mesh = &preset.mesh, .corner_uv = atlas.atlas.corner_uv, .albedo = &atlas.image});
+    const Frame f = r.render(cam, light, {.mode = Mode::Diffuse});
+    const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
+    const Comparison c = compare(f, ref, "sphere_diffuse_atlas", 50.0);
+    report("lambertian sphere (atlas from truth) diffuse vs synth", c);
+    EXPECT_GE(c.psnr, 50.0);
+    EXPECT_LE(c.max_rel, 0.02);
+}
+
+TEST_F(RenderTest, PassesAddUpAndAZeroLobeLeavesTheSpecularPassOut) {
+    const synth::Preset preset = synth::make_preset("sphere");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.4f, 0.5f, 0.6f));
+    const Camera cam = make_camera(64, 64, 80.0, 80.0, 32.0, 32.0, {0.3, 0.4, 2.0}, {0, 0, 0});
+    const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
+    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    const Frame both = r.render(cam, light, {.mode = Mode::Both});
+    const Frame diffuse = r.render(cam, light, {.mode = Mode::Diffuse});
+    const Frame specular = r.render(cam, light, {.mode = Mode::Specular});
+    EXPECT_TRUE(specular.info.specular_pass);
+    EXPECT_FALSE(specular.info.diffuse_pass);
+    EXPECT_EQ(both.mask, diffuse.mask);
+    EXPECT_EQ(both.mask, specular.mask);
+    double spec_energy = 0.0;
+    for (std::size_t i = 0; i < both.color.pixels.size(); ++i) {
+        const float sum = diffuse.color.pixels[i] + specular.color.pixels[i];
+        EXPECT_NEAR(both.color.pixels[i], sum, 1e-6f * std::max(1.0f, std::abs(sum)));
+        spec_energy += specular.color.pixels[i];
+    }
+    EXPECT_GT(spec_energy, 0.0);
+    ASSERT_TRUE(both.info.diffuse_gpu_ms.has_value());
+    ASSERT_TRUE(both.info.specular_gpu_ms.has_value());
+    EXPECT_GT(both.info.wall_ms, 0.0);
+
+    r.set_lobe({});
+    const Frame zero = r.render(cam, light, {.mode = Mode::Both});
+    EXPECT_FALSE(zero.info.specular_pass);
+    EXPECT_NE(zero.info.specular_note.find("no lobe"), std::string::npos);
+    EXPECT_FALSE(zero.info.specular_gpu_ms.has_value());
+    EXPECT_EQ(zero.color.pixels, diffuse.color.pixels);
+}
+
+TEST_F(RenderTest, FactorizedModeLooksUpBothCubeMaps) {
+    // With constant cube-maps G = a and H = b, the factorized specular term is a b I cos / d^2:
+    // the diffuse term of an albedo rho = pi a b. Tolerance 1e-5 relative (float rounding).
+    const synth::Preset preset = synth::make_preset("sphere");
+    const glm::vec3 a(0.3f, 0.5f, 0.7f), b(0.9f, 0.4f, 0.2f);
+    const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
+        CubeMapRgb cube{res, {}};
+        for (std::size_t i = 0; i < std::size_t{6} * res * res; ++i) cube.rgb.insert(cube.rgb.end(), {v.x, v.y, v.z});
+        return cube;
+    };
+    const SceneData spec_data = constant_albedo(preset.mesh, glm::vec3(0.0f));
+    const SceneData diff_data = constant_albedo(preset.mesh, glm::pi<float>() * a * b);
+    const Camera cam = make_camera(64, 64, 80.0, 80.0, 30.0, 33.0, {0.3, 0.4, 2.0}, {0, 0, 0});
+    const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
+    Renderer spec(ctx(), spec_data.scene(to_lobe(preset.material.lobe)));
+    EXPECT_FALSE(spec.has_factorization());
+    EXPECT_THROW((void)spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularModel::Factorized}), Error);
+    spec.set_factorization(constant_cube(8, a), constant_cube(16, b));
+    EXPECT_TRUE(spec.has_factorization());
+    const Frame fs = spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularModel::Factorized});
+    Renderer diff(ctx(), diff_data.scene());
+    const Frame fd = diff.render(cam, light, {.mode = Mode::Diffuse});
+    EXPECT_EQ(fs.mask, fd.mask);
+    double energy = 0.0;
+    for (std::size_t i = 0; i < fs.color.pixels.size(); ++i) {
+        EXPECT_NEAR(fs.color.pixels[i], fd.color.pixels[i], 1e-5f * std::max(1e-3f, fd.color.pixels[i]));
+        energy += fs.color.pixels[i];
+    }
+    EXPECT_GT(energy, 0.0);
+}
+
+TEST_F(RenderTest, TwoRendersAreIdentical) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
+    const Camera cam = make_camera(96, 96, 100.0, 100.0, 48.0, 48.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
+    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    const Frame a = r.render(cam, light);
+    const Frame b = r.render(cam, light);
+    Renderer r2(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    const Frame c = r2.render(cam, light);
+    EXPECT_GT(a.info.covered_pixels, 500u);
+    EXPECT_EQ(0, std::memcmp(a.color.pixels.data(), b.color.pixels.data(), a.color.pixels.size() * sizeof(float)));
+    EXPECT_EQ(0, std::memcmp(a.color.pixels.data(), c.color.pixels.data(), a.color.pixels.size() * sizeof(float)));
+    EXPECT_EQ(a.mask, b.mask);
+    EXPECT_EQ(a.mask, c.mask);
+}
+
+TEST_F(RenderTest, ResizesToEachCameraAndRefusesBadInputs) {
+    const synth::Preset preset = synth::make_preset("sphere");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
+    Renderer r(ctx(), data.scene());
+    const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
+    const Frame small = r.render(make_camera(32, 24, 40, 40, 16, 12, {0, 0, 2}, {0, 0, 0}), light);
+    const Frame large = r.render(make_camera(80, 60, 100, 100, 40, 30, {0, 0, 2}, {0, 0, 0}), light);
+    EXPECT_EQ(small.color.width, 32);
+    EXPECT_EQ(small.mask.size(), 32u * 24u);
+    EXPECT_EQ(large.color.height, 60);
+    EXPECT_GT(large.info.covered_pixels, small.info.covered_pixels);
+
+    SceneData bad = data;
+    bad.corner_uv.pop_back();
+    EXPECT_THROW(Renderer(ctx(), bad.scene()), Error);
+    EXPECT_THROW(Renderer(ctx(), Scene{.mesh = &data.mesh, .corner_uv = data.corner_uv, .albedo = nullptr}), Error);
+}
+
+} // namespace
+} // namespace specula::render
