@@ -2,19 +2,15 @@
 // The input of the factorization: one fitted Lafortune lobe per colour channel
 // (pipeline.md section 5; thesis eq. 2.1 with rho_d = 0), in the thesis's (Cx, Cz, N) form:
 //     f_s(u, v) = max(0, Cx (ux vx + uy vy) + Cz uz vz) ^ N      (per channel)
-// The factorization stage keeps its own plain struct so it does not depend on synth/
-// (synth::LafortuneRgb holds the same three vectors).
+#include "core/lafortune.h"
+
 #include <glm/glm.hpp>
 
 #include <cmath>
 
 namespace specula::factorization {
 
-struct LafortuneRgb {
-    glm::vec3 cx{-1.0f};
-    glm::vec3 cz{1.0f};
-    glm::vec3 n{10.0f};
-};
+using LafortuneRgb = specula::LafortuneRgb; // engine/core/lafortune.h (set cx, cz, n explicitly)
 
 /// The same lobe in double (shared/lafortune.h lafortune_eval is float-only): the CPU
 /// reference and the error measurements evaluate the formula above with this.

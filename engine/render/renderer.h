@@ -21,6 +21,7 @@
 ///   r.set_factorization(g, h);                                 // optional: enables `factorized`
 ///   render::Frame f = r.render(camera, light, {.mode = render::Mode::Both});
 ///   f.color (linear RGB, w x h, row 0 at the top), f.mask (255 = covered), f.info (passes, timings)
+#include "core/lafortune.h"
 #include "capture/camera.h"
 #include "capture/capture.h"
 #include "capture/mesh.h"
@@ -44,13 +45,8 @@
 namespace specula::render {
 
 /// One isotropic Lafortune lobe per RGB channel (thesis eq. 2.1 with rho_d = 0).
-struct Lobe {
-    glm::vec3 cx{0.0f};
-    glm::vec3 cz{0.0f};
-    glm::vec3 n{1.0f};
-    /// Cx = Cz = 0: no specular term; the specular pass is left out.
-    [[nodiscard]] bool is_zero() const noexcept { return cx == glm::vec3(0.0f) && cz == glm::vec3(0.0f); }
-};
+/// Zero (Cx = Cz = 0): no specular term; the specular pass is left out.
+using Lobe = specula::LafortuneRgb; // engine/core/lafortune.h
 
 /// A float RGB cube-map: 6 faces of resolution x resolution texels, laid out
 /// [face][row][col][rgb] in Vulkan's face order (+X, -X, +Y, -Y, +Z, -Z) and
