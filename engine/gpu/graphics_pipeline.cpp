@@ -1,22 +1,13 @@
 #include "gpu/graphics_pipeline.h"
 
+#include "gpu/pipeline_layout.h"
+
 #include <algorithm>
 #include <array>
 
 namespace specula::gpu {
 
 namespace {
-
-UniqueShaderModule make_module(VkDevice dev, std::span<const uint32_t> spirv, const std::string& what) {
-    if (spirv.empty() || spirv[0] != 0x07230203u)
-        throw Error(what + ": the SPIR-V code is empty or lacks the SPIR-V magic number");
-    const VkShaderModuleCreateInfo info{.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
-                                        .codeSize = spirv.size_bytes(),
-                                        .pCode = spirv.data()};
-    VkShaderModule module = VK_NULL_HANDLE;
-    SPECULA_VK_CHECK(vkCreateShaderModule(dev, &info, nullptr, &module), what);
-    return UniqueShaderModule(dev, module);
-}
 
 constexpr VkShaderStageFlags kPushStages = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
 
@@ -27,10 +18,7 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
     const VkDevice dev = ctx.device();
     const std::string what = "graphics pipeline '" + m_name + "'";
     if (desc.render_pass == VK_NULL_HANDLE) throw Error(what + ": no render pass given");
-    const uint32_t push_limit = std::min<uint32_t>(128u, ctx.limits().maxPushConstantsSize);
-    if (desc.push_constant_bytes > push_limit || desc.push_constant_bytes % 4 != 0)
-        throw LimitError(what + ": " + std::to_string(desc.push_constant_bytes) +
-                         " push-constant bytes (must be a multiple of 4 and at most " + std::to_string(push_limit) + ")");
+    detail::check_push_constant_bytes(ctx, desc.push_constant_bytes, what);
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
     for (uint32_t i = 0; i < desc.bindings.size(); ++i)
@@ -38,26 +26,13 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                             .descriptorType = desc.bindings[i].type,
                             .descriptorCount = 1,
                             .stageFlags = desc.bindings[i].stages});
-    const VkDescriptorSetLayoutCreateInfo set_info{.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-                                                   .bindingCount = static_cast<uint32_t>(bindings.size()),
-                                                   .pBindings = bindings.data()};
-    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
-    SPECULA_VK_CHECK(vkCreateDescriptorSetLayout(dev, &set_info, nullptr, &set_layout), what + ": set layout");
-    m_set_layout = UniqueDescriptorSetLayout(dev, set_layout);
-
-    const VkPushConstantRange range{.stageFlags = kPushStages, .offset = 0, .size = desc.push_constant_bytes};
-    const VkPipelineLayoutCreateInfo layout_info{.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
-                                                 .setLayoutCount = 1,
-                                                 .pSetLayouts = &set_layout,
-                                                 .pushConstantRangeCount = desc.push_constant_bytes > 0 ? 1u : 0u,
-                                                 .pPushConstantRanges = &range};
-    VkPipelineLayout layout = VK_NULL_HANDLE;
-    SPECULA_VK_CHECK(vkCreatePipelineLayout(dev, &layout_info, nullptr, &layout), what + ": pipeline layout");
-    m_layout = UniquePipelineLayout(dev, layout);
+    detail::PipelineLayouts layouts = detail::make_pipeline_layouts(dev, bindings, desc.push_constant_bytes, kPushStages, what);
+    m_set_layout = std::move(layouts.set);
+    m_layout = std::move(layouts.layout);
 
     // The modules are only needed until the pipeline exists.
-    const UniqueShaderModule vert = make_module(dev, desc.vertex_spirv, what + ": vertex shader module");
-    const UniqueShaderModule frag = make_module(dev, desc.fragment_spirv, what + ": fragment shader module");
+    const UniqueShaderModule vert = detail::make_shader_module(dev, desc.vertex_spirv, what + ": vertex shader module");
+    const UniqueShaderModule frag = detail::make_shader_module(dev, desc.fragment_spirv, what + ": fragment shader module");
     const std::array stages{
         VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
                                         .stage = VK_SHADER_STAGE_VERTEX_BIT,
@@ -128,7 +103,7 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                                             .pDepthStencilState = &depth,
                                             .pColorBlendState = &blend,
                                             .pDynamicState = &dynamic,
-                                            .layout = layout,
+                                            .layout = m_layout.get(),
                                             .renderPass = desc.render_pass,
                                             .subpass = 0};
     VkPipeline pipeline = VK_NULL_HANDLE;
