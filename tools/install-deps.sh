@@ -11,5 +11,12 @@ $SUDO apt-get install -y -qq --no-install-recommends \
   glslang-tools glslang-dev spirv-tools \
   libglm-dev libeigen3-dev libembree-dev libopenimageio-dev openimageio-tools \
   libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev \
-  libglfw3-dev xvfb xauth >/dev/null
+  libglfw3-dev xvfb xauth nodejs npm >/dev/null
+# The Khronos glTF validator (a JS library compiled from the Dart validator), for
+# tools/gltf-validate.js and the bundle test (export_tests.Bundle.KhronosValidatorReportsNoErrors).
+# Pinned; installed globally, outside the source tree. Idempotent: skipped when present.
+GLTF_VALIDATOR_VERSION=2.0.0-dev.3.10
+if [ "$(npm ls -g --depth=0 --parseable "gltf-validator@${GLTF_VALIDATOR_VERSION}" 2>/dev/null | wc -l)" -lt 2 ]; then
+  $SUDO npm install -g --no-audit --no-fund "gltf-validator@${GLTF_VALIDATOR_VERSION}" >/dev/null
+fi
 echo "install-deps: done"

@@ -112,6 +112,61 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBac
     return j;
 }
 
+json rgb(const double (&v)[3]) { return json::array({v[0], v[1], v[2]}); }
+
+json specular_json(const ResidualSamples& rs, const ResidualEnergy& energy, const LafortuneFitRgb* fit, double fit_seconds,
+                   LambertBackend backend, const std::string& decision) {
+    const ResidualCounts& c = rs.counts;
+    json j = {{"decision", decision},
+              {"backend", to_string(backend)},
+              {"samples",
+               {{"candidates", c.candidates},
+                {"used", c.used},
+                {"dropped",
+                 {{"shadow", c.dropped_shadow},
+                  {"grazing", c.dropped_grazing},
+                  {"missing", c.dropped_missing},
+                  {"clipped", c.dropped_clipped},
+                  {"no_diffuse_solution", c.dropped_no_diffuse}}},
+                {"weight", "Ebar^2 (image-space residual; shared/residuals.h)"}}},
+              {"energy",
+               {{"mean_square_residual", energy.mean_square},
+                {"mean_residual", energy.mean},
+                {"noise_sigma", energy.noise_sigma},
+                {"ratio_to_noise_variance", energy.ratio},
+                {"threshold", energy.threshold},
+                {"has_specular", energy.has_specular}}},
+              {"view_batches", rs.view_batches},
+              {"dispatches", rs.chunks}};
+    json seconds = {{"residuals", rs.seconds}};
+    if (rs.gpu_ms) seconds["residuals_gpu_ms"] = *rs.gpu_ms;
+    if (fit != nullptr) {
+        seconds["fit"] = fit_seconds;
+        double cx[3], cz[3], n[3], ecx[3], ecz[3], en[3], cond[3], cost[3], rms[3];
+        json status = json::array(), reason = json::array(), iterations = json::array();
+        for (int k = 0; k < 3; ++k) {
+            const LafortuneChannelFit& f = fit->channel[k];
+            cx[k] = f.cx, cz[k] = f.cz, n[k] = f.n;
+            ecx[k] = f.std_error_cx, ecz[k] = f.std_error_cz, en[k] = f.std_error_n;
+            cond[k] = f.condition, cost[k] = f.cost, rms[k] = f.rms;
+            status.push_back(to_string(f.status));
+            reason.push_back(f.reason);
+            iterations.push_back(f.iterations);
+        }
+        j["lobe"] = {{"cx", rgb(cx)}, {"cz", rgb(cz)}, {"n", rgb(n)}, {"status", status}};
+        j["reason"] = reason;
+        j["standard_errors"] = {{"cx", rgb(ecx)}, {"cz", rgb(ecz)}, {"n", rgb(en)}};
+        j["condition"] = rgb(cond);
+        j["cost"] = rgb(cost);
+        j["rms"] = rgb(rms);
+        j["iterations"] = iterations;
+    } else {
+        j["lobe"] = nullptr;
+    }
+    j["seconds"] = seconds;
+    return j;
+}
+
 } // namespace
 
 ReconstructResult reconstruct(const ReconstructConfig& config) {
@@ -163,9 +218,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                   {"validation", ctx->validation_enabled()}};
         log::info("Vulkan device: " + ctx->info().name);
     }
+    const LambertInputs lambert_in = lambert_inputs(capture, particles.particles, visibility);
     const LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
-        const LambertInputs inputs = lambert_inputs(capture, particles.particles, visibility);
-        return lambert_solve(inputs, config.lambert, config.backend, ctx.get());
+        return lambert_solve(lambert_in, config.lambert, config.backend, ctx.get());
     });
     log::info(describe(solve.summary, config.lambert.mode));
     if (ctx) device["validation_messages"] = ctx->validation_message_count();
@@ -174,15 +229,63 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                                    "fewer than three usable, non-coplanar light directions in their best view: "
                                    "albedo mode (known normals) used instead"});
 
-    // 5. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
+    // 5. Specular: residual samples, then the Lafortune fit when the residuals hold energy
+    //    above the noise (pipeline.md sections 4, 5 and 9) or when forced.
+    json specular = nullptr;
+    if (config.specular == SpecularMode::Off) {
+        result.left_out.push_back({"specular fit (residual samples and Lafortune lobe)", "--specular off"});
+    } else {
+        const ResidualSamples rs = run_stage(result, "residual samples", [&] {
+            return residual_samples(lambert_in, solve, ResidualOptions{.min_light_cos = config.lambert.min_light_cos, .max_binding_bytes = 0, .max_albedo_spread = 0.02f},
+                                    config.backend, ctx.get());
+        });
+        const ResidualEnergy energy =
+            residual_energy(rs.samples, static_cast<double>(config.lambert.noise_sigma), config.specular_energy_threshold);
+        const std::string energy_text = "mean squared residual " + std::to_string(energy.mean_square) + " = " +
+                                        std::to_string(energy.ratio) + " noise variances (threshold " +
+                                        std::to_string(energy.threshold) + ")";
+        log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + energy_text);
+        if (config.specular == SpecularMode::Auto && !energy.has_specular) {
+            result.left_out.push_back({"specular fit, factorization and specular pass",
+                                       "the residuals hold no more energy than the noise: " + energy_text});
+            specular = specular_json(rs, energy, nullptr, 0.0, config.backend, "skipped: no specular energy (--specular auto)");
+        } else {
+            Stopwatch fit_watch;
+            std::size_t fit_samples = 0;
+            const LafortuneFitRgb fit = run_stage(result, "lafortune fit", [&] {
+                LafortuneFitOptions fo = config.lafortune;
+                fo.noise_sigma = static_cast<double>(config.lambert.noise_sigma);
+                std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
+                if (config.max_fit_samples != 0 && all.size() > config.max_fit_samples) {
+                    const std::size_t stride = (all.size() + config.max_fit_samples - 1) / config.max_fit_samples;
+                    std::size_t k = 0;
+                    for (std::size_t i = 0; i < all.size(); i += stride) all[k++] = all[i];
+                    all.resize(k);
+                }
+                fit_samples = all.size();
+                return fit_lafortune(all, fo);
+            });
+            const double fit_seconds = fit_watch.seconds();
+            for (int k = 0; k < 3; ++k)
+                log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(fit.channel[k].cx) + " Cz " +
+                          std::to_string(fit.channel[k].cz) + " N " + std::to_string(fit.channel[k].n) + " (" +
+                          to_string(fit.channel[k].status) + ")");
+            specular = specular_json(rs, energy, &fit, fit_seconds, config.backend,
+                                     config.specular == SpecularMode::On ? "fitted (--specular on)"
+                                                                         : "fitted: residuals above the noise (--specular auto)");
+            specular["samples"]["fitted"] = fit_samples; // stride subsample (max_fit_samples)
+        }
+    }
+
+    // 6. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
     const AlbedoTexture texture = run_stage(result, "albedo texture", [&] {
         AlbedoTexture t = make_albedo_texture(atlas, particles.particles, solve);
         write_albedo_texture(t, config.out_dir / "albedo");
         return t;
     });
 
-    result.left_out.push_back({"specular fit, factorization, rendering and evaluation",
-                               "not built yet in this version of Specula (pipeline.md sections 4-8)"});
+    result.left_out.push_back({"factorization, rendering and evaluation",
+                               "not built yet in this version of Specula (pipeline.md sections 6-8)"});
 
     // report.json, written last: its presence means the outputs above are complete.
     result.total_seconds = total.seconds();
@@ -205,6 +308,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
         {"particles", {{"count", particles.particles.size()}, {"interior", particles.interior}, {"gutter", particles.gutter}}},
         {"visibility", visibility_json(visibility.stats)},
         {"diffuse", lambert_json(solve, config.lambert, config.backend)},
+        {"specular", specular},
         {"albedo_texture",
          {{"files", {"albedo.exr", "albedo.png"}},
           {"width", texture.image.width},

@@ -4,9 +4,12 @@
 // calls reconstruct(); everything is timed, counted, and written to report.json
 // with what was left out for this scene and why.
 //
-//   load capture -> atlas -> particles -> visibility (Embree) -> diffuse solve -> albedo texture
+//   load capture -> atlas -> particles -> visibility (Embree) -> diffuse solve
+//     -> residual samples -> Lafortune fit (when the residuals hold specular energy) -> albedo texture
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
+#include "specular/lafortune_fit.h"
+#include "specular/residuals.h"
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +19,9 @@
 
 namespace specula {
 
+/// Auto: fit the lobe only when the residuals hold more energy than the noise (pipeline.md section 9).
+enum class SpecularMode { Auto, On, Off };
+
 struct ReconstructConfig {
     std::filesystem::path capture;  ///< folder or capture.json
     std::filesystem::path out_dir;  ///< albedo.exr, albedo.png, report.json go here
@@ -24,6 +30,13 @@ struct ReconstructConfig {
     LambertOptions lambert;         ///< solve mode, view choice, rejection thresholds
     AtlasOptions atlas;             ///< texture budget and texels per pixel
     bool force_occlusion_rays = false; ///< cast occlusion rays even where the mesh is convex
+    SpecularMode specular = SpecularMode::Auto;
+    /// Auto: specular energy is present when the mean squared residual exceeds this many noise
+    /// variances (lambert.noise_sigma, floored at one 16-bit step).
+    double specular_energy_threshold = 4.0;
+    /// The fit runs on a deterministic stride subsample of at most this many samples (0 = all).
+    std::uint32_t max_fit_samples = 200000;
+    LafortuneFitOptions lafortune;  ///< noise_sigma is set from lambert.noise_sigma (weights make f_s noise image noise)
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
 };
 

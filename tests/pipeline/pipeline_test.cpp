@@ -116,6 +116,62 @@ TEST(Reconstruct, VulkanAndCpuBackendsAgree) {
     EXPECT_LT(static_cast<double>(large), 1e-3 * static_cast<double>(a.pixels.size()));
 }
 
+// Specular stage (pipeline.md sections 4, 5, 9) on the can at 96 px, 6 views x 4 lights, png16.
+// Checks the report's shape only: the recovered lobe does NOT yet match ground_truth.lobe
+// (at this size the fit ends near Cx ~ -0.04, Cz ~ 0.90, N ~ 25, not converged, against
+// truth -0.90, 0.76, 10.1); the accuracy target (Cx, Cz 2%, N 5%) is open, see the stage note.
+TEST(Reconstruct, SpecularStageReportsLobeInGroundTruthShape) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "can");
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    c.specular = SpecularMode::On;
+    c.max_fit_samples = 20000;
+    const ReconstructResult r = reconstruct(c);
+    const nlohmann::json& s = r.report["specular"];
+    ASSERT_TRUE(s.is_object());
+    for (const char* key : {"cx", "cz", "n", "status"}) ASSERT_EQ(s["lobe"][key].size(), 3u) << key;
+    EXPECT_GT(s["samples"]["used"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["samples"]["dropped"]["shadow"].get<std::uint64_t>(), 0u);
+    EXPECT_TRUE(s["seconds"].contains("residuals"));
+    EXPECT_TRUE(s["seconds"].contains("fit"));
+    EXPECT_FALSE(left_out_mentions(r.report, "specular fit"));
+    const nlohmann::json truth = nlohmann::json::parse(std::ifstream(c.capture / "capture.json"))["ground_truth"]["lobe"];
+    for (int k = 0; k < 3; ++k)
+        std::printf("channel %d: Cx %.4f (truth %.4f)  Cz %.4f (truth %.4f)  N %.3f (truth %.3f)  %s\n", k,
+                    s["lobe"]["cx"][k].get<double>(), truth["cx"][k].get<double>(), s["lobe"]["cz"][k].get<double>(),
+                    truth["cz"][k].get<double>(), s["lobe"]["n"][k].get<double>(), truth["n"][k].get<double>(),
+                    s["lobe"]["status"][k].get<std::string>().c_str());
+    std::printf("energy ratio %.3f\n", s["energy"]["ratio_to_noise_variance"].get<double>());
+}
+
+TEST(Reconstruct, SpecularOffIsLeftOutAndSaysWhy) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "sphere", /*lambertian=*/true);
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    c.specular = SpecularMode::Off;
+    const ReconstructResult r = reconstruct(c);
+    EXPECT_TRUE(r.report["specular"].is_null());
+    EXPECT_TRUE(left_out_mentions(r.report, "specular fit"));
+}
+
+TEST(Reconstruct, LambertianSkipsTheSpecularFitWithAutoAndSaysWhy) {
+    test::TempDir dir("pipe");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "sphere", /*lambertian=*/true);
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    const ReconstructResult r = reconstruct(c);
+    const nlohmann::json& s = r.report["specular"];
+    EXPECT_FALSE(s["energy"]["has_specular"].get<bool>());
+    EXPECT_TRUE(s["lobe"].is_null());
+    EXPECT_TRUE(left_out_mentions(r.report, "specular fit"));
+    EXPECT_GT(s["samples"]["used"].get<std::uint64_t>(), 0u);
+}
+
 TEST(Reconstruct, MissingCaptureFailsWithoutWritingOutputs) {
     test::TempDir dir("pipe");
     ReconstructConfig c;

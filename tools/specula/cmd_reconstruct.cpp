@@ -19,6 +19,7 @@ struct ReconstructArgs {
     std::string mode = "albedo";
     std::string views = "best";
     std::uint32_t texture_size = 4096;
+    std::string specular = "auto";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -26,6 +27,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.backend = args.backend == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan;
     c.lambert.mode = args.mode == "photometric" ? LambertMode::Photometric : LambertMode::Albedo;
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
+    c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
     const ReconstructResult result = reconstruct(c);
@@ -67,6 +69,11 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--noise", args->config.lambert.noise_sigma,
                     "Image noise sigma (full scale 1) used in the highlight-rejection margin")
         ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    cmd->add_option("--specular", args->specular,
+                    "auto: fit the Lafortune lobe only when the residuals hold more energy than the noise (--noise);\n"
+                    "on: always fit (the report gives its cost); off: no residual samples, no fit")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
     cmd->add_flag("--force-occlusion-rays", args->config.force_occlusion_rays,
                   "Cast occlusion rays even when the mesh is convex (the default skips them there)");

@@ -1,0 +1,68 @@
+#pragma once
+// The output bundle (pipeline.md section 10): one self-contained glTF 2.0 binary
+// (.glb) that any glTF viewer shows, and that Specula's own renderer reads back exactly.
+//  - the mesh with the atlas texture coordinates (TEXCOORD_0), smooth normals;
+//  - the albedo atlas as the base colour texture (sRGB PNG, as glTF requires);
+//  - a standard metallic-roughness approximation of the lobe for ordinary viewers;
+//  - the extension SPECULA_lafortune (docs/SPECULA_lafortune.md) carrying what
+//    Specula needs exactly: the per-channel lobe, its fit status, the linear float
+//    albedo (so a round trip is exact, not 8-bit), and the two factorization cube-maps.
+#include "core/image.h"
+#include "core/lafortune.h"
+#include "capture/mesh.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+/// A float RGB cube-map, 6 faces of resolution^2 texels, [face][row][col][rgb] in
+/// Vulkan's face order (+X, -X, +Y, -Y, +Z, -Z): shared/gshd.h's convention (the same
+/// layout as render::CubeMapRgb and the factorization's output).
+struct BundleCubeMap {
+    std::uint32_t resolution = 0;
+    std::vector<float> rgb;
+};
+
+struct Bundle {
+    /// World-space mesh. Every vertex has exactly one atlas coordinate (texcoords),
+    /// so triangles that share a position but not a patch have their own vertices.
+    Mesh mesh;
+    Image albedo;                          ///< linear RGB rho, the atlas
+    std::optional<LafortuneRgb> lobe;      ///< absent: no specular lobe (Lambertian, or left out)
+    std::vector<std::string> lobe_status;  ///< per channel, as the fit reported it (may be empty)
+    std::optional<BundleCubeMap> cube_g;   ///< factorization G(h), when computed
+    std::optional<BundleCubeMap> cube_h;   ///< factorization H(d)
+    nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
+    /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
+    /// from the 8-bit base colour texture"). Not written.
+    std::vector<std::string> warnings;
+};
+
+/// A bundle from the pipeline's pieces: splits mesh vertices so each has one atlas
+/// coordinate (corner_uv holds 3 per triangle, Atlas::corner_uv). Vertices with the same
+/// position index and bit-identical atlas coordinates are merged; normals are kept (computed
+/// area-weighted when the mesh has none). Throws Error when corner_uv.size() != 3 * triangles.
+[[nodiscard]] Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image albedo,
+                                 std::optional<LafortuneRgb> lobe);
+
+/// The 3 atlas coordinates of each triangle of a bundle's mesh (what render::Scene::corner_uv takes).
+/// Throws Error when the mesh has no texcoords.
+[[nodiscard]] std::vector<glm::vec2> corner_uvs(const Mesh& mesh);
+
+/// Writes the .glb atomically. Throws InputError naming the file (and the bundle field)
+/// on failure: inconsistent sizes, non-finite lobe, a file too large for a .glb.
+void write_bundle(const std::filesystem::path& path, const Bundle& bundle);
+
+/// Reads a bundle written by write_bundle (or any glTF with the extension). A .glb
+/// without the extension is read as a diffuse-only bundle from its base colour texture
+/// (sRGB 8-bit) with a warning. Throws InputError naming the file and the field.
+[[nodiscard]] Bundle read_bundle(const std::filesystem::path& path);
+
+} // namespace specula

@@ -1,0 +1,63 @@
+// Residual samples: backend dispatch, conversion for the fit, and the energy test.
+#include "specular/residuals.h"
+
+#include "core/error.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace specula {
+
+ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& options,
+                                 LambertBackend backend, gpu::Context* ctx) {
+    if (backend == LambertBackend::Cpu) return residual_samples_cpu(in, diffuse, options);
+    if (ctx == nullptr) throw UsageError("residual_samples: the Vulkan backend needs a gpu::Context");
+    ResidualsVk kernel(*ctx);
+    return kernel.run(in, diffuse, options);
+}
+
+bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& o) {
+    if (!(r.status & shared::kLambertOk) || (r.status & shared::kLambertViewsRejected)) return false;
+    if (o.max_albedo_spread < 0.0f) return true;
+    const glm::vec3 a(r.albedo_best), b(r.albedo_robust);
+    const glm::vec3 d = glm::abs(a - b);
+    return d.x + d.y + d.z <= o.max_albedo_spread * (a.x + a.y + a.z);
+}
+
+std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples) {
+    std::vector<LafortuneSample> out;
+    out.reserve(samples.size());
+    for (const ResidualSample& s : samples) {
+        if (s.status != shared::kResidualUsed) continue;
+        out.push_back({.u = glm::vec3(s.u), .v = glm::vec3(s.v), .f = s.f, .weight = s.u.w});
+    }
+    return out;
+}
+
+ResidualEnergy residual_energy(std::span<const ResidualSample> samples, double noise_sigma, double threshold) {
+    ResidualEnergy e;
+    e.noise_sigma = noise_sigma;
+    e.threshold = threshold;
+    double sq = 0.0, sum = 0.0;
+    std::uint64_t n = 0;
+    for (const ResidualSample& s : samples) {
+        if (s.status != shared::kResidualUsed) continue;
+        const double ebar = static_cast<double>(s.v.w); // r = f_s E; with a white light E = Ebar on every channel
+        for (int c = 0; c < 3; ++c) {
+            const double r = static_cast<double>(s.f[c]) * ebar;
+            sq += r * r;
+            sum += r;
+        }
+        ++n;
+    }
+    if (n == 0) return e;
+    e.mean_square = sq / (3.0 * static_cast<double>(n));
+    e.mean = sum / (3.0 * static_cast<double>(n));
+    // Floor the noise at one 16-bit step so noise-free captures still compare against quantization.
+    const double sigma = std::max(noise_sigma, 1.0 / 65535.0);
+    e.ratio = e.mean_square / (sigma * sigma);
+    e.has_specular = e.ratio > threshold;
+    return e;
+}
+
+} // namespace specula

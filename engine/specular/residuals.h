@@ -1,0 +1,111 @@
+#pragma once
+// Stage 4, residual samples (pipeline.md section 4): per particle with a diffuse solution,
+// per train frame of every view that sees it where its light reaches it, the specular BRDF
+// sample f_s = (c - (rho/pi) E) / E with the light and view directions in the particle's
+// tangent frame. Method, weight and drop rules: shaders/shared/residuals.h.
+//
+//   ResidualSamples rs = residual_samples(lambert_in, diffuse_out, {}, LambertBackend::Vulkan, &ctx);
+//   LafortuneFitRgb fit = fit_lafortune(to_lafortune_samples(rs), {});
+//
+// Slots, not a count pass: the visibility masks (seen, lit) live on the host, so the host
+// knows before the dispatch exactly which (particle, frame) pairs are candidates; it lays
+// out one slot per candidate (order: view, then particle, then the view's frames) and the
+// kernel writes a sample or a drop status into each. A GPU count + prefix sum would only
+// save the slots of samples dropped as grazing, missing or clipped (a few percent). The
+// host then compacts the used samples, in slot order, so both backends return the same
+// sequence.
+//
+// Memory (Vulkan): as the diffuse solve (lambert_solve.h), the images are batched per view
+// so that one batch fits maxStorageBufferRange (128 MiB on lavapipe); the slots of one
+// batch are cut into chunks of whole pairs that fit one binding, one dispatch per chunk.
+#include "diffuse/lambert_solve.h"
+#include "specular/lafortune_fit.h"
+
+#include "shared/residuals.h"
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+using ResidualSample = shared::ResidualSample;
+
+struct ResidualOptions {
+    float min_light_cos = 0.1f; ///< drop n.u below this (the diffuse solve's min_light_cos)
+    /// Vulkan: upper bound on the bytes of one images or samples binding (0 = maxStorageBufferRange); tests lower it.
+    std::uint64_t max_binding_bytes = 0;
+    /// Particles whose best-view and robust (all-view) albedo differ by more than this,
+    /// relative to their sum over channels, are left out: their albedo depends on the view
+    /// (a texture finer than the pixels resampled differently per view), so their residuals
+    /// hold that resampling error, not specular light. < 0 keeps every solved particle.
+    float max_albedo_spread = 0.02f;
+};
+
+/// True when particle result r gives residual samples under `options` (both backends use it).
+[[nodiscard]] bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& options);
+
+struct ResidualCounts {
+    std::uint64_t candidates = 0;        ///< (particle, frame) of seeing views, particle with a diffuse solution
+    std::uint64_t used = 0;
+    std::uint64_t dropped_shadow = 0;    ///< lit bit clear (Embree occlusion or facing away)
+    std::uint64_t dropped_grazing = 0;   ///< n.u < min_light_cos
+    std::uint64_t dropped_missing = 0;   ///< a tap missing, outside the mask, or not finite
+    std::uint64_t dropped_clipped = 0;   ///< a tap at saturation
+    std::uint64_t dropped_no_diffuse = 0; ///< (particle, frame) of particles without a (view-consistent) diffuse solution
+};
+
+struct ResidualSamples {
+    std::vector<ResidualSample> samples; ///< used samples only, in slot order
+    ResidualCounts counts;
+    double seconds = 0.0;               ///< wall clock (layout, upload, dispatch, download, compaction)
+    std::optional<double> gpu_ms;       ///< Vulkan with timestamps
+    std::uint32_t view_batches = 0;
+    std::uint32_t chunks = 0;           ///< dispatches
+};
+
+/// The reference: double precision, single thread, rounded to the float layout.
+[[nodiscard]] ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse,
+                                                   const ResidualOptions& options = {});
+
+/// The Vulkan kernel (shaders/specular/residuals.comp). Owns its pipeline.
+class ResidualsVk {
+public:
+    explicit ResidualsVk(gpu::Context& ctx);
+    ~ResidualsVk();
+    ResidualsVk(const ResidualsVk&) = delete;
+    ResidualsVk& operator=(const ResidualsVk&) = delete;
+    [[nodiscard]] ResidualSamples run(const LambertInputs& in, const LambertOutputs& diffuse,
+                                      const ResidualOptions& options = {});
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+/// Runs on a backend (ctx is required for Vulkan).
+[[nodiscard]] ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& diffuse,
+                                               const ResidualOptions& options, LambertBackend backend,
+                                               gpu::Context* ctx = nullptr);
+
+/// The samples as the fit takes them (weight Ebar^2).
+[[nodiscard]] std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples);
+
+/// Residual energy against the noise (pipeline.md section 9): the weighted mean square of
+/// f_s with weight Ebar^2, i.e. the mean squared residual in image units (channel mean),
+/// against noise_sigma^2. Specular energy is present when the ratio exceeds `threshold`.
+struct ResidualEnergy {
+    double mean_square = 0.0; ///< sum w f^2 / (3 sum_samples 1), image units squared
+    double mean = 0.0;        ///< mean signed residual in image units (specular light only adds: > 0)
+    double noise_sigma = 0.0;
+    double ratio = 0.0;       ///< mean_square / noise_sigma^2
+    double threshold = 0.0;
+    bool has_specular = false;
+};
+[[nodiscard]] ResidualEnergy residual_energy(std::span<const ResidualSample> samples, double noise_sigma,
+                                             double threshold = 4.0);
+
+} // namespace specula

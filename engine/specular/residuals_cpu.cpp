@@ -1,0 +1,123 @@
+// Reference of the residual samples: the method of shared/residuals.h, step for step as
+// shaders/specular/residuals.comp does it, in double (the bilinear taps through the shared
+// helpers instantiated in double, shared::f64), rounded to the float layout at the end.
+// Inputs the GPU gets in float (camera, lights, rho/pi) are rounded to float first.
+#include "specular/residuals.h"
+
+#include "core/error.h"
+#include "core/timer.h"
+
+#include <cmath>
+
+namespace specula {
+
+namespace {
+
+namespace f64 = shared::f64;
+constexpr double kPi = 3.14159265358979323846;
+
+glm::dvec3 pixel(const FrameImage& im, int x, int y) {
+    const float* p = &im.color.pixels[im.color.index(x, y)];
+    return {p[0], p[1], p[2]};
+}
+
+bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+// shared::to_tangent_frame in double (same helper switch).
+glm::dvec3 to_tangent_frame(const glm::dvec3& n, const glm::dvec3& w) {
+    const glm::dvec3 helper = std::abs(n.y) > static_cast<double>(shared::kTangentHelperSwitch) ? glm::dvec3(0.0, 0.0, 1.0)
+                                                                                               : glm::dvec3(0.0, 1.0, 0.0);
+    const glm::dvec3 x = glm::normalize(glm::cross(helper, n));
+    const glm::dvec3 y = glm::cross(n, x);
+    return {glm::dot(w, x), glm::dot(w, y), glm::dot(w, n)};
+}
+
+} // namespace
+
+ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o) {
+    const Stopwatch sw;
+    lambert_validate(in);
+    if (diffuse.particles.size() != in.particles.size())
+        throw Error("residual_samples: the diffuse solution has " + std::to_string(diffuse.particles.size()) +
+                    " particles, the inputs " + std::to_string(in.particles.size()));
+    const Visibility& vis = *in.visibility;
+    ResidualSamples out;
+    ResidualCounts& cnt = out.counts;
+    const double min_cos = static_cast<double>(o.min_light_cos);
+    for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
+        const LambertView& view = in.views[vi];
+        if (view.frames.empty()) continue;
+        const Intrinsics& k = view.camera.intrinsics;
+        const glm::dmat4 w2c = glm::dmat4(glm::mat4(view.camera.world_to_camera));
+        const glm::dvec4 kf(glm::vec4(static_cast<float>(k.fl_x), static_cast<float>(k.fl_y), static_cast<float>(k.cx),
+                                      static_cast<float>(k.cy)));
+        const glm::dvec3 center(glm::vec3(view.camera.center()));
+        const std::size_t w = static_cast<std::size_t>(k.w);
+        for (std::uint32_t p = 0; p < in.particles.size(); ++p) {
+            if (!vis.sees(p, vi)) continue;
+            cnt.candidates += view.frames.size();
+            if (!residual_particle_usable(diffuse.particles[p], o)) {
+                cnt.dropped_no_diffuse += view.frames.size();
+                continue;
+            }
+            const Particle& part = in.particles[p];
+            const glm::dvec3 P(part.p());
+            const glm::dvec3 n(part.n());
+            const glm::dvec3 rpi(glm::vec3(diffuse.albedo(p) / static_cast<float>(kPi)));
+            const glm::dvec3 xc(w2c * glm::dvec4(P, 1.0));
+            const glm::dvec2 pos(kf.z + kf.x * xc.x / (-xc.z), kf.w - kf.y * xc.y / (-xc.z));
+            const f64::LambertTaps t = f64::lambert_taps(pos, k.w, k.h);
+            const glm::dvec3 vl = to_tangent_frame(n, glm::normalize(center - P));
+            for (std::uint32_t f : view.frames) {
+                if (!vis.lights(p, f)) {
+                    ++cnt.dropped_shadow;
+                    continue;
+                }
+                const PointLight& light = in.lights[f];
+                const glm::dvec3 L = glm::dvec3(glm::vec3(light.position)) - P;
+                const double d2 = glm::dot(L, L);
+                const glm::dvec3 u = L / std::sqrt(d2);
+                const double cosl = glm::dot(n, u);
+                if (!(cosl >= min_cos)) {
+                    ++cnt.dropped_grazing;
+                    continue;
+                }
+                const FrameImage& im = in.images[f];
+                const std::uint32_t fl =
+                    im.flags[std::size_t(t.y0) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y0) * w + std::size_t(t.x1)] |
+                    im.flags[std::size_t(t.y1) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y1) * w + std::size_t(t.x1)];
+                const glm::dvec3 px[4] = {pixel(im, t.x0, t.y0), pixel(im, t.x1, t.y0), pixel(im, t.x0, t.y1),
+                                          pixel(im, t.x1, t.y1)};
+                bool finite = true;
+                for (const auto& v : px) finite = finite && finite3(v);
+                if ((fl & (shared::kLambertPixMissing | shared::kLambertPixOutside)) || !finite) {
+                    ++cnt.dropped_missing;
+                    continue;
+                }
+                const double sat = static_cast<double>(std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
+                bool clip = (fl & shared::kLambertPixClipped) != 0;
+                for (const auto& v : px) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
+                if (clip) {
+                    ++cnt.dropped_clipped;
+                    continue;
+                }
+                const glm::dvec3 c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]);
+                const glm::dvec3 E = glm::dvec3(glm::vec3(light.intensity)) * (std::max(0.0, cosl) / d2);
+                const glm::dvec3 r = c - rpi * E;
+                const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);
+                const double ebar = (E.x + E.y + E.z) / 3.0;
+                ResidualSample s{};
+                s.u = glm::vec4(glm::vec3(to_tangent_frame(n, u)), static_cast<float>(ebar * ebar));
+                s.v = glm::vec4(glm::vec3(vl), static_cast<float>(ebar));
+                s.f = glm::vec3(fs);
+                s.status = shared::kResidualUsed;
+                out.samples.push_back(s);
+                ++cnt.used;
+            }
+        }
+    }
+    out.seconds = sw.seconds();
+    return out;
+}
+
+} // namespace specula

@@ -1,0 +1,111 @@
+#version 450
+// residuals: one invocation per (particle, view) pair of the current view batch. Walks the
+// view's train frames; every frame whose `lit` bit is set owns one output slot (the host
+// counted them, so slots are consecutive from key.slot), filled with the specular BRDF
+// sample or a drop status. Method: shared/residuals.h; reference:
+// engine/specular/residuals_cpu.cpp. Bilinear taps and flags as in the diffuse solve
+// (shared/lambert.h), so both stages read the same pixel value.
+#extension GL_GOOGLE_include_directive : require
+#include "shared/dispatch.h"
+#include "shared/lambert.h"
+#include "shared/residuals.h"
+
+layout(local_size_x_id = 0) in;
+
+struct ParticleGpu {
+    vec4 position;
+    vec4 normal;
+    vec2 bary;
+    uint triangle;
+    uint texel;
+};
+
+layout(std430, set = 0, binding = 0) readonly buffer Particles { ParticleGpu particles[]; };
+layout(std430, set = 0, binding = 1) readonly buffer Lit { uint lit[]; };
+layout(std430, set = 0, binding = 2) readonly buffer Albedo { vec4 rho_over_pi[]; }; // per particle
+layout(std430, set = 0, binding = 3) readonly buffer Views { LambertViewGpu views[]; };
+layout(std430, set = 0, binding = 4) readonly buffer Frames { LambertFrameGpu frames[]; };
+layout(std430, set = 0, binding = 5) readonly buffer Pixels { uvec4 pixels[]; }; // rgb float bits, flags
+layout(std430, set = 0, binding = 6) readonly buffer Keys { LambertPairKey keys[]; };
+layout(std430, set = 0, binding = 7) writeonly buffer Samples { ResidualSample samples[]; };
+
+layout(push_constant) uniform Push {
+    SPECULA_DISPATCH_HEADER
+    uint frame_words;
+    float min_light_cos;
+} pc;
+
+bool finite3(vec3 v) {
+    return abs(v.x) <= 3.0e38 && abs(v.y) <= 3.0e38 && abs(v.z) <= 3.0e38;
+}
+
+void main() {
+    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.element_count) return;
+    LambertPairKey key = keys[e];
+    ParticleGpu part = particles[key.particle];
+    LambertViewGpu view = views[key.view];
+    vec3 P = part.position.xyz;
+    vec3 n = part.normal.xyz;
+    vec3 rpi = rho_over_pi[key.particle].xyz;
+    vec4 Ph = vec4(P, 1.0);
+    vec3 xc = vec3(dot(view.w2c0, Ph), dot(view.w2c1, Ph), dot(view.w2c2, Ph));
+    vec2 pos = vec2(view.intrinsics.z + view.intrinsics.x * xc.x / (-xc.z),
+                    view.intrinsics.w - view.intrinsics.y * xc.y / (-xc.z));
+    int w = int(view.width);
+    int h = int(view.height);
+    LambertTaps t = lambert_taps(pos, w, h);
+    vec3 vl = to_tangent_frame(n, normalize(view.center.xyz - P));
+
+    uint slot = key.slot;
+    for (uint k = 0u; k < view.frame_count; ++k) {
+        LambertFrameGpu fr = frames[view.frame_first + k];
+        uint word = lit[key.particle * pc.frame_words + fr.frame / 32u];
+        if (((word >> (fr.frame % 32u)) & 1u) == 0u) continue; // shadowed: no slot
+        ResidualSample s;
+        s.u = vec4(0.0);
+        s.v = vec4(vl, 0.0);
+        s.f = vec3(0.0);
+        vec3 L = fr.light.xyz - P;
+        float d2 = dot(L, L);
+        vec3 u = L / sqrt(d2);
+        float cosl = dot(n, u);
+        s.u.xyz = to_tangent_frame(n, u);
+        if (!(cosl >= pc.min_light_cos)) {
+            s.status = kResidualGrazing;
+            samples[slot++] = s;
+            continue;
+        }
+        uint base = fr.pixel_offset;
+        uvec4 p00 = pixels[base + uint(t.y0 * w + t.x0)];
+        uvec4 p10 = pixels[base + uint(t.y0 * w + t.x1)];
+        uvec4 p01 = pixels[base + uint(t.y1 * w + t.x0)];
+        uvec4 p11 = pixels[base + uint(t.y1 * w + t.x1)];
+        vec3 c00 = uintBitsToFloat(p00.xyz);
+        vec3 c10 = uintBitsToFloat(p10.xyz);
+        vec3 c01 = uintBitsToFloat(p01.xyz);
+        vec3 c11 = uintBitsToFloat(p11.xyz);
+        uint fl = p00.w | p10.w | p01.w | p11.w;
+        bool finite = finite3(c00) && finite3(c10) && finite3(c01) && finite3(c11);
+        if ((fl & (kLambertPixMissing | kLambertPixOutside)) != 0u || !finite) {
+            s.status = kResidualMissing;
+            samples[slot++] = s;
+            continue;
+        }
+        float sat = fr.light.w;
+        vec3 mx = max(max(c00, c10), max(c01, c11));
+        if ((fl & kLambertPixClipped) != 0u || mx.x >= sat || mx.y >= sat || mx.z >= sat) {
+            s.status = kResidualClipped;
+            samples[slot++] = s;
+            continue;
+        }
+        vec3 c = lambert_bilinear(t, c00, c10, c01, c11);
+        vec3 E = residual_irradiance(fr.intensity.xyz, cosl, d2);
+        float ebar = (E.x + E.y + E.z) / 3.0;
+        s.f = residual_brdf(c, rpi, E);
+        s.u.w = ebar * ebar;
+        s.v.w = ebar;
+        s.status = kResidualUsed;
+        samples[slot++] = s;
+    }
+}
