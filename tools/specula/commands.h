@@ -11,4 +11,7 @@ void add_devices_command(CLI::App& app);  // cmd_devices.cpp
 void add_reconstruct_command(CLI::App& app); // cmd_reconstruct.cpp
 void add_bench_command(CLI::App& app);    // cmd_bench.cpp
 
+void add_render_command(CLI::App& app);   // cmd_render.cpp
+void add_evaluate_command(CLI::App& app); // cmd_evaluate.cpp
+
 } // namespace specula::cli

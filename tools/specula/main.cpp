@@ -25,6 +25,8 @@ int main(int argc, char** argv) {
     specula::cli::add_synth_command(app);
     specula::cli::add_devices_command(app);
     specula::cli::add_bench_command(app);
+    specula::cli::add_render_command(app);
+    specula::cli::add_evaluate_command(app);
     try {
         app.parse(argc, argv);
         return 0;

@@ -1,0 +1,94 @@
+#include "evaluate/bundle_render.h"
+
+#include "core/error.h"
+
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <utility>
+
+namespace specula::evaluate {
+
+namespace {
+
+render::Scene scene_of(const Bundle& bundle, const std::vector<glm::vec2>& corner_uv) {
+    return render::Scene{.mesh = &bundle.mesh,
+                         .corner_uv = corner_uv,
+                         .albedo = &bundle.albedo,
+                         .lobe = bundle.lobe.value_or(LafortuneRgb{})};
+}
+
+render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const std::string& name) {
+    if (bundle.albedo.empty()) throw Error(name + ": the bundle has no albedo atlas");
+    if (!bundle.mesh.has_texcoords())
+        throw Error(name + ": mesh: every vertex needs an atlas coordinate (" + std::to_string(bundle.mesh.texcoords.size()) +
+                    " texcoords for " + std::to_string(bundle.mesh.positions.size()) + " vertices)");
+    const std::vector<glm::vec2> corner_uv = corner_uvs(bundle.mesh);
+    render::Renderer r(ctx, scene_of(bundle, corner_uv));
+    if (bundle.cube_g && bundle.cube_h)
+        r.set_factorization(render::CubeMapRgb{bundle.cube_g->resolution, bundle.cube_g->rgb},
+                            render::CubeMapRgb{bundle.cube_h->resolution, bundle.cube_h->rgb});
+    return r;
+}
+
+std::string lower(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return s;
+}
+
+} // namespace
+
+void require_specular_model(const Bundle& bundle, render::SpecularModel model, std::string_view name) {
+    if (model != render::SpecularModel::Factorized) return;
+    if (!bundle.cube_g || !bundle.cube_h)
+        throw Error(std::string(name) +
+                    ": the bundle has no factorization cube-maps (SPECULA_lafortune cube_g / cube_h): "
+                    "render with --specular analytic, or reconstruct with the factorization");
+}
+
+BundleRenderer::BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name)
+    : m_name(std::move(name)), m_renderer(make_renderer(ctx, bundle, m_name)) {}
+
+render::Frame BundleRenderer::render(const Camera& camera, const PointLight& light, const render::Settings& settings) {
+    if (settings.specular == render::SpecularModel::Factorized && !m_renderer.has_factorization())
+        throw Error(m_name +
+                    ": the bundle has no factorization cube-maps (SPECULA_lafortune cube_g / cube_h): "
+                    "render with --specular analytic, or reconstruct with the factorization");
+    return m_renderer.render(camera, light, settings);
+}
+
+Camera free_camera(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up, int width, int height,
+                   std::optional<double> fov_y_degrees, std::optional<double> focal_px) {
+    if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+        throw UsageError("--size: " + std::to_string(width) + "x" + std::to_string(height) + " is not a valid image size (1 to 16384)");
+    if (fov_y_degrees.has_value() == focal_px.has_value())
+        throw UsageError("--camera: give exactly one of --fov (degrees) and --fl (pixels)");
+    if (!(glm::length(eye - target) > 0.0) || !std::isfinite(glm::length(eye - target)))
+        throw UsageError("--camera: eye and target must be distinct finite points");
+    if (!(glm::length(glm::cross(up, eye - target)) > 1e-12 * glm::length(up) * glm::length(eye - target)))
+        throw UsageError("--camera: up must not be parallel to the viewing direction");
+    double fl = 0.0;
+    if (fov_y_degrees) {
+        if (!(*fov_y_degrees > 0.0 && *fov_y_degrees < 180.0)) throw UsageError("--fov: must be in (0, 180) degrees");
+        fl = 0.5 * height / std::tan(0.5 * glm::radians(*fov_y_degrees));
+    } else {
+        if (!(*focal_px > 0.0) || !std::isfinite(*focal_px)) throw UsageError("--fl: must be a positive focal length in pixels");
+        fl = *focal_px;
+    }
+    const Intrinsics k{width, height, fl, fl, 0.5 * width, 0.5 * height};
+    return Camera(k, look_at_camera_to_world(eye, target, up));
+}
+
+void write_rendered_image(const std::filesystem::path& path, const Image& image) {
+    const std::string ext = lower(path.extension().string());
+    if (ext == ".exr")
+        write_image(path, image, ColorSpace::Linear);
+    else if (ext == ".png")
+        write_image(path, image, ColorSpace::Srgb, 8);
+    else
+        throw UsageError(path.string() + ": output must end in .exr (linear float) or .png (sRGB 8-bit)");
+}
+
+} // namespace specula::evaluate

@@ -1,0 +1,57 @@
+#pragma once
+/// \file
+/// Rendering a bundle (engine/export/bundle.h) with the offscreen renderer
+/// (engine/render): what `specula render` does, and what evaluate() builds on.
+///
+///   BundleRenderer r(ctx, bundle, "out/object.glb");
+///   Image img = r.render(camera, light, {.mode = render::Mode::Both}).color;
+///   write_rendered_image("frame.png", img);   // .exr linear float, .png sRGB 8-bit
+#include "capture/camera.h"
+#include "capture/capture.h"
+#include "core/image.h"
+#include "export/bundle.h"
+#include "gpu/context.h"
+#include "render/renderer.h"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace specula::evaluate {
+
+/// A render::Renderer over a bundle's mesh, atlas, lobe and (when present) cube-maps.
+class BundleRenderer {
+public:
+    /// `name` (usually the bundle's path) is used in error messages. Throws Error when the
+    /// bundle is inconsistent (no albedo, a vertex without an atlas coordinate).
+    BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name = "bundle");
+
+    /// Renders one frame. Throws Error naming the bundle when `settings` asks for the
+    /// factorized model and the bundle has no cube-maps.
+    [[nodiscard]] render::Frame render(const Camera& camera, const PointLight& light, const render::Settings& settings);
+
+    [[nodiscard]] bool has_factorization() const noexcept { return m_renderer.has_factorization(); }
+    [[nodiscard]] bool has_lobe() const noexcept { return !m_renderer.lobe().is_zero(); }
+    [[nodiscard]] render::Renderer& renderer() noexcept { return m_renderer; }
+
+private:
+    std::string m_name;
+    render::Renderer m_renderer;
+};
+
+/// The error a factorized render of a bundle without cube-maps gives (checked before any
+/// GPU work, so a tool can refuse early). Throws Error naming the bundle; no-op otherwise.
+void require_specular_model(const Bundle& bundle, render::SpecularModel model, std::string_view name);
+
+/// A free camera: at `eye` looking at `target` (`up` roughly up), `width` x `height`
+/// pixels, principal point at the centre, and either a vertical field of view in degrees
+/// or a focal length in pixels (exactly one). Throws UsageError on degenerate input.
+[[nodiscard]] Camera free_camera(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up, int width,
+                                 int height, std::optional<double> fov_y_degrees, std::optional<double> focal_px);
+
+/// Writes a render by the path's extension: .exr linear 32-bit float; .png sRGB 8-bit
+/// (clamped to [0, 1]). Throws UsageError for another extension.
+void write_rendered_image(const std::filesystem::path& path, const Image& image);
+
+} // namespace specula::evaluate

@@ -1,0 +1,272 @@
+#include "evaluate/evaluate.h"
+
+#include "core/error.h"
+#include "core/log.h"
+#include "core/timer.h"
+#include "evaluate/bundle_render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace specula::evaluate {
+
+namespace {
+
+const char* split_name(Split s) { return s == Split::Train ? "train" : "test"; }
+
+/// Display value of a linear one, for the sheet's difference panel.
+float display(float linear) { return linear_to_srgb(std::clamp(linear, 0.0f, 1.0f)); }
+
+nlohmann::json settings_json(const EvaluationResult& r) {
+    return {{"mode", render::mode_name(r.render.mode)},
+            {"specular", render::specular_model_name(r.render.specular)},
+            {"metrics_backend", to_string(r.metrics_backend)},
+            {"masked_pixels", "the capture's mask (render coverage where a frame has no mask); missing pixels left out"},
+            {"rendered_clipped_at_saturation", true},
+            {"sheet_difference", "0.5 + " + std::to_string(static_cast<int>(kSheetAmplification)) +
+                                     " x (rendered - captured), per channel, in sRGB display values"}};
+}
+
+double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
+
+} // namespace
+
+const char* to_string(MetricsBackend backend) noexcept { return backend == MetricsBackend::Cpu ? "cpu" : "vulkan"; }
+
+std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_frames_per_split) {
+    std::vector<std::size_t> out;
+    for (const Split split : {Split::Train, Split::Test}) {
+        std::vector<std::size_t> idx;
+        for (std::size_t i = 0; i < desc.frames.size(); ++i)
+            if (desc.frames[i].split == split) idx.push_back(i);
+        if (max_frames_per_split == 0 || idx.size() <= max_frames_per_split) {
+            out.insert(out.end(), idx.begin(), idx.end());
+        } else {
+            // Evenly spaced: k * n / m for k < m (distinct since m < n), so every view is sampled.
+            for (std::size_t k = 0; k < max_frames_per_split; ++k) out.push_back(idx[k * idx.size() / max_frames_per_split]);
+        }
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+Image make_sheet(const Image& captured, const Image& rendered, double amplification) {
+    if (captured.width != rendered.width || captured.height != rendered.height)
+        throw Error("make_sheet: captured " + std::to_string(captured.width) + "x" + std::to_string(captured.height) +
+                    " and rendered " + std::to_string(rendered.width) + "x" + std::to_string(rendered.height) + " differ in size");
+    const int w = captured.width, h = captured.height, gap = 4;
+    Image sheet(3 * w + 2 * gap, h, 3, 1.0f); // white gaps
+    auto channel = [](const Image& im, int x, int y, int c) { return im.at(x, y, im.channels >= 3 ? c : 0); };
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const float a = channel(captured, x, y, c), b = channel(rendered, x, y, c);
+                sheet.at(x, y, c) = a;
+                sheet.at(w + gap + x, y, c) = b;
+                const double d = 0.5 + amplification * (static_cast<double>(display(b)) - display(a));
+                // Written through the sRGB encoding: store the linear value whose display value is d.
+                sheet.at(2 * (w + gap) + x, y, c) = srgb_to_linear(static_cast<float>(std::clamp(d, 0.0, 1.0)));
+            }
+    return sheet;
+}
+
+EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture& capture, const EvaluateOptions& options) {
+    const Stopwatch total;
+    const CaptureDesc& desc = capture.desc;
+    if (capture.images.size() != desc.frames.size())
+        throw Error(desc.dir.string() + ": evaluate needs the capture's images (loaded " + std::to_string(capture.images.size()) +
+                    " of " + std::to_string(desc.frames.size()) + ")");
+    require_specular_model(bundle, options.render.specular, options.bundle_name);
+    for (const std::size_t f : options.sheet_frames)
+        if (f >= desc.frames.size())
+            throw UsageError("--sheet-frames: frame " + std::to_string(f) + " is out of range (the capture has " +
+                             std::to_string(desc.frames.size()) + " frames, 0 to " + std::to_string(desc.frames.size() - 1) + ")");
+
+    EvaluationResult result;
+    result.bundle_name = options.bundle_name;
+    result.capture_dir = desc.dir.string();
+    result.render = options.render;
+    result.metrics_backend = options.metrics_backend;
+
+    const Stopwatch setup;
+    BundleRenderer renderer(ctx, bundle, options.bundle_name);
+    std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
+    if (options.metrics_backend == MetricsBackend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
+    result.timings.setup_s = setup.seconds();
+    if (options.render.mode != render::Mode::Diffuse && !renderer.has_lobe())
+        result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
+
+    const std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);
+    std::set<std::size_t> sheet_set(options.sheet_frames.begin(), options.sheet_frames.end());
+    if (options.sheet_dir && sheet_set.empty()) {
+        for (const Split split : {Split::Train, Split::Test}) {
+            const auto it = std::find_if(frames.begin(), frames.end(), [&](std::size_t f) { return desc.frames[f].split == split; });
+            if (it != frames.end()) sheet_set.insert(*it);
+        }
+    }
+    if (options.sheet_dir) std::filesystem::create_directories(*options.sheet_dir);
+
+    std::vector<metrics::FrameMetrics> train_masked, train_full, test_masked, test_full;
+    std::optional<log::Progress> progress;
+    if (options.progress) progress.emplace("evaluate", frames.size());
+    std::size_t done = 0;
+    std::size_t no_mask_frames = 0;
+    for (const std::size_t fi : frames) {
+        const FrameDesc& fd = desc.frames[fi];
+        const FrameImage& captured = capture.images[fi];
+        FrameEvaluation fe;
+        fe.frame = fi;
+        fe.file = fd.file_path.generic_string();
+        fe.split = fd.split;
+        fe.view_index = fd.view_index;
+
+        const Stopwatch render_time;
+        render::Frame frame = renderer.render(fd.camera(), fd.light, options.render);
+        fe.render_ms = 1000.0 * render_time.seconds();
+        fe.covered_pixels = frame.info.covered_pixels;
+        const Image& cap = captured.color;
+        Image& ren = frame.color;
+        if (cap.width != ren.width || cap.height != ren.height)
+            throw Error(desc.dir.string() + ": frames[" + std::to_string(fi) + "]: image " + std::to_string(cap.width) + "x" +
+                        std::to_string(cap.height) + " does not match its intrinsics " + std::to_string(ren.width) + "x" +
+                        std::to_string(ren.height));
+        if (std::isfinite(captured.saturation))
+            for (float& v : ren.pixels) v = std::min(v, captured.saturation);
+
+        const std::size_t n = static_cast<std::size_t>(cap.width) * cap.height;
+        const bool has_mask = fd.mask_path.has_value() && captured.flags.size() == n;
+        const bool has_flags = captured.flags.size() == n;
+        fe.mask_source = has_mask ? "capture" : "render";
+        if (!has_mask) ++no_mask_frames;
+        std::vector<std::uint8_t> masked(n), full;
+        for (std::size_t p = 0; p < n; ++p) {
+            const std::uint8_t flags = has_flags ? captured.flags[p] : 0;
+            const bool inside = has_mask ? (flags & kOutsideMask) == 0 : frame.mask[p] != 0;
+            masked[p] = inside && (flags & kMissing) == 0 ? 1 : 0;
+        }
+        if (captured.missing_pixels > 0) {
+            full.resize(n);
+            for (std::size_t p = 0; p < n; ++p) full[p] = (captured.flags[p] & kMissing) == 0 ? 1 : 0;
+        }
+
+        const Stopwatch metrics_time;
+        const metrics::MetricsInputs in_masked{cap, ren, masked};
+        const metrics::MetricsInputs in_full{cap, ren, full};
+        if (metrics_vk) {
+            fe.masked = metrics_vk->run(in_masked, options.metrics);
+            fe.full = metrics_vk->run(in_full, options.metrics);
+        } else {
+            fe.masked = metrics::image_metrics_cpu(in_masked, options.metrics);
+            fe.full = metrics::image_metrics_cpu(in_full, options.metrics);
+        }
+        fe.metrics_ms = 1000.0 * metrics_time.seconds();
+        result.timings.render_s += fe.render_ms / 1000.0;
+        result.timings.metrics_s += fe.metrics_ms / 1000.0;
+
+        if (fd.split == Split::Train) {
+            train_masked.push_back(fe.masked);
+            train_full.push_back(fe.full);
+            ++result.train_frames;
+        } else {
+            test_masked.push_back(fe.masked);
+            test_full.push_back(fe.full);
+            ++result.test_frames;
+        }
+
+        if (options.sheet_dir && sheet_set.count(fi) != 0) {
+            const Stopwatch sheet_time;
+            char name[64];
+            std::snprintf(name, sizeof name, "sheet_%04zu_%s_view%d.png", fi, split_name(fd.split), fd.view_index);
+            const std::filesystem::path path = *options.sheet_dir / name;
+            write_image(path, make_sheet(cap, ren), ColorSpace::Srgb, 8);
+            result.sheets.push_back(path);
+            result.timings.sheets_s += sheet_time.seconds();
+        }
+        result.frames.push_back(std::move(fe));
+        if (progress) progress->update(++done);
+    }
+    if (progress) progress->finish();
+    for (const std::size_t f : options.sheet_frames)
+        if (std::find(frames.begin(), frames.end(), f) == frames.end())
+            result.warnings.push_back("sheet frame " + std::to_string(f) + " was not evaluated (see --frames): no sheet");
+    if (no_mask_frames > 0)
+        result.warnings.push_back(std::to_string(no_mask_frames) +
+                                  " frame(s) have no mask: their masked measures use the render's coverage");
+
+    result.metrics.train_masked = metrics::summarize(train_masked, options.metrics);
+    result.metrics.train_full = metrics::summarize(train_full, options.metrics);
+    result.metrics.test_masked = metrics::summarize(test_masked, options.metrics);
+    result.metrics.test_full = metrics::summarize(test_full, options.metrics);
+    result.timings.total_s = total.seconds();
+    return result;
+}
+
+nlohmann::json to_json(const EvaluationResult& r) {
+    nlohmann::json j;
+    j["bundle"] = r.bundle_name;
+    j["capture"] = r.capture_dir;
+    j["settings"] = settings_json(r);
+    if (r.train_frames > 0)
+        j["train"] = {{"masked", metrics::to_json(r.metrics.train_masked)}, {"full", metrics::to_json(r.metrics.train_full)}};
+    if (r.test_frames > 0)
+        j["test"] = {{"masked", metrics::to_json(r.metrics.test_masked)}, {"full", metrics::to_json(r.metrics.test_full)}};
+    nlohmann::json frames = nlohmann::json::array();
+    for (const FrameEvaluation& f : r.frames)
+        frames.push_back({{"frame", f.frame},
+                          {"file", f.file},
+                          {"split", split_name(f.split)},
+                          {"view_index", f.view_index},
+                          {"mask_source", f.mask_source},
+                          {"covered_pixels", f.covered_pixels},
+                          {"masked", metrics::to_json(f.masked)},
+                          {"full", metrics::to_json(f.full)},
+                          {"render_ms", finite_or_zero(f.render_ms)},
+                          {"metrics_ms", finite_or_zero(f.metrics_ms)}});
+    j["frames"] = std::move(frames);
+    const std::size_t n = r.frames.size();
+    j["timings"] = {{"setup_s", r.timings.setup_s},       {"render_s", r.timings.render_s},
+                    {"metrics_s", r.timings.metrics_s},   {"sheets_s", r.timings.sheets_s},
+                    {"total_s", r.timings.total_s},       {"per_frame_ms", r.timings.per_frame_ms(n)}};
+    nlohmann::json sheets = nlohmann::json::array();
+    for (const auto& s : r.sheets) sheets.push_back(s.string());
+    j["sheets"] = std::move(sheets);
+    j["warnings"] = r.warnings;
+    return j;
+}
+
+std::string format_summary(const EvaluationResult& r) {
+    std::ostringstream out;
+    char line[256];
+    std::snprintf(line, sizeof line, "%-13s %6s %7s %7s %7s %7s %8s %7s %7s\n", "split", "frames", "Q1", "Q2", "RMS%",
+                  "DDE%", "PSNR dB", "SSIM", "NCC");
+    out << line;
+    auto row = [&](const char* name, std::size_t split_frames, const metrics::MetricsSummary& s) {
+        if (split_frames == 0) return;
+        if (s.frames == 0) {
+            std::snprintf(line, sizeof line, "%-13s %6llu   (no pixels)\n", name, static_cast<unsigned long long>(s.frames));
+        } else {
+            std::snprintf(line, sizeof line, "%-13s %6llu %7.2f %7.2f %7.3f %7.3f %8.2f %7.4f %7.4f\n", name,
+                          static_cast<unsigned long long>(s.frames), s.q1, s.q2, s.rms_percent, s.dde_percent, s.psnr,
+                          s.ssim, s.ncc);
+        }
+        out << line;
+    };
+    row("train masked", r.train_frames, r.metrics.train_masked);
+    row("train full", r.train_frames, r.metrics.train_full);
+    row("test masked", r.test_frames, r.metrics.test_masked);
+    row("test full", r.test_frames, r.metrics.test_full);
+    const std::size_t n = r.frames.size();
+    std::snprintf(line, sizeof line,
+                  "render %s/%s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
+                  render::mode_name(r.render.mode), render::specular_model_name(r.render.specular), to_string(r.metrics_backend),
+                  n, r.timings.per_frame_ms(n), n ? 1000.0 * r.timings.render_s / n : 0.0,
+                  n ? 1000.0 * r.timings.metrics_s / n : 0.0, r.timings.setup_s, r.timings.total_s);
+    out << line;
+    return out.str();
+}
+
+} // namespace specula::evaluate

@@ -1,0 +1,124 @@
+#pragma once
+/// \file
+/// Evaluation of a reconstruction against its capture (pipeline.md section 8; thesis
+/// chapter 5): every frame (train and test) is re-rendered from the bundle with the
+/// frame's camera and light, exactly, and compared with the captured image by every
+/// measure of metrics/image_metrics.h, over two pixel sets:
+///   - masked (primary): the object's pixels, the capture's mask (FrameImage flag
+///     kOutsideMask clear); pixels the capture marks missing (non-finite) are left out.
+///     A frame without a mask file uses the render's own coverage instead
+///     (FrameEvaluation::mask_source = "render").
+///   - full: the whole frame, background included (comparable with the thesis's figures).
+/// The rendered image is clipped at the frame's saturation where the capture has one
+/// (what the camera would have recorded). Aggregates per split (thesis Definitions
+/// 5.1, 5.2: Q1 = 100 - mean RMS%, Q2 = 100 - mean DDE%, metrics_summary.h).
+///
+/// Sheets (thesis figures 5.1-5.4): captured | rendered | difference, side by side, an
+/// sRGB PNG per chosen frame. The difference panel shows, per channel, in display
+/// (sRGB-encoded) values, 0.5 + kSheetAmplification * (rendered - captured): mid-gray
+/// where they agree, brighter where the render is brighter.
+///
+/// The renderer has no shadows: pixels a capture shows in shadow differ from a render.
+///
+///   Capture cap = load_capture(dir);
+///   EvaluationResult r = evaluate(ctx, read_bundle(path), cap, {.sheet_dir = "sheets"});
+///   std::cout << format_summary(r);  write json: to_json(r)
+#include "capture/capture.h"
+#include "export/bundle.h"
+#include "gpu/context.h"
+#include "metrics/image_metrics.h"
+#include "metrics/metrics_summary.h"
+#include "render/renderer.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace specula::evaluate {
+
+/// Amplification of the difference panel of a sheet (around mid-gray, display values).
+inline constexpr double kSheetAmplification = 4.0;
+
+enum class MetricsBackend { Vulkan, Cpu };
+
+struct EvaluateOptions {
+    render::Settings render;                       ///< mode (both/diffuse/specular) and specular model
+    MetricsBackend metrics_backend = MetricsBackend::Vulkan;
+    metrics::MetricsOptions metrics;
+    /// At most this many frames per split, evenly spaced over the split (0: all).
+    std::size_t max_frames_per_split = 0;
+    /// Sheets are written here when set (created if missing).
+    std::optional<std::filesystem::path> sheet_dir;
+    /// Frames (indices into capture.desc.frames) to make sheets of; empty: the first
+    /// evaluated train frame and the first evaluated test frame.
+    std::vector<std::size_t> sheet_frames;
+    std::string bundle_name = "bundle";            ///< for messages and the JSON
+    bool progress = true;                          ///< log::Progress on a terminal
+};
+
+struct FrameEvaluation {
+    std::size_t frame = 0;          ///< index into capture.desc.frames
+    std::string file;               ///< the frame's image, as capture.json names it
+    Split split = Split::Train;
+    int view_index = 0;
+    std::string mask_source;        ///< "capture" or "render" (no mask file)
+    metrics::FrameMetrics masked;   ///< over the object's pixels (primary)
+    metrics::FrameMetrics full;     ///< over the full frame
+    std::size_t covered_pixels = 0; ///< pixels the render covers
+    double render_ms = 0.0;         ///< wall time of the render (incl. readback)
+    double metrics_ms = 0.0;        ///< wall time of both metric runs
+};
+
+struct EvaluationTimings {
+    double setup_s = 0.0;   ///< renderer and metrics kernels (upload, pipelines)
+    double render_s = 0.0;  ///< sum over frames
+    double metrics_s = 0.0; ///< sum over frames
+    double sheets_s = 0.0;
+    double total_s = 0.0;
+    /// (render_s + metrics_s) / frames
+    [[nodiscard]] double per_frame_ms(std::size_t frames) const noexcept {
+        return frames == 0 ? 0.0 : 1000.0 * (render_s + metrics_s) / static_cast<double>(frames);
+    }
+};
+
+struct EvaluationResult {
+    std::vector<FrameEvaluation> frames;           ///< in capture order
+    metrics::EvaluationMetrics metrics;            ///< aggregates per split and pixel set
+    std::size_t train_frames = 0;                  ///< evaluated
+    std::size_t test_frames = 0;
+    EvaluationTimings timings;
+    std::vector<std::filesystem::path> sheets;     ///< written
+    std::vector<std::string> warnings;
+    std::string bundle_name;
+    std::string capture_dir;
+    render::Settings render;
+    MetricsBackend metrics_backend = MetricsBackend::Vulkan;
+};
+
+/// Evaluates a bundle against a capture loaded with its images. Throws Error when the
+/// capture has no images loaded, when the factorized model is asked of a bundle without
+/// cube-maps, or when a sheet frame is out of range (UsageError).
+[[nodiscard]] EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture& capture,
+                                        const EvaluateOptions& options = {});
+
+/// The frames evaluate() picks (indices into capture.desc.frames, in capture order).
+[[nodiscard]] std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_frames_per_split);
+
+/// One sheet: captured | rendered | difference (see the file comment), linear RGB
+/// ready for write_image(..., ColorSpace::Srgb). Images must have the same size.
+[[nodiscard]] Image make_sheet(const Image& captured, const Image& rendered, double amplification = kSheetAmplification);
+
+/// {bundle, capture, settings, train: {masked, full}, test: {masked, full} (a split with
+/// no frame is absent), frames: [...], timings, sheets, warnings}. Numbers are finite.
+[[nodiscard]] nlohmann::json to_json(const EvaluationResult& result);
+
+/// A plain-text table of the aggregates (one row per split and pixel set) and the timings.
+[[nodiscard]] std::string format_summary(const EvaluationResult& result);
+
+[[nodiscard]] const char* to_string(MetricsBackend backend) noexcept;
+
+} // namespace specula::evaluate

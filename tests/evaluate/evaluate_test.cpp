@@ -1,0 +1,271 @@
+// Evaluation (engine/evaluate) on a synthetic capture of the convex `sphere` preset
+// (96 px, 4 views x 3 lights + 1 test view x 2 lights, EXR: no quantization) against a
+// bundle built in memory from the truth: the preset's own mesh and texture coordinates,
+// its albedo texture as the atlas, its lobe. The renderer has no shadows; the sphere is
+// convex, so only pixels lit from behind the geometric (flat) facet can differ.
+// Every test runs on lavapipe with the validation layer (VulkanTest).
+#include "capture/capture.h"
+#include "core/file_util.h"
+#include "core/image.h"
+#include "evaluate/bundle_render.h"
+#include "evaluate/evaluate.h"
+#include "export/bundle.h"
+#include "synth/presets.h"
+#include "synth/synth.h"
+#include "test_dirs.h"
+#include "vulkan_env.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <sys/wait.h>
+
+namespace specula::evaluate {
+namespace {
+
+using test::TempDir;
+using test::VulkanTest;
+
+struct SphereCapture {
+    TempDir dir{"evaluate"};
+    synth::Preset preset = synth::make_preset("sphere");
+    synth::SynthResult synth;
+    Capture capture;
+    Bundle truth;
+};
+
+Bundle bundle_from_truth(const synth::Preset& p) {
+    Bundle b;
+    b.mesh = p.mesh; // every vertex has its texture coordinate: the texture is the atlas
+    b.albedo = p.material.albedo_texture;
+    if (b.albedo.empty()) b.albedo = Image(1, 1, 3);
+    if (p.material.albedo_texture.empty())
+        for (int c = 0; c < 3; ++c) b.albedo.at(0, 0, c) = p.material.albedo_value[c];
+    b.lobe = p.material.lobe;
+    return b;
+}
+
+const SphereCapture& sphere() {
+    static std::unique_ptr<SphereCapture> s = [] {
+        auto s = std::make_unique<SphereCapture>();
+        synth::SynthOptions o;
+        o.size = 96;
+        o.views = 4;
+        o.lights = 3;
+        o.test_views = 1;
+        o.test_lights = 2;
+        o.format = synth::ImageFormat::Exr;
+        o.seed = 3;
+        s->synth = synth::write_synthetic_capture(synth::to_object(s->preset), s->dir / "cap", o);
+        s->capture = load_capture(s->dir / "cap");
+        s->truth = bundle_from_truth(s->preset);
+        return s;
+    }();
+    return *s;
+}
+
+bool all_finite(const nlohmann::json& j) {
+    if (j.is_number_float()) return std::isfinite(j.get<double>());
+    if (j.is_structured())
+        for (const auto& v : j)
+            if (!all_finite(v)) return false;
+    return true;
+}
+
+class EvaluateTest : public VulkanTest {};
+
+TEST_F(EvaluateTest, TruthBundleScoresNearPerfect) {
+    const SphereCapture& s = sphere();
+    const EvaluationResult r = evaluate(ctx(), s.truth, s.capture, {.render = {.mode = render::Mode::Both}});
+    std::printf("%s", format_summary(r).c_str());
+    std::printf("synth shadowed object pixels (all frames): %zu of %zu\n", s.synth.shadowed_pixels, s.synth.object_pixels);
+    ASSERT_EQ(r.train_frames, 12u);
+    ASSERT_EQ(r.test_frames, 2u);
+    EXPECT_GE(r.metrics.test_masked.q1, 99.0);
+    EXPECT_GE(r.metrics.test_masked.psnr, 40.0);
+    EXPECT_GE(r.metrics.train_masked.q1, 99.0);
+    EXPECT_GE(r.metrics.train_masked.psnr, 40.0);
+    EXPECT_GT(r.metrics.test_masked.ssim, 0.99);
+    EXPECT_GE(r.metrics.test_full.q1, r.metrics.test_masked.q1 - 1e-9); // the background agrees exactly (both 0)
+    for (const FrameEvaluation& f : r.frames) {
+        EXPECT_EQ(f.mask_source, "capture");
+        EXPECT_GT(f.masked.pixels, 500u) << f.file;
+        EXPECT_EQ(f.full.pixels, 96u * 96u);
+    }
+}
+
+TEST_F(EvaluateTest, JsonHasEverySplitAndNoNaN) {
+    const SphereCapture& s = sphere();
+    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, s.capture));
+    for (const char* split : {"train", "test"})
+        for (const char* set : {"masked", "full"}) {
+            ASSERT_TRUE(j.contains(split) && j[split].contains(set)) << split << "." << set;
+            const nlohmann::json& m = j[split][set];
+            for (const char* key : {"q1", "q2", "rms_percent", "dde_percent", "psnr", "ssim", "ncc", "l1", "l2", "hausdorff", "frames"})
+                EXPECT_TRUE(m.contains(key) && m[key].is_number()) << split << "." << set << "." << key << " = " << m.value(key, nlohmann::json());
+        }
+    EXPECT_EQ(j["train"]["masked"]["frames"], 12);
+    EXPECT_EQ(j["test"]["full"]["frames"], 2);
+    ASSERT_TRUE(j["frames"].is_array());
+    EXPECT_EQ(j["frames"].size(), 14u);
+    EXPECT_TRUE(j["frames"][0].contains("masked") && j["frames"][0]["masked"]["psnr"].is_number());
+    EXPECT_TRUE(all_finite(j));
+    EXPECT_TRUE(j.contains("timings") && j["timings"]["per_frame_ms"].is_number());
+}
+
+TEST_F(EvaluateTest, SplitWithoutFramesIsAbsent) {
+    const SphereCapture& s = sphere();
+    Capture train_only = s.capture;
+    for (FrameDesc& f : train_only.desc.frames) f.split = Split::Train;
+    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, train_only, {.max_frames_per_split = 3}));
+    EXPECT_TRUE(j.contains("train"));
+    EXPECT_FALSE(j.contains("test"));
+    EXPECT_EQ(j["train"]["masked"]["frames"], 3);
+}
+
+TEST_F(EvaluateTest, HalvedAlbedoScoresWorse) {
+    const SphereCapture& s = sphere();
+    Bundle wrong = s.truth;
+    for (float& v : wrong.albedo.pixels) v *= 0.5f;
+    const EvaluationResult good = evaluate(ctx(), s.truth, s.capture);
+    const EvaluationResult bad = evaluate(ctx(), wrong, s.capture);
+    std::printf("truth: test masked Q1 %.3f PSNR %.2f; halved albedo: Q1 %.3f PSNR %.2f\n", good.metrics.test_masked.q1,
+                good.metrics.test_masked.psnr, bad.metrics.test_masked.q1, bad.metrics.test_masked.psnr);
+    EXPECT_LT(bad.metrics.test_masked.q1, good.metrics.test_masked.q1 - 2.0);
+    EXPECT_LT(bad.metrics.test_masked.psnr, good.metrics.test_masked.psnr - 10.0);
+    EXPECT_LT(bad.metrics.train_masked.q1, good.metrics.train_masked.q1 - 2.0);
+}
+
+TEST_F(EvaluateTest, CpuAndVulkanMetricsAgree) {
+    const SphereCapture& s = sphere();
+    const EvaluationResult vk = evaluate(ctx(), s.truth, s.capture, {.max_frames_per_split = 2});
+    const EvaluationResult cpu = evaluate(ctx(), s.truth, s.capture, {.metrics_backend = MetricsBackend::Cpu, .max_frames_per_split = 2});
+    ASSERT_EQ(vk.frames.size(), cpu.frames.size());
+    EXPECT_NEAR(vk.metrics.test_masked.q1, cpu.metrics.test_masked.q1, 1e-4);
+    EXPECT_NEAR(vk.metrics.train_full.q2, cpu.metrics.train_full.q2, 1e-4);
+    EXPECT_NEAR(vk.metrics.train_masked.ssim, cpu.metrics.train_masked.ssim, 1e-4);
+}
+
+TEST_F(EvaluateTest, WritesSheetsOfChosenFrames) {
+    const SphereCapture& s = sphere();
+    TempDir out("sheets");
+    const EvaluationResult r = evaluate(ctx(), s.truth, s.capture, {.sheet_dir = out / "sheets"});
+    ASSERT_EQ(r.sheets.size(), 2u); // the first train and the first test frame
+    for (const auto& p : r.sheets) {
+        ASSERT_TRUE(std::filesystem::exists(p)) << p;
+        const ImageFileInfo info = read_image_info(p);
+        EXPECT_EQ(info.width, 3 * 96 + 8);
+        EXPECT_EQ(info.height, 96);
+    }
+    EXPECT_THROW((void)evaluate(ctx(), s.truth, s.capture, {.sheet_dir = out / "x", .sheet_frames = {999}}), UsageError);
+}
+
+TEST_F(EvaluateTest, FactorizedWithoutCubeMapsIsRefused) {
+    const SphereCapture& s = sphere();
+    try {
+        (void)evaluate(ctx(), s.truth, s.capture, {.render = {.specular = render::SpecularModel::Factorized}, .bundle_name = "truth.glb"});
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("truth.glb"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("cube-maps"), std::string::npos) << e.what();
+    }
+}
+
+TEST(EvaluateSelect, EvenlySpacedPerSplit) {
+    CaptureDesc d;
+    for (int i = 0; i < 10; ++i) d.frames.push_back(FrameDesc{.split = i < 8 ? Split::Train : Split::Test});
+    EXPECT_EQ(select_frames(d, 0).size(), 10u);
+    EXPECT_EQ(select_frames(d, 4), (std::vector<std::size_t>{0, 2, 4, 6, 8, 9}));
+    EXPECT_EQ(select_frames(d, 1), (std::vector<std::size_t>{0, 8}));
+}
+
+TEST(EvaluateSheet, DifferencePanelIsMidGrayWhereEqual) {
+    Image a(2, 1, 3, 0.25f), b = a;
+    b.at(1, 0, 0) = 0.5f;
+    const Image sheet = make_sheet(a, b);
+    ASSERT_EQ(sheet.width, 3 * 2 + 8);
+    const int x0 = 2 * (2 + 4);
+    EXPECT_NEAR(linear_to_srgb(sheet.at(x0, 0, 0)), 0.5f, 1e-5f);
+    EXPECT_GT(linear_to_srgb(sheet.at(x0 + 1, 0, 0)), 0.9f);
+    EXPECT_EQ(sheet.at(2, 0, 0), 1.0f); // the gap
+}
+
+TEST(EvaluateCamera, FreeCameraChecksItsInput) {
+    const Camera c = free_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 200, 100, 90.0, std::nullopt);
+    EXPECT_NEAR(c.intrinsics.fl_y, 50.0, 1e-9);
+    const auto p = c.project({0, 0, 0});
+    ASSERT_TRUE(p.has_value());
+    EXPECT_NEAR(p->x, 100.0, 1e-9);
+    EXPECT_NEAR(p->y, 50.0, 1e-9);
+    EXPECT_THROW((void)free_camera({0, 0, 3}, {0, 0, 0}, {0, 0, 1}, 64, 64, 40.0, std::nullopt), UsageError);
+    EXPECT_THROW((void)free_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 64, 64, 40.0, 100.0), UsageError);
+    EXPECT_THROW((void)write_rendered_image("x.jpg2", Image(1, 1, 3)), UsageError);
+}
+
+#ifdef SPECULA_BINARY
+/// `specula render BUNDLE --capture DIR --frame I -o x.exr` writes what the in-memory render gives.
+TEST_F(EvaluateTest, CliRenderMatchesInMemoryRender) {
+    const SphereCapture& s = sphere();
+    TempDir out("render_cli");
+    write_bundle(out / "truth.glb", s.truth);
+    const Bundle read = read_bundle(out / "truth.glb");
+    const std::size_t frame = s.capture.desc.frames.size() - 1; // a test frame
+    const std::string cmd = std::string(SPECULA_BINARY) + " -q render " + (out / "truth.glb").string() + " --capture " +
+                            (s.dir / "cap").string() + " --frame " + std::to_string(frame) + " -o " + (out / "r.exr").string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const Image file = read_image(out / "r.exr", ColorSpace::Linear);
+    BundleRenderer r(ctx(), read, "truth.glb");
+    const FrameDesc& f = s.capture.desc.frames[frame];
+    const Image mem = r.render(f.camera(), f.light, {}).color;
+    ASSERT_EQ(file.width, mem.width);
+    ASSERT_EQ(file.height, mem.height);
+    ASSERT_GE(file.channels, 3);
+    double max_diff = 0.0;
+    for (int y = 0; y < mem.height; ++y)
+        for (int x = 0; x < mem.width; ++x)
+            for (int c = 0; c < 3; ++c) max_diff = std::max(max_diff, static_cast<double>(std::abs(file.at(x, y, c) - mem.at(x, y, c))));
+    EXPECT_EQ(max_diff, 0.0);
+
+    // png: sRGB 8-bit of the same frame
+    const std::string png = std::string(SPECULA_BINARY) + " -q render " + (out / "truth.glb").string() + " --capture " +
+                            (s.dir / "cap").string() + " --frame 0 -o " + (out / "r.png").string();
+    ASSERT_EQ(std::system(png.c_str()), 0) << png;
+    EXPECT_EQ(read_image_info(out / "r.png").bits_per_channel, 8);
+
+    // factorized without cube-maps: exit status 1, the bundle named
+    const std::string fac = std::string(SPECULA_BINARY) + " -q render " + (out / "truth.glb").string() + " --capture " +
+                            (s.dir / "cap").string() + " --frame 0 --specular factorized -o " + (out / "f.png").string() +
+                            " 2> " + (out / "err.txt").string();
+    const int rc = std::system(fac.c_str());
+    EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 1) << rc;
+    EXPECT_NE(read_text_file(out / "err.txt").find("truth.glb: the bundle has no factorization cube-maps"), std::string::npos)
+        << read_text_file(out / "err.txt");
+}
+
+/// `specula evaluate BUNDLE CAPTURE --json J --sheets D` writes the JSON and the sheets.
+TEST_F(EvaluateTest, CliEvaluateWritesJsonAndSheets) {
+    const SphereCapture& s = sphere();
+    TempDir out("evaluate_cli");
+    write_bundle(out / "truth.glb", s.truth);
+    const std::string cmd = std::string(SPECULA_BINARY) + " -q evaluate " + (out / "truth.glb").string() + " " +
+                            (s.dir / "cap").string() + " --json " + (out / "e.json").string() + " --sheets " +
+                            (out / "sheets").string() + " > " + (out / "stdout.txt").string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const nlohmann::json j = nlohmann::json::parse(read_text_file(out / "e.json"));
+    for (const char* split : {"train", "test"})
+        for (const char* set : {"masked", "full"})
+            for (const char* key : {"q1", "q2", "rms_percent", "dde_percent", "psnr", "ssim", "frames"})
+                EXPECT_TRUE(j[split][set][key].is_number()) << split << "." << set << "." << key;
+    EXPECT_GE(j["test"]["masked"]["q1"].get<double>(), 99.0);
+    EXPECT_EQ(j["frames"].size(), 14u);
+    EXPECT_TRUE(all_finite(j));
+    EXPECT_EQ(j["sheets"].size(), 2u);
+    EXPECT_NE(read_text_file(out / "stdout.txt").find("test masked"), std::string::npos);
+}
+#endif
+
+} // namespace
+} // namespace specula::evaluate
