@@ -6,6 +6,9 @@
 #include "core/log.h"
 #include "core/timer.h"
 #include "diffuse/albedo_texture.h"
+#include "evaluate/evaluate.h"
+#include "export/bundle.h"
+#include "factorization/factorization.h"
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "gpu/context.h"
@@ -232,6 +235,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
     // 5. Specular: residual samples, then the Lafortune fit when the residuals hold energy
     //    above the noise (pipeline.md sections 4, 5 and 9) or when forced.
     json specular = nullptr;
+    std::optional<LafortuneFitRgb> fitted_lobe;
     if (config.specular == SpecularMode::Off) {
         result.left_out.push_back({"specular fit (residual samples and Lafortune lobe)", "--specular off"});
     } else {
@@ -266,6 +270,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                 return fit_lafortune(all, fo);
             });
             const double fit_seconds = fit_watch.seconds();
+            fitted_lobe = fit;
             for (int k = 0; k < 3; ++k)
                 log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(fit.channel[k].cx) + " Cz " +
                           std::to_string(fit.channel[k].cz) + " N " + std::to_string(fit.channel[k].n) + " (" +
@@ -284,8 +289,98 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
         return t;
     });
 
-    result.left_out.push_back({"factorization, rendering and evaluation",
-                               "not built yet in this version of Specula (pipeline.md sections 6-8)"});
+    // 7. Factorization of the lobe into the two cube-maps (Kautz and McCool), channels
+    //    whose fit did not converge carry no lobe (they render diffuse only, and say so).
+    std::optional<LafortuneRgb> lobe;
+    std::vector<std::string> lobe_status;
+    if (fitted_lobe) {
+        LafortuneRgb l;
+        for (int k = 0; k < 3; ++k) {
+            lobe_status.push_back(to_string(fitted_lobe->channel[k].status));
+            if (fitted_lobe->channel[k].status != LafortuneFitStatus::Converged) continue;
+            l.cx[k] = static_cast<float>(fitted_lobe->channel[k].cx);
+            l.cz[k] = static_cast<float>(fitted_lobe->channel[k].cz);
+            l.n[k] = static_cast<float>(fitted_lobe->channel[k].n);
+        }
+        if (!l.is_zero()) lobe = l;
+        else result.left_out.push_back({"specular lobe in the bundle", "no channel's fit converged: the bundle is diffuse only"});
+    }
+    json factorization_report = nullptr;
+    std::optional<factorization::Factorization> cubes;
+    if (lobe) {
+        cubes = run_stage(result, "factorization", [&] {
+            const auto backend = config.backend == LambertBackend::Vulkan ? factorization::FactorizationBackend::Vulkan
+                                                                          : factorization::FactorizationBackend::Cpu;
+            return factorization::factorize(*lobe, {}, backend, ctx.get());
+        });
+        const factorization::DirectError err =
+            factorization::direct_relative_rms(*lobe, cubes->decomposition, &cubes->cube_g, &cubes->cube_h, 1u << 16);
+        factorization_report = {{"grid_h", cubes->resolution.grid_h},
+                                {"grid_d", cubes->resolution.grid_d},
+                                {"cube_g", cubes->resolution.cube_g},
+                                {"cube_h", cubes->resolution.cube_h},
+                                {"resolution_reason", cubes->resolution.reason},
+                                {"relative_rms_vs_lobe_grid", err.grid},
+                                {"relative_rms_vs_lobe_cubemaps", err.cube},
+                                {"seconds", cubes->timings.total_s}};
+        if (const auto ns = cubes->timings.gpu_total_ns()) factorization_report["gpu_ms"] = *ns * 1e-6;
+    } // else: the entries above already say why there is no lobe
+
+    // 8. The bundle: mesh with atlas coordinates, albedo, lobe, cube-maps (object.glb).
+    Bundle bundle = run_stage(result, "bundle", [&] {
+        Bundle b = make_bundle(capture.mesh, atlas.corner_uv, texture.image, lobe);
+        b.lobe_status = lobe_status;
+        if (cubes) {
+            const auto to_cube = [](const factorization::Cubemap& c) {
+                BundleCubeMap out{c.res, {}};
+                out.rgb.reserve(c.texels.size() * 3);
+                for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
+                return out;
+            };
+            b.cube_g = to_cube(cubes->cube_g);
+            b.cube_h = to_cube(cubes->cube_h);
+        }
+        b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        write_bundle(config.out_dir / "object.glb", b);
+        return b;
+    });
+
+    // 9. Self-evaluation: every frame re-rendered from the bundle, train and test, masked and full.
+    json evaluation_report = nullptr;
+    if (!config.evaluate) {
+        result.left_out.push_back({"evaluation", "--no-evaluate"});
+    } else {
+        std::unique_ptr<gpu::Context> eval_ctx;
+        std::string no_device;
+        if (!ctx) {
+            try {
+                eval_ctx = std::make_unique<gpu::Context>(gpu::ContextOptions{.device = config.device});
+            } catch (const std::exception& e) {
+                no_device = e.what();
+            }
+        }
+        gpu::Context* render_ctx = ctx ? ctx.get() : eval_ctx.get();
+        if (render_ctx == nullptr) {
+            result.left_out.push_back({"evaluation", "rendering needs a Vulkan device and none could be had: " + no_device});
+        } else {
+            const evaluate::EvaluationResult ev = run_stage(result, "evaluation", [&] {
+                evaluate::EvaluateOptions eo;
+                // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
+                eo.metrics_backend = render_ctx->info().kind == gpu::DeviceKind::Cpu ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
+                eo.max_frames_per_split = config.evaluate_max_frames;
+                eo.sheet_dir = config.out_dir / "sheets";
+                eo.bundle_name = "object.glb";
+                eo.progress = true;
+                return evaluate::evaluate(*render_ctx, bundle, capture, eo);
+            });
+            log::info(evaluate::format_summary(ev));
+            json full = evaluate::to_json(ev);
+            write_text_file(config.out_dir / "evaluation.json", full.dump(2) + "\n");
+            evaluation_report = full;
+            evaluation_report.erase("frames"); // per frame: evaluation.json
+            evaluation_report["file"] = "evaluation.json";
+        }
+    }
 
     // report.json, written last: its presence means the outputs above are complete.
     result.total_seconds = total.seconds();
@@ -309,6 +404,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
         {"visibility", visibility_json(visibility.stats)},
         {"diffuse", lambert_json(solve, config.lambert, config.backend)},
         {"specular", specular},
+        {"factorization", factorization_report},
+        {"bundle", {{"file", "object.glb"}, {"has_lobe", bundle.lobe.has_value()}, {"has_cubemaps", bundle.cube_g.has_value()}}},
+        {"evaluation", evaluation_report},
         {"albedo_texture",
          {{"files", {"albedo.exr", "albedo.png"}},
           {"width", texture.image.width},

@@ -6,6 +6,7 @@
 //
 //   load capture -> atlas -> particles -> visibility (Embree) -> diffuse solve
 //     -> residual samples -> Lafortune fit (when the residuals hold specular energy) -> albedo texture
+//     -> factorization (when there is a lobe) -> bundle (object.glb) -> self-evaluation
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
 #include "specular/lafortune_fit.h"
@@ -38,6 +39,10 @@ struct ReconstructConfig {
     std::uint32_t max_fit_samples = 200000;
     LafortuneFitOptions lafortune;  ///< noise_sigma is set from lambert.noise_sigma (weights make f_s noise image noise)
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
+    /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan
+    /// device; left out, with the reason, when none can be had).
+    bool evaluate = true;
+    std::size_t evaluate_max_frames = 0; ///< per split, evenly spaced (0: all frames)
 };
 
 struct StageRecord {

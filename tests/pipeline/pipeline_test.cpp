@@ -2,6 +2,7 @@
 // complete and honest about what it left out, and both backends agree.
 #include "core/error.h"
 #include "core/image.h"
+#include "export/bundle.h"
 #include "pipeline/reconstruct.h"
 #include "synth/presets.h"
 #include "synth/synth.h"
@@ -68,7 +69,8 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     EXPECT_FALSE(left_out_mentions(saved, "occlusion rays"));
     EXPECT_GT(saved["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
     // Every stage is timed; the texture has the atlas's size.
-    for (const char* stage : {"load", "atlas", "particles", "visibility", "diffuse solve", "albedo texture"}) {
+    for (const char* stage : {"load", "atlas", "particles", "visibility", "diffuse solve", "albedo texture", "bundle",
+                              "evaluation"}) {
         bool found = false;
         for (const auto& s : saved["stages"])
             if (s["name"] == stage) {
@@ -77,7 +79,21 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
             }
         EXPECT_TRUE(found) << stage;
     }
+    // The bundle reads back with the same albedo; the self-evaluation scored train and test.
+    ASSERT_TRUE(fs::exists(c.out_dir / "object.glb"));
+    ASSERT_TRUE(fs::exists(c.out_dir / "evaluation.json"));
+    const Bundle bundle = read_bundle(c.out_dir / "object.glb");
+    for (const char* split : {"train", "test"})
+        for (const char* set : {"masked", "full"}) {
+            const auto& m = saved["evaluation"][split][set];
+            ASSERT_TRUE(m.is_object()) << split << "." << set;
+            EXPECT_GT(m["q1"].get<double>(), 90.0) << split << "." << set; // diffuse-only of a glossy can at 96 px
+            EXPECT_LE(m["q1"].get<double>(), 100.0);
+            EXPECT_GT(m["psnr"].get<double>(), 20.0);
+        }
     const Image albedo = read_image(c.out_dir / "albedo.exr", ColorSpace::Linear);
+    ASSERT_EQ(bundle.albedo.pixels.size(), albedo.pixels.size());
+    for (std::size_t i = 0; i < albedo.pixels.size(); ++i) ASSERT_EQ(bundle.albedo.pixels[i], albedo.pixels[i]);
     EXPECT_EQ(albedo.width, saved["atlas"]["width"].get<int>());
     EXPECT_EQ(albedo.height, saved["atlas"]["height"].get<int>());
     for (float v : albedo.pixels) ASSERT_TRUE(std::isfinite(v));

@@ -31,8 +31,8 @@ void run_reconstruct(ReconstructArgs& args) {
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
     const ReconstructResult result = reconstruct(c);
-    log::info("wrote " + (c.out_dir / "albedo.exr").string() + ", albedo.png and report.json in " +
-              std::to_string(result.total_seconds) + " s");
+    log::info("wrote " + c.out_dir.string() + ": object.glb, albedo.exr, albedo.png, report.json" +
+              (c.evaluate ? ", evaluation.json, sheets/" : "") + " in " + std::to_string(result.total_seconds) + " s");
     for (const LeftOut& l : result.left_out) log::info("left out: " + l.what + " (" + l.why + ")");
 }
 
@@ -42,8 +42,10 @@ void add_reconstruct_command(CLI::App& app) {
     auto args = std::make_shared<ReconstructArgs>();
     CLI::App* cmd = app.add_subcommand(
         "reconstruct",
-        "Recover the diffuse albedo texture of a capture. Writes OUT/albedo.exr (linear), OUT/albedo.png (sRGB)\n"
-        "and OUT/report.json (stage times, counts, choices, and what was left out for this scene and why).");
+        "Reconstruct a capture: the albedo texture and the specular lobe. Writes OUT/object.glb (the bundle),\n"
+        "OUT/albedo.exr (linear), OUT/albedo.png (sRGB), OUT/evaluation.json and OUT/sheets/ (every frame\n"
+        "re-rendered and compared), and OUT/report.json (stage times, counts, choices, quality figures, and\n"
+        "what was left out for this scene and why).");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
     cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
     cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
@@ -78,6 +80,11 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_flag("--force-occlusion-rays", args->config.force_occlusion_rays,
                   "Cast occlusion rays even when the mesh is convex (the default skips them there)");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
+    cmd->add_flag("--no-evaluate{false}", args->config.evaluate,
+                  "Skip the self-evaluation (re-rendering every frame from object.glb and comparing)");
+    cmd->add_option("--eval-frames", args->config.evaluate_max_frames,
+                    "Evaluate at most this many frames per split, evenly spaced (0: all)")
+        ->capture_default_str();
     cmd->callback([args] { run_reconstruct(*args); });
 }
 
