@@ -17,7 +17,8 @@ ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& 
 }
 
 bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& o) {
-    if (!(r.status & shared::kLambertOk) || (r.status & shared::kLambertViewsRejected)) return false;
+    if (!(r.status & shared::kLambertOk)) return false;
+    if (o.drop_view_outliers && (r.status & shared::kLambertViewsRejected)) return false;
     if (o.max_albedo_spread < 0.0f) return true;
     const glm::vec3 a(r.albedo_best), b(r.albedo_robust);
     const glm::vec3 d = glm::abs(a - b);

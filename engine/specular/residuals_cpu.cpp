@@ -34,7 +34,9 @@ glm::dvec3 to_tangent_frame(const glm::dvec3& n, const glm::dvec3& w) {
 
 } // namespace
 
-ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o) {
+ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o,
+                                     std::vector<std::uint32_t>* sample_particle) {
+    if (sample_particle != nullptr) sample_particle->clear();
     const Stopwatch sw;
     lambert_validate(in);
     if (diffuse.particles.size() != in.particles.size())
@@ -112,6 +114,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 s.f = glm::vec3(fs);
                 s.status = shared::kResidualUsed;
                 out.samples.push_back(s);
+                if (sample_particle != nullptr) sample_particle->push_back(p);
                 ++cnt.used;
             }
         }
