@@ -8,6 +8,8 @@
 //     used samples in slot order.
 #include "specular/residuals.h"
 
+#include "diffuse/view_batches.h"
+
 #include "core/error.h"
 #include "core/timer.h"
 #include "gpu/buffer.h"
@@ -85,32 +87,15 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
     gpu::Buffer rpi_buf = gpu::Buffer::of<glm::vec4>(ctx, count, "residual rho/pi");
     rpi_buf.upload(rpi);
 
-    // View batches whose images fit one binding (16 bytes per pixel).
-    const std::uint32_t view_count = static_cast<std::uint32_t>(in.views.size());
-    struct Batch { std::uint32_t first, last; std::uint64_t pixels; };
-    std::vector<Batch> batches;
-    for (std::uint32_t first = 0; first < view_count;) {
-        std::uint32_t last = first;
-        std::uint64_t px = 0;
-        while (last < view_count) {
-            const Intrinsics& k = in.views[last].camera.intrinsics;
-            const std::uint64_t view_px = std::uint64_t(k.w) * std::uint64_t(k.h) * in.views[last].frames.size();
-            if ((px + view_px) * 16 > limit) break;
-            px += view_px;
-            ++last;
-        }
-        if (last == first)
-            throw gpu::LimitError("residual_samples: the images of view " + std::to_string(first) + " exceed one storage binding");
-        batches.push_back({first, last, px});
-        first = last;
-    }
+    // View batches whose images fit one binding (diffuse/view_batches.h).
+    const std::vector<ViewBatch> batches = plan_view_batches(in, limit, "residual_samples");
     out.view_batches = static_cast<std::uint32_t>(batches.size());
 
     double gpu_ns = 0.0;
     bool timed = true;
-    std::vector<std::uint32_t> pixel_words;
+    PackedViewBatch packed;
     std::vector<ResidualSample> slots;
-    for (const Batch& b : batches) {
+    for (const ViewBatch& b : batches) {
         // Pairs of the batch, view-major (the reference's order), with their slot counts.
         std::vector<shared::LambertPairKey> keys;
         std::vector<std::uint64_t> key_slots; // first slot of key i within the batch; back() = total
@@ -135,45 +120,10 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
         }
         if (keys.empty()) continue;
 
-        std::vector<shared::LambertViewGpu> views;
-        std::vector<shared::LambertFrameGpu> frames;
-        pixel_words.assign(b.pixels * 4, 0u);
-        std::uint64_t pixel_at = 0;
-        std::uint32_t batch_frames = 0;
-        for (std::uint32_t v = b.first; v < b.last; ++v) {
-            const LambertView& lv = in.views[v];
-            const Intrinsics& k = lv.camera.intrinsics;
-            const glm::mat4 w2c(lv.camera.world_to_camera);
-            shared::LambertViewGpu g{};
-            g.w2c0 = glm::vec4(w2c[0][0], w2c[1][0], w2c[2][0], w2c[3][0]); // rows of the column-major matrix
-            g.w2c1 = glm::vec4(w2c[0][1], w2c[1][1], w2c[2][1], w2c[3][1]);
-            g.w2c2 = glm::vec4(w2c[0][2], w2c[1][2], w2c[2][2], w2c[3][2]);
-            g.intrinsics = glm::vec4(static_cast<float>(k.fl_x), static_cast<float>(k.fl_y), static_cast<float>(k.cx),
-                                     static_cast<float>(k.cy));
-            g.center = glm::vec4(glm::vec3(lv.camera.center()), 0.0f);
-            g.width = static_cast<std::uint32_t>(k.w);
-            g.height = static_cast<std::uint32_t>(k.h);
-            g.frame_first = batch_frames;
-            g.frame_count = static_cast<std::uint32_t>(lv.frames.size());
-            views.push_back(g);
-            for (std::uint32_t f : lv.frames) {
-                const FrameImage& im = in.images[f];
-                shared::LambertFrameGpu fr{};
-                fr.light = glm::vec4(glm::vec3(in.lights[f].position), std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
-                fr.intensity = glm::vec4(glm::vec3(in.lights[f].intensity), 0.0f);
-                fr.frame = f;
-                fr.pixel_offset = static_cast<std::uint32_t>(pixel_at);
-                frames.push_back(fr);
-                const std::size_t n = im.flags.size();
-                std::uint32_t* dst = pixel_words.data() + pixel_at * 4;
-                for (std::size_t i = 0; i < n; ++i) {
-                    std::memcpy(dst + 4 * i, &im.color.pixels[3 * i], 12);
-                    dst[4 * i + 3] = im.flags[i];
-                }
-                pixel_at += n;
-                ++batch_frames;
-            }
-        }
+        pack_view_batch(in, b, packed);
+        const auto& views = packed.views;
+        const auto& frames = packed.frames;
+        const auto& pixel_words = packed.pixel_words;
         gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, views.size(), "residual views");
         views_buf.upload(views);
         gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, frames.size(), "residual frames");
