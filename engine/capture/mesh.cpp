@@ -508,15 +508,8 @@ Bounds mesh_bounds(const Mesh& mesh) {
     return b;
 }
 
-void write_mesh_glb(const fs::path& path, const Mesh& mesh) {
-    if (mesh.positions.empty() || mesh.triangles.empty()) throw InputError(path, "", "refusing to write an empty mesh");
+std::vector<glm::vec3> gltf_unit_normals(const Mesh& mesh) {
     const std::size_t n = mesh.positions.size();
-    for (const glm::uvec3& t : mesh.triangles)
-        if (t.x >= n || t.y >= n || t.z >= n) throw InputError(path, "", "triangle index out of range");
-    for (const glm::vec3& p : mesh.positions)
-        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-            throw InputError(path, "", "non-finite vertex position");
-    // glTF requires unit NORMALs: renormalize any that are not (zero or non-finite ones take the computed normal).
     std::vector<glm::vec3> normals =
         mesh.normals.size() == n ? mesh.normals : compute_vertex_normals(mesh.positions, mesh.triangles);
     std::optional<std::vector<glm::vec3>> computed;
@@ -530,6 +523,18 @@ void write_mesh_glb(const fs::path& path, const Mesh& mesh) {
             normals[i] = (*computed)[i];
         }
     }
+    return normals;
+}
+
+void write_mesh_glb(const fs::path& path, const Mesh& mesh) {
+    if (mesh.positions.empty() || mesh.triangles.empty()) throw InputError(path, "", "refusing to write an empty mesh");
+    const std::size_t n = mesh.positions.size();
+    for (const glm::uvec3& t : mesh.triangles)
+        if (t.x >= n || t.y >= n || t.z >= n) throw InputError(path, "", "triangle index out of range");
+    for (const glm::vec3& p : mesh.positions)
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            throw InputError(path, "", "non-finite vertex position");
+    const std::vector<glm::vec3> normals = gltf_unit_normals(mesh);
     const bool has_uv = mesh.has_texcoords();
 
     // BIN chunk: positions, normals, [texcoords], indices; every block is 4-byte aligned.

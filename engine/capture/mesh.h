@@ -36,6 +36,11 @@ struct MeshLoadResult {
 /// Writes a single-primitive .glb (POSITION, NORMAL, TEXCOORD_0 when present, uint32 indices), atomically.
 void write_mesh_glb(const std::filesystem::path& path, const Mesh& mesh);
 
+/// The mesh's normals as glTF requires them (unit length, glTF 3.7.2.1): those within 1e-6 of
+/// unit length unchanged, others renormalized, zero or non-finite ones (or all, when the mesh
+/// has none) replaced by the computed area-weighted normal.
+[[nodiscard]] std::vector<glm::vec3> gltf_unit_normals(const Mesh& mesh);
+
 /// Area-weighted vertex normals (normalized; a vertex on no triangle gets +Z).
 [[nodiscard]] std::vector<glm::vec3> compute_vertex_normals(const std::vector<glm::vec3>& positions,
                                                             const std::vector<glm::uvec3>& triangles);

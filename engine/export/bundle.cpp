@@ -40,7 +40,6 @@ constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
 constexpr int kLinear = 9729, kClampToEdge = 33071;
 // Normals whose length is within this of 1 are written unchanged (so unit normals
 // round-trip bit-exactly); others are renormalized (glTF requires unit NORMALs).
-constexpr double kUnitTolerance = 1e-6;
 
 // ---------------------------------------------------------------------------------------------
 // The metallic-roughness approximation (docs/SPECULA_lafortune.md, "Viewer approximation").
@@ -424,19 +423,8 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     if (bundle.cube_g.has_value() != bundle.cube_h.has_value())
         throw InputError(path, "cube_g", "the factorization needs both cube-maps (G and H)");
 
-    // Unit normals (glTF 3.7.2.1): written unchanged when within kUnitTolerance of unit length.
-    std::vector<glm::vec3> normals = mesh.normals.size() == n ? mesh.normals : compute_vertex_normals(mesh.positions, mesh.triangles);
-    std::optional<std::vector<glm::vec3>> computed;
-    for (std::size_t i = 0; i < n; ++i) {
-        const glm::dvec3 v(normals[i]);
-        const double len = glm::length(v);
-        if (std::isfinite(len) && len > 1e-20) {
-            if (std::abs(len - 1.0) > kUnitTolerance) normals[i] = glm::vec3(v / len);
-        } else {
-            if (!computed) computed = compute_vertex_normals(mesh.positions, mesh.triangles);
-            normals[i] = (*computed)[i];
-        }
-    }
+    // Unit normals (glTF 3.7.2.1), as write_mesh_glb writes them.
+    const std::vector<glm::vec3> normals = gltf_unit_normals(mesh);
 
     // BIN chunk; every block starts 4-byte aligned.
     std::vector<unsigned char> bin;
