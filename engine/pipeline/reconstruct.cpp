@@ -69,6 +69,8 @@ json visibility_json(const VisibilityStats& s) {
             {"rays_avoided", s.rays_avoided},
             {"depth_rays", s.depth_rays},
             {"footprint_rejected_pairs", s.footprint_rejected},
+            {"shadow_map_rays", s.shadow_map_rays},
+            {"shadow_edge_rejected_pairs", s.shadow_edge_rejected},
             {"convex", s.convexity.convex},
             {"convexity_reason", s.convexity.reason},
             {"occlusion_rays_skipped", s.skipped},
@@ -205,7 +207,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
         const RayScene scene(capture.mesh);
         const VisibilityInputs inputs = visibility_inputs(capture);
         return compute_visibility(particles.particles, capture.mesh, scene, inputs.views, inputs.lights,
-                                  VisibilityOptions{.threads = config.threads, .force_rays = config.force_occlusion_rays});
+                                  VisibilityOptions{.threads = config.threads,
+                                                    .force_rays = config.force_occlusion_rays,
+                                                    .frame_view = inputs.frame_view});
     });
     if (!visibility.stats.skipped.empty())
         result.left_out.push_back({"occlusion rays (visibility and shadows)", visibility.stats.skipped});

@@ -23,6 +23,7 @@ struct ThreadCounts {
     std::uint64_t rays_occluded = 0;
     std::uint64_t rays_avoided = 0;
     std::uint64_t footprint_rejected = 0;
+    std::uint64_t shadow_edge_rejected = 0;
 };
 
 constexpr float kNoHit = std::numeric_limits<float>::infinity();
@@ -45,6 +46,51 @@ std::vector<float> depth_map(const RayScene& scene, const Camera& cam, unsigned 
     rows();
     for (std::thread& t : pool) t.join();
     return depth;
+}
+
+// 1 where the surface a pixel shows (depth map) cannot see the light: a shadow ray from the
+// hit point (moved `offset` back toward the camera) to the light is occluded. 0 elsewhere,
+// background included. Returns the number of rays cast.
+std::uint64_t shadow_map(const RayScene& scene, const Camera& cam, const std::vector<float>& depth, const glm::vec3& light,
+                         unsigned threads, std::vector<std::uint8_t>& out) {
+    const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+    out.assign(std::size_t(w) * std::size_t(h), 0u);
+    const glm::vec3 eye(cam.center());
+    const float offset = scene.ray_offset();
+    std::atomic<int> next_row{0};
+    std::atomic<std::uint64_t> rays{0};
+    auto rows = [&] {
+        std::uint64_t cast = 0;
+        for (int y = next_row++; y < h; y = next_row++)
+            for (int x = 0; x < w; ++x) {
+                const float t = depth[std::size_t(y) * w + x];
+                if (t == kNoHit) continue;
+                const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
+                const glm::vec3 p = eye + (t - offset) * dir;
+                const glm::vec3 to_light = light - p;
+                const float d = glm::length(to_light);
+                ++cast;
+                if (scene.occluded(p, to_light / d, offset, d - offset)) out[std::size_t(y) * w + x] = 1u;
+            }
+        rays += cast;
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows);
+    rows();
+    for (std::thread& t : pool) t.join();
+    return rays;
+}
+
+// True when any of the 4 pixels a bilinear sample at q reads is set in `map`.
+bool any_tap_set(const Camera& cam, const std::vector<std::uint8_t>& map, const glm::dvec2& q) {
+    const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+    const int x0 = static_cast<int>(std::floor(q.x - 0.5)), y0 = static_cast<int>(std::floor(q.y - 0.5));
+    for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+            const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+            if (map[std::size_t(y) * w + x]) return true;
+        }
+    return false;
 }
 
 // True when the 4 pixels a bilinear sample at image position q reads all show the
@@ -131,6 +177,17 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));
         st.depth_rays += depth[v].size();
     }
+    const bool tap_shadows = footprint_test && !options.frame_view.empty();
+    if (tap_shadows && options.frame_view.size() != lights.size())
+        throw Error("visibility: frame_view has " + std::to_string(options.frame_view.size()) + " entries for " +
+                    std::to_string(lights.size()) + " frames");
+    std::vector<std::vector<std::uint8_t>> shadows(tap_shadows ? lights.size() : 0);
+    for (std::size_t f = 0; f < shadows.size(); ++f) {
+        const std::uint32_t v = options.frame_view[f];
+        if (v >= views.size()) throw Error("visibility: frame " + std::to_string(f) + " names view " + std::to_string(v));
+        st.shadow_map_rays += shadow_map(scene, views[v].camera, depth[v], glm::vec3(lights[f].position),
+                                         std::max(1u, options.threads), shadows[f]);
+    }
 
     const std::size_t chunks = (particles.size() + kChunk - 1) / kChunk;
     std::atomic<std::size_t> next_chunk{0};
@@ -204,6 +261,17 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                             (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
                         }
                     }
+                    // A lit frame whose sample would read a pixel in a cast shadow does not light it.
+                    for (std::uint32_t f = 0; f < shadows.size(); ++f) {
+                        if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
+                        const std::uint32_t v = options.frame_view[f];
+                        if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
+                        const auto q = views[v].camera.project(glm::dvec3(pos));
+                        if (q && any_tap_set(views[v].camera, shadows[f], *q)) {
+                            lit[f / 32] &= ~(1u << (f % 32));
+                            ++c.shadow_edge_rejected;
+                        }
+                    }
 
                     // Best view (thesis 3.1.2): smallest angle between the normal and the direction to the camera.
                     float best = -2.0f;
@@ -240,6 +308,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.rays_occluded += c.rays_occluded;
         st.rays_avoided += c.rays_avoided;
         st.footprint_rejected += c.footprint_rejected;
+        st.shadow_edge_rejected += c.shadow_edge_rejected;
     }
     for (std::size_t p = 0; p < particles.size(); ++p) {
         if (vis.best_view[p] < 0) ++st.seen_by_no_view;
@@ -290,6 +359,10 @@ std::string describe(const VisibilityStats& s) {
         out += "  footprint test: " + std::to_string(s.footprint_rejected) +
                " (particle, view) pairs dropped (a bilinear tap shows another surface); " + std::to_string(s.depth_rays) +
                " depth rays\n";
+    if (s.shadow_map_rays > 0)
+        out += "  shadow-edge test: " + std::to_string(s.shadow_edge_rejected) +
+               " (particle, frame) pairs unlit (a bilinear tap lies in a cast shadow); " + std::to_string(s.shadow_map_rays) +
+               " shadow-map rays\n";
     out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
                              : "  occlusion rays skipped: " + s.skipped + "\n";
     return out;

@@ -91,6 +91,7 @@ DiffuseScene make_scene(const SceneOptions& o) {
     const VisibilityInputs vi = visibility_inputs(c);
     VisibilityOptions vo;
     vo.force_rays = o.force_rays;
+    vo.frame_view = vi.frame_view;
     s.visibility = compute_visibility(s.particles.particles, c.mesh, scene, vi.views, vi.lights, vo);
     s.truth.resize(s.particles.particles.size());
     for (std::size_t p = 0; p < s.truth.size(); ++p)

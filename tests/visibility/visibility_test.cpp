@@ -94,6 +94,41 @@ TEST(Visibility, FootprintTestDropsFloorTexelsWhoseBilinearTapsReachTheBox) {
     EXPECT_GT(kept_far_from_edge, 10u);
 }
 
+TEST(Visibility, ShadowEdgeTestUnlightsTexelsWhoseTapsLieInTheCastShadow) {
+    // Camera above the floor, light low on one side: the box casts a long shadow. Floor
+    // particles just outside it are lit (their own shadow ray is free), but a bilinear
+    // sample of their pixel reads shadowed pixels: with frame_view the frame does not light them.
+    const std::vector<Camera> cams = {make_camera({0, 6, 0.01}, {0, 0, 0})};
+    const Scene s(test::plane_with_box(), cams);
+    const std::vector<PointLight> lights = {light_at({3, 1.5, 0})};
+    const std::vector<std::uint32_t> frame_view = {0};
+    VisibilityOptions plain;
+    VisibilityOptions edges;
+    edges.frame_view = frame_view;
+    const Visibility without = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, plain);
+    const Visibility with = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, edges);
+    EXPECT_EQ(without.stats.shadow_map_rays, 0u);
+    EXPECT_GT(with.stats.shadow_map_rays, 0u);
+    EXPECT_GT(with.stats.shadow_edge_rejected, 5u);
+    std::vector<glm::vec3> shadowed; // floor particles in the box's shadow (their own ray is occluded)
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i)
+        if (s.particles.particles[i].triangle < kPlaneTriangles && without.sees(i, 0) && !without.lights(i, 0))
+            shadowed.push_back(s.particles.particles[i].p());
+    ASSERT_GT(shadowed.size(), 10u);
+    const float pixel = 6.0f / 300.0f; // world size of a pixel on the floor
+    std::size_t dropped = 0;
+    for (std::size_t i = 0; i < s.particles.particles.size(); ++i) {
+        ASSERT_FALSE(with.lights(i, 0) && !without.lights(i, 0)) << "the test only removes frames";
+        if (!(without.lights(i, 0) && !with.lights(i, 0))) continue;
+        ++dropped;
+        const glm::vec3 x = s.particles.particles[i].p();
+        float nearest = 1e9f;
+        for (const glm::vec3& y : shadowed) nearest = std::min(nearest, glm::length(x - y));
+        EXPECT_LT(nearest, 2.5f * pixel) << "unlit far from the shadow at (" << x.x << ", " << x.z << ")";
+    }
+    EXPECT_EQ(dropped, with.stats.shadow_edge_rejected);
+}
+
 TEST(Visibility, BoxShadowsTheFloor) {
     const std::vector<Camera> cams = {make_camera({0, 4, 4}, {0, 0, 0})};
     const Scene s(test::plane_with_box(), cams);
