@@ -8,6 +8,8 @@
 #include "gltf_builder.h"
 #include "test_dirs.h"
 
+#include "expect_error.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -100,19 +102,7 @@ struct CaptureFixture {
     static std::size_t frame_index(int v, int l) { return static_cast<std::size_t>((1 - v) * 2 + l); }
 };
 
-template <class F>
-InputError expect_input_error(F&& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e;
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "expected an InputError, got: " << e.what();
-        return InputError("", "", "");
-    }
-    ADD_FAILURE() << "expected an InputError, nothing was thrown";
-    return InputError("", "", "");
-}
+using test::expect_input_error;
 
 // ---- valid captures ---------------------------------------------------------------
 

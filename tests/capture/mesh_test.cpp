@@ -6,6 +6,8 @@
 #include "gltf_builder.h"
 #include "test_dirs.h"
 
+#include "expect_error.h"
+
 #include <gtest/gtest.h>
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -36,16 +38,7 @@ Mesh tetrahedron() {
     return m;
 }
 
-template <class F>
-InputError expect_input_error(F&& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e;
-    }
-    ADD_FAILURE() << "expected an InputError";
-    return InputError("", "", "");
-}
+using test::expect_input_error;
 
 void expect_vec_eq(const glm::vec3& a, const glm::vec3& b, float tol = 1e-5f) {
     EXPECT_NEAR(a.x, b.x, tol);

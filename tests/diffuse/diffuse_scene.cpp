@@ -148,4 +148,10 @@ std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pi
     return flat;
 }
 
+const DiffuseScene& conformance_scene() {
+    static const DiffuseScene s = make_scene({.preset = "cologne", .lambertian = false, .size = 96, .views = 6,
+                                              .exposure = 2.0, .format = synth::ImageFormat::Png8});
+    return s;
+}
+
 } // namespace specula::test

@@ -42,6 +42,10 @@ struct DiffuseScene {
 
 [[nodiscard]] DiffuseScene make_scene(const SceneOptions& options);
 
+/// The scene the kernel conformance tests share (glossy cologne, 96 px, 6 views, png8,
+/// exposure 2: highlights and clipping exercise every rejection path). Built once per binary.
+[[nodiscard]] const DiffuseScene& conformance_scene();
+
 /// RMSE of rho over the particles in `select` (all channels), and the count.
 struct AlbedoError {
     double rmse = 0.0;

@@ -27,11 +27,7 @@
 namespace specula {
 namespace {
 
-const test::DiffuseScene& scene() {
-    static const test::DiffuseScene s = test::make_scene({.preset = "cologne", .lambertian = false, .size = 96, .views = 6,
-                                                          .exposure = 2.0, .format = synth::ImageFormat::Png8});
-    return s;
-}
+const test::DiffuseScene& scene() { return test::conformance_scene(); }
 
 bool same_decisions(const LambertParticleResult& a, const LambertParticleResult& b) {
     return a.status == b.status && a.best_view == b.best_view && a.views == b.views && a.used == b.used &&

@@ -22,11 +22,7 @@
 namespace specula {
 namespace {
 
-const test::DiffuseScene& scene() {
-    static const test::DiffuseScene s = test::make_scene({.preset = "cologne", .lambertian = false, .size = 96, .views = 6,
-                                                          .exposure = 2.0, .format = synth::ImageFormat::Png8});
-    return s;
-}
+const test::DiffuseScene& scene() { return test::conformance_scene(); }
 
 const LambertOutputs& diffuse() {
     static const LambertOutputs d = lambert_solve_cpu(scene().inputs(), {});
