@@ -569,9 +569,23 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
         out.n = best.p[2];
         if (best.finite && model.prepare(best.p)) internal_jtj = evaluate(model, d, true).jtj;
     } else {
-        RobustModel model;
-        model.ref_a = d.a[ref];
-        model.ref_b = d.b[ref];
+        // Reference samples (the lobe's value is parametrized at one, lafortune_fit.h). A
+        // reference must lie inside the lobe (g > 0 there), so a single outlier as the
+        // brightest sample would confine the fit to lobes that contain it (e.g. Cx ~ 0 when
+        // the outlier sits on the retro side). Candidates: the brightest sample, the
+        // brightest on the mirror side (a < 0: where a Cx < 0 lobe lives, Cz < 0 included),
+        // and the brightest on the retro side (a > 0: Cx > 0 lobes). Every start of every
+        // candidate competes on cost.
+        std::vector<std::size_t> refs{ref};
+        {
+            std::size_t mirror = d.size(), retro = d.size();
+            for (std::size_t i = 0; i < d.size(); ++i) {
+                if (d.a[i] < 0.0 && (mirror == d.size() || d.f[i] > d.f[mirror])) mirror = i;
+                if (d.a[i] > 0.0 && (retro == d.size() || d.f[i] > d.f[retro])) retro = i;
+            }
+            for (std::size_t r : {mirror, retro})
+                if (r < d.size() && d.f[r] > 0.0 && std::find(refs.begin(), refs.end(), r) == refs.end()) refs.push_back(r);
+        }
         lm.bounded = true;
         lm.min_l = std::log(o.min_n);
         lm.max_l = std::log(o.max_n);
@@ -589,28 +603,34 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
             if (eb.ok && eb.cost < cost) p = q;
         };
 
-        // Starts: a log grid over N times a few shapes, plus the given start; the height of
-        // each from the closed form. Shapes: the thesis's (-1, 1), Cz-dominant and
-        // Cx-dominant specular, both negative (woodenpot-like), both positive (retro).
+        // Starts: per reference, a log grid over N times a few shapes, plus the given start;
+        // the height of each from the closed form. Shapes: the thesis's (-1, 1), Cz-dominant
+        // and Cx-dominant specular, both negative (woodenpot-like), both positive (retro).
         std::vector<double> ns{1, 3, 10, 30, 100, 300, 1000, 3000, 10000};
         ns.push_back(o.start_n);
         const double phi0 = std::atan2(o.start_cz, o.start_cx);
         const double deg = std::numbers::pi / 180.0;
         const std::array<double, 7> phis{phi0, 115 * deg, 155 * deg, 170 * deg, 200 * deg, 225 * deg, 45 * deg};
         struct Start {
+            RobustModel model;
             Vec3 p;
             double cost;
         };
         std::vector<Start> starts;
-        for (double n0 : ns) {
-            if (!(n0 > 0.0)) continue;
-            for (double phi : phis) {
-                Vec3 p(0.0, phi, std::clamp(std::log(n0), lm.min_l, lm.max_l));
-                if (!solve_height(model, work, p)) continue;
-                RobustModel mdl = model;
-                if (!mdl.prepare(p)) continue;
-                const Eval e = evaluate(mdl, work, false);
-                if (e.ok) starts.push_back({p, e.cost});
+        for (std::size_t r : refs) {
+            RobustModel model;
+            model.ref_a = d.a[r];
+            model.ref_b = d.b[r];
+            for (double n0 : ns) {
+                if (!(n0 > 0.0)) continue;
+                for (double phi : phis) {
+                    Vec3 p(0.0, phi, std::clamp(std::log(n0), lm.min_l, lm.max_l));
+                    if (!solve_height(model, work, p)) continue;
+                    RobustModel mdl = model;
+                    if (!mdl.prepare(p)) continue;
+                    const Eval e = evaluate(mdl, work, false);
+                    if (e.ok) starts.push_back({model, p, e.cost});
+                }
             }
         }
         if (starts.empty()) {
@@ -620,10 +640,14 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
         }
         std::sort(starts.begin(), starts.end(), [](const Start& x, const Start& y) { return x.cost < y.cost; });
         const std::size_t runs = std::min<std::size_t>(starts.size(), std::size_t(o.restarts) + 1);
+        RobustModel model = starts.front().model;
         for (std::size_t k = 0; k < runs; ++k) {
-            LmResult r = levenberg_marquardt(model, work, starts[k].p, lm, refine);
+            LmResult r = levenberg_marquardt(starts[k].model, work, starts[k].p, lm, refine);
             out.iterations += r.iterations;
-            if (r.finite && (!best.finite || r.cost < best.cost)) best = r;
+            if (r.finite && (!best.finite || r.cost < best.cost)) {
+                best = r;
+                model = starts[k].model;
+            }
             std::string ignored;
             if (k == 0 && best.finite && no_energy(work, best.cost, o, ignored, true)) break; // restarts cannot help
         }

@@ -123,6 +123,30 @@ TEST(LafortuneFit, ThreeChannelsAreFittedIndependently) {
     }
 }
 
+TEST(LafortuneFit, AnOutlierBrightestSampleOnTheRetroSideDoesNotConfineTheFit) {
+    // The robust model fixes the lobe's value at a reference sample, which must lie inside
+    // the lobe. A capture's brightest residual can be an outlier (a texture edge the diffuse
+    // solve missed) where the true lobe is zero: here a retro-side sample (a = ux vx + uy vy
+    // > 0, where the Cx < 0 truth has base < 0). With only that reference the fit could reach
+    // only lobes containing it (it ended near Cx = 0, Cz = 0.95, N = 15 on the can); with
+    // the mirror-side reference as a candidate it recovers the truth.
+    const LafortuneFitCase c{.name = "pepsi", .cx = -0.8962, .cz = 0.7587, .n = 10.11, .samples = 20000, .seed = 9};
+    std::vector<LafortuneSample> samples = make_case_samples(c);
+    float fmax = 0.0f;
+    for (const LafortuneSample& s : samples) fmax = std::max(fmax, s.f.x);
+    LafortuneSample outlier;
+    outlier.u = glm::normalize(glm::vec3(0.8f, 0.0f, 0.6f)); // retro-reflection at 53 degrees
+    outlier.v = outlier.u;
+    ASSERT_LT(shared::lafortune_base(float(c.cx), float(c.cz), outlier.u, outlier.v), 0.0f);
+    outlier.f = glm::vec3(2.0f * fmax);
+    samples.push_back(outlier);
+    const LafortuneChannelFit f = fit_lafortune_channel(samples, 0);
+    EXPECT_EQ(f.status, LafortuneFitStatus::Converged) << f.reason;
+    EXPECT_NEAR(f.cx, c.cx, 0.01 * std::abs(c.cx));
+    EXPECT_NEAR(f.cz, c.cz, 0.01 * std::abs(c.cz));
+    EXPECT_NEAR(f.n, c.n, 0.02 * c.n);
+}
+
 TEST(LafortuneFit, StandardErrorsMatchTheActualErrorOnNoisyData) {
     // sigma^2 (J^T J)^-1 should describe the scatter: over several noise draws, the errors
     // in units of the reported standard error have an rms near 1 (checked within [0.4, 2.5]).
