@@ -20,6 +20,7 @@
 // across batches, then one combine dispatch. Pair results are chunked by particle range
 // the same way when they exceed one binding.
 #include "capture/capture.h"
+#include "core/lafortune.h"
 #include "geometry/particles.h"
 #include "visibility/visibility.h"
 
@@ -58,6 +59,9 @@ struct LambertOptions {
     float min_rcond = 1e-3f;      ///< photometric conditioning floor (shared/solve3.h rcond)
     float view_tau = 0.15f;       ///< cross-view outlier margin, relative
     float view_abs = 0.02f;       ///< cross-view outlier margin, absolute (albedo units)
+    /// Known specular lobe (joint estimate): its light f_s E is subtracted from every sample
+    /// before the solve (shared/lambert.h). Zero (the default): the thesis's solve.
+    LafortuneRgb lobe{};
     /// Vulkan: upper bound on the bytes of the batched bindings, images and pair results
     /// (0 = maxStorageBufferRange); tests lower it. Particles and lit masks take one binding each.
     std::uint64_t max_binding_bytes = 0;

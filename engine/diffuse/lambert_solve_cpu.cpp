@@ -64,7 +64,9 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
 
     shared::LambertPairResult r{};
     r.view = view_index;
-    r.albedo = glm::vec4(0.0f, 0.0f, 0.0f, static_cast<float>(glm::dot(n, glm::normalize(center - P))));
+    const glm::dvec3 vdir = glm::normalize(center - P);
+    const double nv = glm::dot(n, vdir);
+    r.albedo = glm::vec4(0.0f, 0.0f, 0.0f, static_cast<float>(nv));
     r.normal = glm::vec4(glm::vec3(n), 0.0f);
     std::uint32_t shadow = 0, clipped = 0, missing = 0, grazing = 0;
     std::vector<Sample> samples;
@@ -89,9 +91,14 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         for (const auto& v : px) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
         if (clip) { ++clipped; continue; }
         Sample s;
-        s.c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]);
         s.i = glm::dvec3(glm::vec3(light.intensity));
         s.e = s.i * (cosl / d2);
+        const double lb = cosl * nv;
+        const double la = glm::dot(u, vdir) - lb;
+        glm::dvec3 spec(0.0);
+        for (int c = 0; c < 3; ++c)
+            spec[c] = f64::lambert_lobe(double(o.lobe.cx[c]), double(o.lobe.cz[c]), double(o.lobe.n[c]), la, lb);
+        s.c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]) - spec * s.e;
         s.a = u / d2;
         samples.push_back(s);
     }
@@ -227,7 +234,12 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
             best = &p;
         }
     }
-    // ref is one of the kept views, so best != nullptr and weight > 0.
+    // ref is one of the kept views, so best != nullptr and weight > 0 (unless a value is not
+    // finite: then the particle has no usable sample, never a crash or a NaN albedo).
+    if (best == nullptr || !(weight > 0.0)) {
+        r.status |= shared::kLambertNoSample; // as the shader's combine step
+        return r;
+    }
     r.status |= shared::kLambertOk;
     r.best_view = best->view;
     r.albedo_best = glm::vec4(glm::vec3(best->albedo), static_cast<float>(best->view));

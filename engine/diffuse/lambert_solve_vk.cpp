@@ -35,8 +35,9 @@ struct PairPush {
     float k_sigma;
     float min_rcond;
     std::uint32_t global_view_base;
+    float lobe[9]; // cx rgb, cz rgb, n rgb
 };
-static_assert(sizeof(PairPush) == 40);
+static_assert(sizeof(PairPush) == 76);
 
 struct CombinePush {
     gpu::DispatchHeader dispatch;
@@ -183,7 +184,9 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
                                 .tau = o.highlight_tau,
                                 .k_sigma = o.highlight_k * o.noise_sigma,
                                 .min_rcond = o.min_rcond,
-                                .global_view_base = b.first};
+                                .global_view_base = b.first,
+                                .lobe = {o.lobe.cx.x, o.lobe.cx.y, o.lobe.cx.z, o.lobe.cz.x, o.lobe.cz.y, o.lobe.cz.z,
+                                         o.lobe.n.x, o.lobe.n.y, o.lobe.n.z}};
             gpu::Sequence seq(ctx, 2);
             seq.dispatch_1d(m_impl->pair, {particles_buf, lit_buf, views_buf, frames_buf, pixels_buf, keys_buf, pair_bufs[ci]},
                             static_cast<std::uint32_t>(keys.size()), push, "lambert_solve pairs")

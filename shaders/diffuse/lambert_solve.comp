@@ -37,6 +37,7 @@ layout(push_constant) uniform Push {
     float k_sigma;
     float min_rcond;
     uint global_view_base; // global index of the batch's first view
+    float lobe[9];         // known lobe: cx rgb, cz rgb, n rgb (zero: none; shared/lambert.h)
 } pc;
 
 const float kPi = 3.14159265358979323846;
@@ -63,7 +64,9 @@ void main() {
 
     LambertPairResult r;
     r.view = pc.global_view_base + key.view;
-    r.albedo = vec4(0.0, 0.0, 0.0, dot(n, normalize(view.center.xyz - P)));
+    vec3 vdir = normalize(view.center.xyz - P);
+    float nv = dot(n, vdir);
+    r.albedo = vec4(0.0, 0.0, 0.0, nv);
     r.normal = vec4(n, 0.0);
     r.status = 0u;
     uint shadow = 0u, clipped = 0u, missing = 0u, grazing = 0u;
@@ -100,9 +103,14 @@ void main() {
         float sat = fr.light.w;
         vec3 mx = max(max(c00, c10), max(c01, c11));
         if ((fl & kLambertPixClipped) != 0u || mx.x >= sat || mx.y >= sat || mx.z >= sat) { ++clipped; continue; }
-        sc[ns] = lambert_bilinear(t, c00, c10, c01, c11);
         si[ns] = fr.intensity.xyz;
         se[ns] = fr.intensity.xyz * (cosl / d2);
+        float lb = cosl * nv;
+        float la = dot(u, vdir) - lb;
+        vec3 spec = vec3(lambert_lobe(pc.lobe[0], pc.lobe[3], pc.lobe[6], la, lb),
+                         lambert_lobe(pc.lobe[1], pc.lobe[4], pc.lobe[7], la, lb),
+                         lambert_lobe(pc.lobe[2], pc.lobe[5], pc.lobe[8], la, lb));
+        sc[ns] = lambert_bilinear(t, c00, c10, c01, c11) - spec * se[ns];
         sa[ns] = u / d2;
         ses[ns] = se[ns].x + se[ns].y + se[ns].z;
         sq[ns] = (sc[ns].x + sc[ns].y + sc[ns].z) / ses[ns];

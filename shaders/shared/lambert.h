@@ -23,6 +23,11 @@
 //                        `iterations` times, stops when the kept set does not change)
 //              defaults tau = 0.1, k_sigma = 3 x 0.004 (k = 3 times the noise sigma of
 //              full scale 1.0; 0.004 is about one 8-bit sRGB step at mid grey).
+// Known lobe (joint estimate, an addition to the thesis): when a Lafortune lobe is given
+// (the previous round's fit), its light f_s(u_i, v) E_i is subtracted from every sample
+// before the highlight test and the solve, so the albedo no longer absorbs the part of a
+// broad lobe that the highlight test cannot tell from diffuse light. A zero lobe changes
+// nothing.
 // Then, on the kept samples, per channel:
 //   albedo mode        rho/pi = sum c E / sum E^2                         (needs 1 sample)
 //   photometric mode   g = (rho/pi) n from c_i = g . (I_i u_i / d_i^2)    (eq. 3.1; shared/solve3.h)

@@ -49,11 +49,21 @@ SHARED_FN bool lambert_low(LAMBERT_REAL q, LAMBERT_REAL es, LAMBERT_REAL est, LA
 }
 
 // True when a view's luminance l is an outlier against the reference ref (lambert.h).
+// |ref| keeps the reference itself when it is negative (possible once a known lobe is
+// subtracted and over-predicts): otherwise every view, ref included, would be an outlier.
 SHARED_FN bool lambert_view_outlier(LAMBERT_REAL l, LAMBERT_REAL ref, LAMBERT_REAL tau, LAMBERT_REAL abs_tol) {
-    return abs(l - ref) > tau * ref + abs_tol;
+    return abs(l - ref) > tau * abs(ref) + abs_tol;
 }
 
 // Angle between unit vectors in degrees, by atan2 (accurate near 0, unlike acos).
 SHARED_FN LAMBERT_REAL lambert_angle_deg(LAMBERT_VEC3 a, LAMBERT_VEC3 b) {
     return atan(length(cross(a, b)), dot(a, b)) * LAMBERT_REAL(57.29577951308232);
+}
+
+// Joint estimate (lambert.h, "known lobe"): the lobe's value f_s(u, v) for one channel,
+// from a = u.v - (n.u)(n.v) and b = (n.u)(n.v), the tangent-frame products ux vx + uy vy
+// and uz vz of shared/lafortune.h (the lobe is isotropic, so no tangent is needed).
+SHARED_FN LAMBERT_REAL lambert_lobe(LAMBERT_REAL cx, LAMBERT_REAL cz, LAMBERT_REAL n, LAMBERT_REAL a, LAMBERT_REAL b) {
+    LAMBERT_REAL base = cx * a + cz * b;
+    return base > LAMBERT_REAL(0.0) ? pow(base, n) : LAMBERT_REAL(0.0);
 }
