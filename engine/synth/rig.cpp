@@ -70,6 +70,8 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     require(o.fov_deg > 1.0 && o.fov_deg < 170.0, "field of view must be in (1, 170) degrees");
     require(o.fill > 0.05 && o.fill <= 1.0, "fill must be in (0.05, 1]");
     require(o.ring_radius > 0.0 && o.test_ring_radius > 0.0, "light ring radii must be positive");
+    for (double a : o.light_angles_deg)
+        require(std::isfinite(a) && a >= 0.0 && a <= 150.0, "--light-angles must be between 0 and 150 degrees");
     require(std::isfinite(o.exposure) && o.exposure > 0.0, "--exposure must be positive");
     require(o.target_value > 0.0 && o.reference_albedo > 0.0, "target value and reference albedo must be positive");
     if (mesh.positions.empty()) throw Error("make_rig: the mesh is empty");
@@ -102,7 +104,15 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
         for (int l = 0; l < o.lights; ++l) {
             const double angle = glm::two_pi<double>() * l / o.lights;
             PointLight light;
-            light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
+            if (o.light_angles_deg.empty()) {
+                light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
+            } else {
+                const glm::dmat4& c2w = view.camera.camera_to_world;
+                const double off = o.light_angles_deg[std::size_t(l) % o.light_angles_deg.size()] * kDeg;
+                const glm::dvec3 back(c2w[2]); // from the object toward the camera
+                const glm::dvec3 side = std::cos(angle) * glm::dvec3(c2w[0]) + std::sin(angle) * glm::dvec3(c2w[1]);
+                light.position = rig.center + rig.camera_distance * (std::cos(off) * back + std::sin(off) * side);
+            }
             light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
             view.lights.push_back(light);
         }

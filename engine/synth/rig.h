@@ -6,8 +6,17 @@
 //    so neighbouring views differ in height), all looking at the object's centre;
 //  - the camera distance makes the object's bounding sphere subtend `fill` of the
 //    half field of view, so it fills most of the image;
-//  - each train view's lights lie on a ring around the camera's optical axis, in
-//    the camera's image plane, at radius `ring_radius` x camera distance;
+//  - each train view's lights sit around the camera's direction as seen from the
+//    object's centre, at the camera's distance: light l at angle `light_angles_deg[l]`
+//    (cycled when there are more lights than angles) off that direction, at azimuth
+//    360 l / lights degrees around it. The defaults (15 to 130 degrees) mix lights near
+//    the camera (the diffuse solve: few shadows) with lights far from it: a light at
+//    angle a puts the mirror configuration at polar angle a / 2, so grazing lobes
+//    (the thesis's vase and woodenpot peak beyond 50 degrees) are seen only by lights
+//    beyond 100 degrees. A ring close to the camera (the thesis's rig: six lights
+//    "around the camera") samples the lobe only near retro-reflection, where Cx and Cz
+//    cannot be told apart and a broad lobe looks diffuse. With `light_angles_deg` empty
+//    the lights lie on a ring in the camera's image plane at `ring_radius` x distance;
 //  - test views sit between train views (azimuth halfway, elevation between
 //    levels), lit by `test_lights` lights off every ring: at `test_ring_radius`
 //    x distance, pushed `test_forward` x distance toward the object, at angles
@@ -33,7 +42,9 @@ struct RigOptions {
     double fill = 0.9;        // bounding sphere's angular radius / half field of view
     double elevation_min_deg = -20.0;
     double elevation_max_deg = 50.0;
-    double ring_radius = 0.25; // train light ring radius / camera distance
+    /// Train lights' angles off the camera direction, seen from the object (degrees, in [0, 150]).
+    std::vector<double> light_angles_deg{15.0, 35.0, 55.0, 80.0, 105.0, 130.0};
+    double ring_radius = 0.25; // light_angles_deg empty: ring radius / camera distance
     double test_ring_radius = 0.45;
     double test_forward = 0.15;
     double exposure = 1.0;

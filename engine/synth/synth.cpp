@@ -36,6 +36,7 @@ RigOptions SynthOptions::rig_options() const {
     r.lights = lights;
     r.test_views = test_views;
     r.test_lights = test_lights;
+    r.light_angles_deg = light_angles_deg;
     r.exposure = exposure;
     return r;
 }
@@ -300,7 +301,9 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
               {"camera_distance", rig.camera_distance},
               {"object_center", {rig.center.x, rig.center.y, rig.center.z}},
               {"object_radius", rig.radius},
-              {"light_ring_radius", rig_options.ring_radius * rig.camera_distance},
+              {"light_angles_deg", rig_options.light_angles_deg},
+              {"light_ring_radius", rig_options.light_angles_deg.empty() ? nlohmann::json(rig_options.ring_radius * rig.camera_distance)
+                                                                         : nlohmann::json(nullptr)},
               {"exposure_rule", "I = exposure * 0.6 * pi * d_min^2 / 0.8 (d_min: light to nearest vertex)"}}},
             {"generator", "specula synth"},
         };

@@ -29,6 +29,7 @@ struct SynthOptions {
     int lights = 6;
     int test_views = 4;
     int test_lights = 2;
+    std::vector<double> light_angles_deg = RigOptions{}.light_angles_deg; // train lights off the camera (rig.h)
     double noise_sigma = 0.0; // Gaussian read noise, relative to full scale 1.0
     double shot_noise = 0.0;  // variance = shot_noise * value
     double exposure = 1.0;

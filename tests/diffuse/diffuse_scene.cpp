@@ -34,6 +34,7 @@ DiffuseScene make_scene(const SceneOptions& o) {
     ro.size = o.size;
     ro.views = o.views;
     ro.lights = o.lights;
+    if (!o.light_angles_deg.empty()) ro.light_angles_deg = o.light_angles_deg;
     ro.test_views = 0;
     ro.exposure = o.exposure;
     const synth::Rig rig = synth::make_rig(s.preset.mesh, ro);

@@ -23,6 +23,7 @@ struct SceneOptions {
     double noise_sigma = 0.0;
     double texels_per_pixel = 1.0;
     bool force_rays = false;
+    std::vector<double> light_angles_deg; // empty: the rig default
 };
 
 struct DiffuseScene {

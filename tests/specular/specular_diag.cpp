@@ -1,5 +1,5 @@
 // Diagnostic (not a test): residual samples against the true lobe on a synthetic scene.
-//   specular_diag [preset] [size] [views] [lights]
+//   specular_diag [preset] [size] [views] [lights] [light angle (deg)]
 #include "diffuse_scene.h"
 #include "specular/residuals.h"
 #include "shared/lafortune.h"
@@ -31,13 +31,31 @@ static void stats(const char* name, const std::vector<ResidualSample>& s, const 
                 std::sqrt(sf / sw));
 }
 
-static void fit(const char* name, const std::vector<ResidualSample>& s) {
+static LafortuneFitRgb fit(const char* name, const std::vector<ResidualSample>& s) {
     Stopwatch sw;
-    const LafortuneFitRgb f = fit_lafortune(to_lafortune_samples(s), {});
+    std::vector<LafortuneSample> all = to_lafortune_samples(s);
+    if (all.size() > 200000) {
+        const std::size_t stride = (all.size() + 199999) / 200000;
+        std::vector<LafortuneSample> sub;
+        for (std::size_t i = 0; i < all.size(); i += stride) sub.push_back(all[i]);
+        all.swap(sub);
+    }
+    const LafortuneFitRgb f = fit_lafortune(all, {});
     std::printf("%-28s fit (%.2fs):", name, sw.seconds());
     for (int c = 0; c < 3; ++c)
         std::printf("  [%.4f %.4f %.2f %s]", f.channel[c].cx, f.channel[c].cz, f.channel[c].n, to_string(f.channel[c].status));
     std::printf("\n");
+    return f;
+}
+
+static LafortuneRgb to_lobe(const LafortuneFitRgb& f) {
+    LafortuneRgb l;
+    for (int c = 0; c < 3; ++c) {
+        l.cx[c] = float(f.channel[c].cx);
+        l.cz[c] = float(f.channel[c].cz);
+        l.n[c] = float(f.channel[c].n);
+    }
+    return l;
 }
 
 int main(int argc, char** argv) {
@@ -46,6 +64,7 @@ int main(int argc, char** argv) {
     so.size = argc > 2 ? std::atoi(argv[2]) : 128;
     so.views = argc > 3 ? std::atoi(argv[3]) : 6;
     so.lights = argc > 4 ? std::atoi(argv[4]) : 4;
+    if (argc > 5) so.light_angles_deg = {std::atof(argv[5])};
     so.lambertian = false;
     so.format = synth::ImageFormat::Exr;
     Stopwatch sw;
@@ -71,6 +90,44 @@ int main(int argc, char** argv) {
     std::printf("albedo rmse (best) %.4e over %zu\n", std::sqrt(aerr / (3.0 * na)), na);
     ResidualOptions all;
     all.max_albedo_spread = -1.0f;
+    if (const char* j = std::getenv("DIAG_JOINT")) {
+        const float spread = float(std::atof(j));
+        ResidualOptions ro;
+        ro.max_albedo_spread = spread;
+        ro.drop_view_outliers = std::getenv("DIAG_KEEP_OUTLIERS") == nullptr;
+        LambertOutputs cur = solved;
+        for (int round = 0; round < 4; ++round) {
+            const ResidualSamples rs = residual_samples_cpu(in, cur, ro);
+            char name[64];
+            std::snprintf(name, sizeof name, "round %d", round);
+            stats(name, rs.samples, truth);
+            const LafortuneFitRgb f = fit(name, rs.samples);
+            {
+                const LafortuneRgb fl = to_lobe(f);
+                double ct = 0, cf = 0, cz0 = 0;
+                for (const ResidualSample& q : rs.samples) {
+                    const double w = q.u.w;
+                    const double ft = shared::lafortune_eval(truth.cx.x, truth.cz.x, truth.n.x, glm::vec3(q.u), glm::vec3(q.v));
+                    const double ff = shared::lafortune_eval(fl.cx.x, fl.cz.x, fl.n.x, glm::vec3(q.u), glm::vec3(q.v));
+                    ct += w * (q.f.x - ft) * (q.f.x - ft);
+                    cf += w * (q.f.x - ff) * (q.f.x - ff);
+                    cz0 += w * q.f.x * q.f.x;
+                }
+                std::printf("  red cost: truth %.5e  fitted %.5e  zero lobe %.5e\n", ct, cf, cz0);
+            }
+            LambertOptions lo;
+            lo.lobe = to_lobe(f);
+            cur = lambert_solve_cpu(in, lo);
+            double e2 = 0; std::size_t m = 0;
+            for (std::size_t p = 0; p < cur.particles.size(); ++p)
+                if (cur.particles[p].status & shared::kLambertOk) {
+                    const glm::vec3 d = glm::vec3(cur.particles[p].albedo_best) - scene.truth[p];
+                    e2 += glm::dot(d, d); ++m;
+                }
+            std::printf("  albedo rmse after round %d: %.4e\n", round, std::sqrt(e2 / (3.0 * m)));
+        }
+        return 0;
+    }
     sw = Stopwatch();
     const ResidualSamples rs_s = residual_samples_cpu(in, solved, all);
     std::printf("residuals %.2fs\n", sw.seconds());

@@ -186,10 +186,12 @@ TEST(SynthRender, SpecularHighlightMatchesTheLobe) {
     EXPECT_NEAR(pep.color.at(c, c, 1), expected, 1e-4 * expected);
 }
 
-// The rig: train lights on a ring around each camera's optical axis, in its image
-// plane; test lights off every ring; cameras look at the object's centre from the
-// stated elevations; exposure puts a facing albedo-0.8 Lambertian surface at 0.6.
-TEST(SynthRig, LightsOnRingsAndExposureAsStated) {
+// The rig: train light l at light_angles_deg[l] off the camera direction seen from the
+// object's centre, at the camera's distance, at azimuth 360 l / lights degrees about it (or,
+// with no angles, on a ring in the camera's image plane); test lights off every ring;
+// cameras look at the object's centre from the stated elevations; exposure puts a facing
+// albedo-0.8 Lambertian surface at 0.6.
+TEST(SynthRig, LightsAtTheStatedAnglesAndExposureAsStated) {
     const Mesh sphere = make_uv_sphere(glm::vec3(0.0f, 0.5f, 0.0f), 0.5f, 128, 64);
     RigOptions ro;
     ro.size = 64;
@@ -210,12 +212,30 @@ TEST(SynthRig, LightsOnRingsAndExposureAsStated) {
             const glm::dvec3 lc = v.camera.to_camera(l.position);
             const double r = std::hypot(lc.x, lc.y) / rig.camera_distance;
             if (v.split == Split::Train) {
-                EXPECT_NEAR(lc.z, 0.0, 1e-9);
-                EXPECT_NEAR(r, ro.ring_radius, 1e-9);
+                const std::size_t l_index = static_cast<std::size_t>(&l - v.lights.data());
+                const glm::dvec3 to_light = l.position - rig.center, to_eye = eye - rig.center;
+                EXPECT_NEAR(glm::length(to_light), rig.camera_distance, 1e-9);
+                const double angle =
+                    std::acos(std::clamp(glm::dot(to_light, to_eye) / (rig.camera_distance * rig.camera_distance), -1.0, 1.0));
+                EXPECT_NEAR(angle * 180.0 / kPi, ro.light_angles_deg[l_index % ro.light_angles_deg.size()], 1e-6);
+                // Azimuth about the camera direction: the camera-frame (x, y) direction of the light.
+                const double az = std::atan2(lc.y, lc.x), expected_az = 2.0 * kPi * double(l_index) / double(ro.lights);
+                EXPECT_NEAR(std::remainder(az - expected_az, 2.0 * kPi), 0.0, 1e-6) << "light " << l_index;
             } else {
                 EXPECT_NEAR(-lc.z / rig.camera_distance, ro.test_forward, 1e-9);
                 EXPECT_NEAR(r, ro.test_ring_radius, 1e-9);
             }
+        }
+    }
+    // Without angles: the thesis-like ring in each camera's image plane.
+    RigOptions ring = ro;
+    ring.light_angles_deg.clear();
+    for (const RigView& v : make_rig(sphere, ring).views) {
+        if (v.split != Split::Train) continue;
+        for (const PointLight& l : v.lights) {
+            const glm::dvec3 lc = v.camera.to_camera(l.position);
+            EXPECT_NEAR(lc.z, 0.0, 1e-9);
+            EXPECT_NEAR(std::hypot(lc.x, lc.y) / rig.camera_distance, ring.ring_radius, 1e-9);
         }
     }
     // Exposure: the brightest Lambertian albedo-0.8 pixel is about 0.6 (the nearest point

@@ -123,6 +123,11 @@ void add_synth_command(CLI::App& app) {
     sub->add_option("--size", args->options.size, "Image width and height in pixels")->capture_default_str();
     sub->add_option("--views", args->options.views, "Train views around the object")->capture_default_str();
     sub->add_option("--lights", args->options.lights, "Lights per train view, on a ring around the camera")->capture_default_str();
+    sub->add_option("--light-angles", args->options.light_angles_deg,
+                    "Train lights' angles off the camera direction seen from the object, degrees (cycled over the "
+                    "lights; wide angles see grazing highlights)")
+        ->delimiter(',')
+        ->capture_default_str();
     sub->add_option("--test-views", args->options.test_views, "Test views between train views")->capture_default_str();
     sub->add_option("--test-lights", args->options.test_lights, "Lights per test view, off the rig's rings")->capture_default_str();
     sub->add_option("--noise", args->options.noise_sigma, "Gaussian noise sigma, relative to full scale 1.0")->capture_default_str();
