@@ -38,6 +38,10 @@ struct ReconstructConfig {
     /// The fit runs on a deterministic stride subsample of at most this many samples (0 = all).
     std::uint32_t max_fit_samples = 200000;
     LafortuneFitOptions lafortune;  ///< noise_sigma is set from lambert.noise_sigma (weights make f_s noise image noise)
+    /// Joint estimate: after a fit, at most this many rounds of (diffuse solve with the lobe's
+    /// light subtracted, residuals, fit); 0 = the thesis's one pass.
+    std::uint32_t joint_rounds = 3;
+    double joint_tolerance = 0.005; ///< stop when no lobe parameter changes by more than this (relative)
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan
     /// device; left out, with the reason, when none can be had).

@@ -111,6 +111,9 @@ TEST(Reconstruct, VulkanAndCpuBackendsAgree) {
     c.capture = capture;
     c.out_dir = dir / "cpu";
     c.backend = LambertBackend::Cpu;
+    // One pass: the joint rounds subtract each backend's own fitted lobe, and a fit moves with
+    // float-level changes of its samples, so later rounds compare two lobes, not two solvers.
+    c.joint_rounds = 0;
     (void)reconstruct(c);
     c.out_dir = dir / "vk";
     c.backend = LambertBackend::Vulkan;

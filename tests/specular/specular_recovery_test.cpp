@@ -7,11 +7,8 @@
 // residual set (particles whose highlight view the diffuse solve rejected as an outlier are
 // kept with ResidualOptions::drop_view_outliers = false).
 //
-// What does NOT hold yet (the gap, see the issue-4 report): with the diffuse solve's albedo
-// the flat-particle residuals are biased low by ~12% of the signal (the broad lobe is absorbed
-// into the albedo: the rig's lights sit within ~14 degrees of each camera, so the frames of one
-// view see nearly the same lobe value and no highlight test can separate it), and the fit
-// then misses the lobe by far more than 2%. So no fit accuracy is asserted here.
+// The fit's accuracy on whole captures is tested end to end in lobe_recovery_test.cpp
+// (joint albedo and lobe estimate, the default wide-angle rig).
 #include "diffuse_scene.h"
 #include "specular/residuals.h"
 

@@ -77,6 +77,11 @@ void add_reconstruct_command(CLI::App& app) {
                     "on: always fit (the report gives its cost); off: no residual samples, no fit")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
+    cmd->add_option("--joint-rounds", args->config.joint_rounds,
+                    "After a fit: rounds of (diffuse solve minus the lobe's light, residuals, refit) until the "
+                    "lobe settles; 0 = the thesis's single pass")
+        ->check(CLI::Range(0u, 10u))
+        ->capture_default_str();
     cmd->add_flag("--force-occlusion-rays", args->config.force_occlusion_rays,
                   "Cast occlusion rays even when the mesh is convex (the default skips them there)");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
