@@ -205,14 +205,59 @@ struct Renderer::Impl {
         return d;
     }
 
-    void draw(VkCommandBuffer cmd, const gpu::GraphicsPipeline& pipeline, const gpu::DescriptorSet& set,
-              gpu::RenderTarget::Load load) const {
-        target->begin(cmd, load);
+    /// Checks the camera and settings, says which passes run, and writes the frame's
+    /// parameters (the previous frame must be done with them).
+    FrameInfo prepare(const Camera& camera, const PointLight& light, const Settings& settings) {
+        const Intrinsics& k = camera.intrinsics;
+        if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
+            throw Error("renderer: the camera needs a positive image size and focal lengths");
+        FrameInfo info;
+        info.triangles = triangles;
+        const bool want_diffuse = settings.mode != Mode::Specular;
+        const bool want_specular = settings.mode != Mode::Diffuse;
+        info.diffuse_pass = want_diffuse;
+        if (!want_specular) {
+            info.specular_note = "mode diffuse";
+        } else if (lobe.is_zero()) {
+            info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
+        } else if (settings.specular == SpecularModel::Factorized && !cube_g) {
+            throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
+        } else {
+            info.specular_pass = true;
+        }
+
+        const double near = settings.near.value_or(near_plane_for(camera, bounds));
+        shared::RenderParams p{};
+        p.world_to_clip = glm::mat4(world_to_clip(camera, near));
+        p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
+        p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
+        p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
+        p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
+        p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
+        p.lobe_n = glm::vec4(lobe.n, 0.0f);
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
+        params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
+        return info;
+    }
+
+    // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
+    void draw_diffuse(VkCommandBuffer cmd, const gpu::RenderTarget& t) const {
+        draw(cmd, t, diffuse, diffuse_set, gpu::RenderTarget::Load::Clear);
+    }
+    void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
+        const bool analytic = model == SpecularModel::Analytic;
+        draw(cmd, t, analytic ? specular_analytic : specular_factorized, analytic ? analytic_set : factorized_set,
+             gpu::RenderTarget::Load::Keep);
+    }
+
+    void draw(VkCommandBuffer cmd, const gpu::RenderTarget& t, const gpu::GraphicsPipeline& pipeline,
+              const gpu::DescriptorSet& set, gpu::RenderTarget::Load load) const {
+        t.begin(cmd, load);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.pipeline());
         const VkDescriptorSet s = set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
         vkCmdDraw(cmd, vertex_count, 1, 0, 0);
-        target->end(cmd);
+        t.end(cmd);
     }
 };
 
@@ -240,60 +285,37 @@ void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
     m.factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
 }
 
+FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,
+                            const PointLight& light, const Settings& settings) {
+    Impl& m = *m_impl;
+    const Intrinsics& k = camera.intrinsics;
+    if (target.width() != static_cast<uint32_t>(k.w) || target.height() != static_cast<uint32_t>(k.h))
+        throw Error("renderer: the target is " + std::to_string(target.width()) + "x" + std::to_string(target.height()) +
+                    " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
+    FrameInfo info = m.prepare(camera, light, settings);
+    m.draw_diffuse(cmd, target);
+    if (info.specular_pass) m.draw_specular(cmd, target, settings.specular);
+    return info;
+}
+
 Frame Renderer::render(const Camera& camera, const PointLight& light, const Settings& settings) {
     const Stopwatch wall;
     Impl& m = *m_impl;
-    const Intrinsics& k = camera.intrinsics;
-    if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
-        throw Error("renderer: the camera needs a positive image size and focal lengths");
-
     Frame frame;
+    frame.info = m.prepare(camera, light, settings);
     FrameInfo& info = frame.info;
-    info.triangles = m.triangles;
-    const bool want_diffuse = settings.mode != Mode::Specular;
-    const bool want_specular = settings.mode != Mode::Diffuse;
-    info.diffuse_pass = want_diffuse;
-    if (!want_specular) {
-        info.specular_note = "mode diffuse";
-    } else if (m.lobe.is_zero()) {
-        info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
-    } else if (settings.specular == SpecularModel::Factorized && !m.cube_g) {
-        throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
-    } else {
-        info.specular_pass = true;
-    }
-
+    const Intrinsics& k = camera.intrinsics;
     if (m.target->width() != static_cast<uint32_t>(k.w) || m.target->height() != static_cast<uint32_t>(k.h))
         m.target = std::make_unique<gpu::RenderTarget>(*m.ctx, static_cast<uint32_t>(k.w), static_cast<uint32_t>(k.h),
                                                        "render target");
 
-    const double near = settings.near.value_or(near_plane_for(camera, m.bounds));
-    shared::RenderParams p{};
-    p.world_to_clip = glm::mat4(world_to_clip(camera, near));
-    p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
-    p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
-    p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
-    p.lobe_cx = glm::vec4(m.lobe.cx, 0.0f);
-    p.lobe_cz = glm::vec4(m.lobe.cz, 0.0f);
-    p.lobe_n = glm::vec4(m.lobe.n, 0.0f);
-    p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
-    m.params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
-
     gpu::Sequence& seq = m.sequence;
     seq.reset();
-    // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
-    seq.time_begin("diffuse pass")
-        .record([&](VkCommandBuffer cmd) { m.draw(cmd, m.diffuse, m.diffuse_set, gpu::RenderTarget::Load::Clear); })
-        .time_end();
-    if (info.specular_pass) {
-        const bool analytic = settings.specular == SpecularModel::Analytic;
+    seq.time_begin("diffuse pass").record([&](VkCommandBuffer cmd) { m.draw_diffuse(cmd, *m.target); }).time_end();
+    if (info.specular_pass)
         seq.time_begin("specular pass")
-            .record([&](VkCommandBuffer cmd) {
-                m.draw(cmd, analytic ? m.specular_analytic : m.specular_factorized,
-                       analytic ? m.analytic_set : m.factorized_set, gpu::RenderTarget::Load::Keep);
-            })
+            .record([&](VkCommandBuffer cmd) { m.draw_specular(cmd, *m.target, settings.specular); })
             .time_end();
-    }
     seq.time_begin("readback").record([&](VkCommandBuffer cmd) { m.target->record_readback(cmd); }).time_end();
     seq.submit_and_wait();
     for (const gpu::GpuTiming& t : seq.timings()) {

@@ -140,6 +140,17 @@ public:
     /// factorized model before set_factorization().
     [[nodiscard]] Frame render(const Camera& camera, const PointLight& light, const Settings& settings = {});
 
+    /// The same passes as render(), recorded into the caller's command buffer and target
+    /// (the viewer's window-sized target, blitted to the swapchain): no submit, no wait,
+    /// no readback. The target must be camera-sized; pipelines are compatible with any
+    /// gpu::RenderTarget (same formats). Leaves the colour in COLOR_ATTACHMENT_OPTIMAL,
+    /// written by the colour-attachment stage. The per-frame parameters are written to a
+    /// host-visible buffer now, so the previous frame this renderer recorded (here or in
+    /// render()) must have finished executing. Returns what the frame will draw (no
+    /// timings, covered_pixels 0).
+    FrameInfo record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera, const PointLight& light,
+                     const Settings& settings = {});
+
     [[nodiscard]] std::size_t triangle_count() const noexcept;
     /// Whether back faces are culled (Options::culling, resolved for this mesh).
     [[nodiscard]] bool culls_back_faces() const noexcept;
