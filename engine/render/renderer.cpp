@@ -4,6 +4,8 @@
 #include "core/timer.h"
 #include "render/projection.h"
 
+#include "render/both_analytic.frag.h"
+#include "render/both_factorized.frag.h"
 #include "render/diffuse.frag.h"
 #include "render/raster.vert.h"
 #include "render/specular_analytic.frag.h"
@@ -56,6 +58,8 @@ const char* mode_name(Mode mode) noexcept {
     }
     return "?";
 }
+
+const char* passes_name(Passes passes) noexcept { return passes == Passes::Separate ? "separate" : "fused"; }
 
 const char* specular_model_name(SpecularModel model) noexcept {
     return model == SpecularModel::Analytic ? "analytic" : "factorized";
@@ -123,9 +127,13 @@ struct Renderer::Impl {
     gpu::GraphicsPipeline diffuse;
     gpu::GraphicsPipeline specular_analytic;
     gpu::GraphicsPipeline specular_factorized;
+    gpu::GraphicsPipeline both_analytic;   // Passes::Fused
+    gpu::GraphicsPipeline both_factorized;
     gpu::DescriptorSet diffuse_set;
     gpu::DescriptorSet analytic_set;
     gpu::DescriptorSet factorized_set; // textures written by set_factorization
+    gpu::DescriptorSet both_analytic_set;
+    gpu::DescriptorSet both_factorized_set; // cube-maps written by set_factorization
     gpu::Sequence sequence;
 
     Impl(gpu::Context& c, const Scene& scene, const Options& opts)
@@ -144,16 +152,17 @@ struct Renderer::Impl {
           diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, 3, false)),
           specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, 3, true)),
           specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, 5, true)),
+          both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, 3, false)),
+          both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, 5, false)),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
+          both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized),
           sequence(c, 8) {
         vertex_count = static_cast<uint32_t>(3 * triangles);
-        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set}) {
+        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set, &both_factorized_set}) {
             set->write_buffer(kBindingParams, params);
             set->write_buffer(kBindingVertices, vertices);
+            set->write_image(kBindingAlbedo, albedo, sampler.get());
         }
-        diffuse_set.write_image(kBindingAlbedo, albedo, sampler.get());
-        analytic_set.write_image(kBindingAlbedo, albedo, sampler.get());
-        factorized_set.write_image(kBindingAlbedo, albedo, sampler.get());
     }
 
     static const Mesh* checked_mesh(const Scene& scene) {
@@ -224,6 +233,7 @@ struct Renderer::Impl {
             throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
         } else {
             info.specular_pass = true;
+            info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
 
         const double near = settings.near.value_or(near_plane_for(camera, bounds));
@@ -243,6 +253,12 @@ struct Renderer::Impl {
     // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
     void draw_diffuse(VkCommandBuffer cmd, const gpu::RenderTarget& t) const {
         draw(cmd, t, diffuse, diffuse_set, gpu::RenderTarget::Load::Clear);
+    }
+    // Passes::Fused: both terms in one pass, in place of the two.
+    void draw_fused(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
+        const bool analytic = model == SpecularModel::Analytic;
+        draw(cmd, t, analytic ? both_analytic : both_factorized, analytic ? both_analytic_set : both_factorized_set,
+             gpu::RenderTarget::Load::Clear);
     }
     void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
         const bool analytic = model == SpecularModel::Analytic;
@@ -283,6 +299,8 @@ void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
     m.cube_h.emplace(upload_cube(*m.ctx, h, "H cube-map"));
     m.factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
     m.factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
+    m.both_factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
+    m.both_factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
 }
 
 FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,
@@ -293,6 +311,10 @@ FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target,
         throw Error("renderer: the target is " + std::to_string(target.width()) + "x" + std::to_string(target.height()) +
                     " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
     FrameInfo info = m.prepare(camera, light, settings);
+    if (info.fused) {
+        m.draw_fused(cmd, target, settings.specular);
+        return info;
+    }
     m.draw_diffuse(cmd, target);
     if (info.specular_pass) m.draw_specular(cmd, target, settings.specular);
     return info;
@@ -311,8 +333,13 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
 
     gpu::Sequence& seq = m.sequence;
     seq.reset();
-    seq.time_begin("diffuse pass").record([&](VkCommandBuffer cmd) { m.draw_diffuse(cmd, *m.target); }).time_end();
-    if (info.specular_pass)
+    if (info.fused)
+        seq.time_begin("diffuse pass")
+            .record([&](VkCommandBuffer cmd) { m.draw_fused(cmd, *m.target, settings.specular); })
+            .time_end();
+    else
+        seq.time_begin("diffuse pass").record([&](VkCommandBuffer cmd) { m.draw_diffuse(cmd, *m.target); }).time_end();
+    if (info.specular_pass && !info.fused)
         seq.time_begin("specular pass")
             .record([&](VkCommandBuffer cmd) { m.draw_specular(cmd, *m.target, settings.specular); })
             .time_end();

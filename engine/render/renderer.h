@@ -77,9 +77,18 @@ enum class SpecularModel {
 [[nodiscard]] const char* mode_name(Mode mode) noexcept;
 [[nodiscard]] const char* specular_model_name(SpecularModel model) noexcept;
 
+/// How Mode::Both is drawn.
+enum class Passes {
+    Separate, ///< the thesis's two passes: diffuse, then specular blended additively (EQUAL depth)
+    Fused,    ///< one pass whose fragment shader sums the same two terms (render/terms.glsl): half
+              ///< the vertex, setup and binning work, which bounds lavapipe on large meshes
+};
+[[nodiscard]] const char* passes_name(Passes passes) noexcept;
+
 struct Settings {
     Mode mode = Mode::Both;
     SpecularModel specular = SpecularModel::Analytic;
+    Passes passes = Passes::Separate; ///< only Mode::Both with a specular term has a choice
     std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
 };
 
@@ -98,7 +107,8 @@ struct Options {
 /// What a frame drew and what it cost.
 struct FrameInfo {
     bool diffuse_pass = false;        ///< pass 1 wrote the diffuse term (it always writes depth and coverage)
-    bool specular_pass = false;       ///< pass 2 ran
+    bool specular_pass = false;       ///< pass 2 ran (or, fused, the specular term was drawn)
+    bool fused = false;               ///< both terms in one pass (Passes::Fused); timed as diffuse_gpu_ms
     std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
     std::optional<double> diffuse_gpu_ms;  ///< GPU time of pass 1 (timestamps); nullopt without timestamps
     std::optional<double> specular_gpu_ms; ///< GPU time of pass 2
