@@ -8,10 +8,18 @@
 
 #include <CLI/CLI.hpp>
 
+#include <malloc.h>
+
 #include <cstdio>
 #include <exception>
 
 int main(int argc, char** argv) {
+    // lavapipe bins every frame's triangles into freshly allocated scene memory (tens of MB
+    // for 200k triangles); with glibc's default trimming that memory goes back to the
+    // kernel after each frame and is page-faulted in again on the next: 10k faults and
+    // ~20 ms of CPU per knot_hd frame. Keep freed memory in the process instead.
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);
     specula::view::ViewerConfig c;
     CLI::App app{"specula-view: show a Specula bundle (.glb) under a point light in a window, with the same raster passes\n"
                  "as `specula render`. Mouse: left drag orbits, right/middle drag pans, wheel zooms, shift + left drag\n"
@@ -34,6 +42,10 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--specular", c.specular, "Specular model at the start: analytic (the lobe) or factorized (G/H cube-maps)")
         ->check(CLI::IsMember({"analytic", "factorized"}))
+        ->capture_default_str();
+    app.add_option("--passes", c.passes, "How both terms are drawn: fused (one pass summing the diffuse and specular terms)\n"
+                                         "or separate (the thesis's two passes, as `specula render` draws them); same image")
+        ->check(CLI::IsMember({"fused", "separate"}))
         ->capture_default_str();
     app.add_option("-d,--device", c.device, "Vulkan device: index or name substring (see `specula devices`)");
     app.add_option("--frames", c.frames, "Headless: draw N frames of the start view, then exit (offscreen when there is no display)");

@@ -160,8 +160,16 @@ render::Settings settings_of(const ViewerConfig& c) {
         throw UsageError("--mode: '" + c.mode + "' is not both, diffuse or specular");
     if (c.specular != "analytic" && c.specular != "factorized")
         throw UsageError("--specular: '" + c.specular + "' is not analytic or factorized");
+    if (c.passes != "fused" && c.passes != "separate") throw UsageError("--passes: '" + c.passes + "' is not fused or separate");
     return {.mode = c.mode == "diffuse" ? render::Mode::Diffuse : c.mode == "specular" ? render::Mode::Specular : render::Mode::Both,
-            .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic};
+            .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic,
+            .passes = c.passes == "separate" ? render::Passes::Separate : render::Passes::Fused};
+}
+
+std::string settings_name(const render::Settings& s) {
+    std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_model_name(s.specular);
+    if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
+    return name;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -254,8 +262,7 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
             if (i >= kBenchWarmup) stats.ms.push_back(sw.seconds() * 1e3);
             bench_step(view, c.bench_frames);
         }
-        stats.report(std::to_string(w) + "x" + std::to_string(h) + " " + render::mode_name(settings.mode) + "/" +
-                     render::specular_model_name(settings.specular) + ", offscreen (no present), " + ctx->info().name +
+        stats.report(std::to_string(w) + "x" + std::to_string(h) + " " + settings_name(settings) + ", offscreen (no present), " + ctx->info().name +
                      ", LP_NUM_THREADS " + lavapipe_threads());
     }
     if (c.frames) {
@@ -319,6 +326,7 @@ constexpr const char* kHelp =
     "  shift + left drag   move the light about the object (also the arrow keys)\n"
     "  1 / 2 / 3           diffuse only / specular only / both\n"
     "  F                   factorized <-> analytic specular (bundles with cube-maps)\n"
+    "  P                   both terms in one fused pass <-> the two separate passes\n"
     "  C                   captured photograph of the frame <-> render (with --capture)\n"
     "  R                   reset camera and light\n"
     "  H                   this help\n"
@@ -341,6 +349,9 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
         }
         in.settings->specular = in.settings->specular == render::SpecularModel::Analytic ? render::SpecularModel::Factorized
                                                                                         : render::SpecularModel::Analytic;
+        break;
+    case GLFW_KEY_P:
+        in.settings->passes = in.settings->passes == render::Passes::Fused ? render::Passes::Separate : render::Passes::Fused;
         break;
     case GLFW_KEY_C:
         if (!in.has_photo) {
@@ -623,8 +634,8 @@ std::string title_of(const std::string& bundle, const render::Settings& s, bool 
     if (photo)
         std::snprintf(t, sizeof t, "specula-view | %s | captured photograph of %s | %dx%d", bundle.c_str(), what.c_str(), w, h);
     else
-        std::snprintf(t, sizeof t, "specula-view | %s | %s/%s | %.1f ms (%.0f fps) | %dx%d", bundle.c_str(),
-                      render::mode_name(s.mode), render::specular_model_name(s.specular), ms, ms > 0.0 ? 1e3 / ms : 0.0, w, h);
+        std::snprintf(t, sizeof t, "specula-view | %s | %s | %.1f ms (%.0f fps) | %dx%d", bundle.c_str(),
+                      settings_name(s).c_str(), ms, ms > 0.0 ? 1e3 / ms : 0.0, w, h);
     return t;
 }
 
@@ -748,8 +759,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
         }
         if (c.bench)
             stats.report(std::to_string(frames.width()) + "x" + std::to_string(frames.height()) + " " +
-                         render::mode_name(settings.mode) + "/" + render::specular_model_name(settings.specular) +
-                         ", window (present " +
+                         settings_name(settings) + ", window (present " +
                          (frames.chain().present_mode() == VK_PRESENT_MODE_FIFO_KHR ? "fifo"
                           : frames.chain().present_mode() == VK_PRESENT_MODE_MAILBOX_KHR ? "mailbox"
                                                                                          : "immediate") +

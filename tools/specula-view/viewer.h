@@ -17,6 +17,7 @@ struct ViewerConfig {
     std::optional<double> fov;          ///< free camera vertical field of view (degrees)
     std::string mode = "both";          ///< both, diffuse, specular
     std::string specular = "analytic";  ///< analytic, factorized
+    std::string passes = "fused";       ///< fused (one pass for both terms) or separate (the thesis's two)
     std::string device;                 ///< Vulkan device selector
     std::optional<int> frames;          ///< headless: render this many frames, then exit
     std::string screenshot;             ///< save the last frame (.png sRGB 8-bit, .exr linear)
