@@ -226,6 +226,49 @@ TEST_F(ViewTest, XvfbScreenshotMatchesSpeculaRender) {
     std::printf("[ viewer vs specula render ] max %.0f/255, mean %.4f/255, %zu lit pixels\n", d.max * 255.0, d.mean * 255.0,
                 d.lit);
 }
+
+/// The photograph path (C, or --photo): the captured image blitted into the window at
+/// 1:1 is the photograph; compared with it encoded to sRGB 8-bit by OpenImageIO (one
+/// step of rounding allowed, as above).
+TEST_F(ViewTest, XvfbPhotographIsTheCapturedImage) {
+    const Fixture& f = fixture();
+    TempDir out("view_photo");
+    const std::string xvfb = std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 320x240x24\" ";
+    const RunResult v = run(xvfb + viewer() + frame_args(f) + " --photo --frames 2 --screenshot " + (out / "photo.png").string(),
+                            out / "v.txt");
+    ASSERT_EQ(v.code, 0) << v.err;
+    const Capture cap = load_capture(f.dir / "cap", {.load_mesh = false, .load_images = false});
+    const FrameDesc& fd = cap.desc.frames[f.frame];
+    write_image(out / "expected.png", read_image(cap.desc.resolve(fd.file_path), cap.desc.color_space), ColorSpace::Srgb, 8);
+    const Diff d = compare(read_image(out / "expected.png", ColorSpace::Linear), read_image(out / "photo.png", ColorSpace::Linear));
+    EXPECT_GT(d.lit, 96u * 96u / 10);
+    EXPECT_LE(d.max, 1.0 / 255.0 + 1e-6);
+}
+
+/// A resize after the first frame (the swapchain and target recreated, validation on):
+/// the last frame is the new size, and shows the start view scaled and letterboxed
+/// (OrbitView::camera), as the renderer draws that camera.
+TEST_F(ViewTest, XvfbResizeRecreatesTheSwapchain) {
+    const Fixture& f = fixture();
+    TempDir out("view_resize");
+    const std::string xvfb = std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 320x240x24\" ";
+    const RunResult v = run(xvfb + viewer() + frame_args(f) + " --frames 3 --resize-to 150x110 --screenshot " +
+                                (out / "resized.png").string(),
+                            out / "v.txt");
+    ASSERT_EQ(v.code, 0) << v.err;
+    const Image shot = read_image(out / "resized.png", ColorSpace::Linear);
+    ASSERT_EQ(shot.width, 150);
+    ASSERT_EQ(shot.height, 110);
+    const Bundle bundle = read_bundle(f.dir / "truth.glb");
+    const Capture cap = load_capture(f.dir / "cap", {.load_mesh = false, .load_images = false});
+    const FrameDesc& fd = cap.desc.frames[f.frame];
+    const OrbitView view(fd.camera(), fd.light, mesh_bounds(bundle.mesh), {0, 1, 0});
+    evaluate::BundleRenderer r(ctx(), bundle, "truth.glb");
+    evaluate::write_rendered_image(out / "expected.png", r.render(view.camera(150, 110), fd.light, {}).color);
+    const Diff d = compare(read_image(out / "expected.png", ColorSpace::Linear), shot);
+    EXPECT_GT(d.lit, 500u);
+    EXPECT_LE(d.max, 1.0 / 255.0 + 1e-6);
+}
 #endif
 
 /// With no display, --frames renders offscreen (saying so) and the .exr is exactly the

@@ -55,6 +55,9 @@ int main(int argc, char** argv) {
     app.add_option("--bench-frames", c.bench_frames, "Timed frames of --bench (after 8 warm-up frames)")->capture_default_str();
     app.add_flag("--continuous", c.continuous, "Draw frames continuously, not only when input changes something");
     app.add_flag("--offscreen", c.offscreen, "Never open a window (with --frames or --bench)");
+    app.add_flag("--photo", c.photo, "Start showing the captured photograph of --frame (as after pressing C)");
+    app.add_option("--resize-to", c.resize_to, "Headless tests: resize the window to WxH after the first of --frames")
+        ->group("Testing");
     try {
         app.parse(argc, argv);
         if (quiet) specula::log::set_level(specula::log::Level::Quiet);

@@ -265,7 +265,9 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
         stats.report(std::to_string(w) + "x" + std::to_string(h) + " " + settings_name(settings) + ", offscreen (no present), " + ctx->info().name +
                      ", LP_NUM_THREADS " + lavapipe_threads());
     }
-    if (c.frames) {
+    if (c.frames && c.photo) { // the captured photograph is what the window would show
+        if (!c.screenshot.empty()) evaluate::write_rendered_image(c.screenshot, *start.photo);
+    } else if (c.frames) {
         render::Frame frame;
         for (int i = 0; i < *c.frames; ++i) frame = renderer.render(camera, view.light(), settings);
         if (!c.screenshot.empty()) {
@@ -697,6 +699,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
         input.settings = &settings;
         input.has_factorization = renderer.has_factorization();
         input.has_photo = photo.has_value();
+        input.show_photo = c.photo;
         glfwSetWindowUserPointer(window.get(), &input);
         glfwSetKeyCallback(window.get(), on_key);
         glfwSetMouseButtonCallback(window.get(), on_mouse_button);
@@ -742,6 +745,21 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
             const double ms = sw.seconds() * 1e3;
             input.dirty = false;
             ++drawn;
+            if (drawn == 1 && !c.resize_to.empty()) {
+                // Exercise a resize (swapchain and target recreation) in headless runs: ask
+                // for the new size and wait (at most 5 s) until the framebuffer has it.
+                const auto [rw, rh] = parse_size(c.resize_to);
+                glfwSetWindowSize(window.get(), rw, rh);
+                const Stopwatch wait;
+                int fw = 0, fh = 0;
+                do {
+                    glfwWaitEventsTimeout(0.05);
+                    glfwGetFramebufferSize(window.get(), &fw, &fh);
+                } while ((fw != rw || fh != rh) && wait.seconds() < 5.0);
+                if (fw != rw || fh != rh)
+                    throw Error("--resize-to: the window is " + std::to_string(fw) + "x" + std::to_string(fh) +
+                                " after 5 s, not " + c.resize_to + " (a window manager may have refused)");
+            }
             glfwSetWindowTitle(window.get(), title_of(std::filesystem::path(c.bundle).filename().string(), settings, show_photo,
                                                       start.what, ms, frames.width(), frames.height())
                                                  .c_str());
@@ -787,6 +805,11 @@ void run_viewer(const ViewerConfig& c) {
     const Start start = resolve_start(c, bundle);
     log::info("specula-view: " + c.bundle + " (" + std::to_string(bundle.mesh.triangles.size()) + " triangles), starting at " +
               start.what);
+    if (c.photo && !start.photo) throw UsageError("--photo needs --capture DIR --frame INDEX");
+    if (!c.resize_to.empty()) {
+        (void)parse_size(c.resize_to);
+        if (!c.frames || *c.frames < 2) throw UsageError("--resize-to needs --frames N with N >= 2");
+    }
     if (c.offscreen) {
         if (!c.frames && !c.bench) throw UsageError("--offscreen needs --frames N or --bench");
         run_offscreen(c, bundle, start, settings, "--offscreen");

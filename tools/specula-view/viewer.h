@@ -25,6 +25,8 @@ struct ViewerConfig {
     int bench_frames = 240;
     bool continuous = false;            ///< render every frame, not only on input
     bool offscreen = false;             ///< never open a window
+    bool photo = false;                 ///< start showing the captured photograph (key C)
+    std::string resize_to;              ///< headless tests: resize the window to WxH after the first frame
 };
 
 /// Runs the viewer. Throws UsageError for bad options, InputError for bad files,
