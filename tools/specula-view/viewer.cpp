@@ -707,6 +707,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
         glfwSetScrollCallback(window.get(), on_scroll);
         glfwSetFramebufferSizeCallback(window.get(), on_framebuffer_size);
         glfwSetWindowRefreshCallback(window.get(), on_refresh);
+        glfwSetWindowIconifyCallback(window.get(), [](GLFWwindow* w, int) { on_refresh(w); });
         if (!headless) std::printf("%s (H prints this again)\n", kHelp);
 
         const int wanted = c.bench ? kBenchWarmup + c.bench_frames : c.frames.value_or(0);
@@ -725,6 +726,12 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
                 input.resized = false;
                 frames.clear_stale();
                 frames.resize(fw, fh);
+            }
+            // Iconified (X11 keeps the size of a minimized window): draw nothing until restored.
+            if (glfwGetWindowAttrib(window.get(), GLFW_ICONIFIED) == GLFW_TRUE) {
+                input.dirty = true;
+                glfwWaitEvents();
+                continue;
             }
             if (!frames.ready() || !(headless || c.continuous || input.dirty)) continue;
 
