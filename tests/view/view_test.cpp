@@ -269,6 +269,28 @@ TEST_F(ViewTest, XvfbResizeRecreatesTheSwapchain) {
     EXPECT_GT(d.lit, 500u);
     EXPECT_LE(d.max, 1.0 / 255.0 + 1e-6);
 }
+
+/// Frame pacing: an interactive window with no input draws its first frame and then
+/// waits (no frame per wake-up); SIGTERM ends it cleanly (exit 0, validation checked
+/// on the way out). The script waits for the first frame, idles 2 s, then stops it.
+TEST_F(ViewTest, XvfbIdleWindowDrawsOnceAndStopsCleanly) {
+    const Fixture& f = fixture();
+    TempDir out("view_idle");
+    const std::string err = (out / "err.txt").string();
+    write_text_file(out / "idle.sh", std::string(SPECULA_VIEW_BINARY) + " " + (f.dir / "truth.glb").string() + " > /dev/null 2> " +
+                                         err + " &\np=$!\nfor i in $(seq 300); do grep -q 'first frame drawn' " + err +
+                                         " && break; sleep 0.1; done\nsleep 2\nkill -TERM $p\nwait $p\n");
+    const RunResult v =
+        run(std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 640x480x24\" sh " + (out / "idle.sh").string(), out / "xvfb.txt");
+    const std::string log = read_text_file(out / "err.txt");
+    ASSERT_EQ(v.code, 0) << log << v.err;
+    EXPECT_EQ(log.find("validation"), std::string::npos) << log;
+    const auto at = log.find(" frame(s) drawn in ");
+    ASSERT_NE(at, std::string::npos) << log;
+    const int drawn = std::stoi(log.substr(log.rfind(' ', at - 1) + 1));
+    EXPECT_GE(drawn, 1);
+    EXPECT_LE(drawn, 3) << "an idle window should not keep drawing (an expose may add one): " << log;
+}
 #endif
 
 /// With no display, --frames renders offscreen (saying so) and the .exr is exactly the
