@@ -29,7 +29,9 @@ int main(int argc, char** argv) {
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
     app.set_version_flag("--version", "specula-view 0.1.0");
     bool quiet = false;
+    bool verbose = false;
     app.add_flag("-q,--quiet", quiet, "Print only warnings and errors");
+    app.add_flag("-v,--verbose", verbose, "Print debugging detail (device, culling)");
     app.add_option("bundle", c.bundle, "Bundle written by `specula reconstruct` (.glb)")->required();
     app.add_option("--capture", c.capture, "Capture folder (or its capture.json): start from a frame's camera and light");
     app.add_option("--frame", c.frame, "Frame index in capture.json's frames list (with --capture); C shows its photograph");
@@ -61,6 +63,7 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
         if (quiet) specula::log::set_level(specula::log::Level::Quiet);
+        if (verbose) specula::log::set_level(specula::log::Level::Verbose);
         specula::view::run_viewer(c);
         return 0;
     } catch (const CLI::ParseError& e) {

@@ -248,6 +248,7 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
     }
     watch_validation(*ctx);
     evaluate::BundleRenderer renderer(*ctx, bundle, c.bundle);
+    log::debug(std::string("back-face culling ") + (renderer.renderer().culls_back_faces() ? "on" : "off (open mesh)"));
     OrbitView view(start.camera, start.light, mesh_bounds(bundle.mesh), start.up);
     const Camera camera = view.camera(start.camera.intrinsics.w, start.camera.intrinsics.h);
     const int w = camera.intrinsics.w, h = camera.intrinsics.h;
@@ -690,6 +691,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
     gpu::Surface surface(ctx.instance(), raw_surface);
     {
         evaluate::BundleRenderer renderer(ctx, bundle, c.bundle);
+        log::debug(std::string("back-face culling ") + (renderer.renderer().culls_back_faces() ? "on" : "off (open mesh)"));
         std::optional<gpu::Image> photo;
         if (start.photo) {
             const VkFormat f = gpu::choose_float_texture_format(ctx);
