@@ -24,10 +24,13 @@ int main(int argc, char** argv) {
     CLI::App app{"specula-view: show a Specula bundle (.glb) under a point light in a window, with the same raster passes\n"
                  "as `specula render`. Mouse: left drag orbits, right/middle drag pans, wheel zooms, shift + left drag\n"
                  "(or the arrow keys) moves the light. Keys: 1 diffuse, 2 specular, 3 both, F factorized/analytic,\n"
-                 "C captured photograph (with --capture), R reset, H help, Q/Esc quit. The title shows mode and frame time.\n"
+                 "P fused/separate passes, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
+                 "The title shows mode and frame time.\n"
                  "Draws only when something changes (unless --continuous). Without a display, --frames and --bench\n"
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
     app.set_version_flag("--version", "specula-view 0.1.0");
+    app.footer("Exit status: 0 success; 1 failure (bad input file, no usable device or display, validation messages\n"
+               "when SPECULA_VALIDATION=1); 2 usage error.");
     bool quiet = false;
     bool verbose = false;
     app.add_flag("-q,--quiet", quiet, "Print only warnings and errors");
