@@ -291,6 +291,40 @@ TEST_F(ViewTest, XvfbIdleWindowDrawsOnceAndStopsCleanly) {
     EXPECT_GE(drawn, 1);
     EXPECT_LE(drawn, 3) << "an idle window should not keep drawing (an expose may add one): " << log;
 }
+
+#ifdef SPECULA_XDOTOOL
+/// Input under Xvfb, driven by xdotool (validation on): orbit, pan, wheel and light drags,
+/// the mode keys (the title follows), the photograph (C), a resize by the window system
+/// (the swapchain is recreated; the title shows the new size), and Q ends it with exit 0.
+TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
+    const Fixture& f = fixture();
+    TempDir out("view_input");
+    const std::string err = (out / "err.txt").string(), titles = (out / "titles.txt").string();
+    const std::string x = SPECULA_XDOTOOL;
+    std::string sh = std::string(SPECULA_VIEW_BINARY) + " " + frame_args(f) + " > /dev/null 2> " + err + " &\np=$!\n" +
+                     "for i in $(seq 300); do grep -q 'first frame drawn' " + err + " && break; sleep 0.1; done\n" +
+                     "w=$(" + x + " search --name specula-view | head -1)\n" +
+                     "t() { sleep 0.5; echo \"$1: $(" + x + " getwindowname $w)\" >> " + titles + "; }\n" +
+                     x + " mousemove --window $w 40 40 mousedown 1 mousemove --window $w 70 50 mouseup 1\n" +
+                     x + " mousemove --window $w 50 50 mousedown 3 mousemove --window $w 60 55 mouseup 3\n" +
+                     x + " click --window $w 4\n" +
+                     x + " keydown --window $w shift mousedown 1 mousemove --window $w 80 70 mouseup 1 keyup shift\n";
+    for (const char* k : {"1", "2", "3", "p", "Left", "r", "c"}) sh += x + " key --window $w " + k + "; t " + k + "\n";
+    sh += x + " windowsize $w 150 110; t resize\n" + x + " key --window $w c; t c2\n" + x + " key --window $w q\nwait $p\n";
+    write_text_file(out / "input.sh", sh);
+    const RunResult v =
+        run(std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 640x480x24\" sh " + (out / "input.sh").string(), out / "xvfb.txt");
+    const std::string log = read_text_file(out / "err.txt");
+    ASSERT_EQ(v.code, 0) << log << v.err;
+    EXPECT_EQ(log.find("validation"), std::string::npos) << log;
+    const std::string t = read_text_file(out / "titles.txt");
+    for (const char* want : {"1: specula-view | truth.glb | diffuse/analytic |", "2: specula-view | truth.glb | specular/analytic |",
+                             "3: specula-view | truth.glb | both/analytic, 1 pass |", "p: specula-view | truth.glb | both/analytic, 2 passes |",
+                             "c: specula-view | truth.glb | captured photograph of frame", "resize: ", "| 150x110",
+                             "c2: specula-view | truth.glb | both/analytic, 2 passes |"})
+        EXPECT_NE(t.find(want), std::string::npos) << want << "\n" << t;
+}
+#endif
 #endif
 
 /// With no display, --frames renders offscreen (saying so) and the .exr is exactly the
