@@ -11,7 +11,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
   glslang-tools glslang-dev spirv-tools \
   libglm-dev libeigen3-dev libembree-dev libopenimageio-dev openimageio-tools \
   libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev \
-  libglfw3-dev xvfb xauth >/dev/null
+  libglfw3-dev xvfb xauth xdotool >/dev/null
 # Node.js for the glTF validator: Debian's packages, unless a Node.js with npm is already
 # there (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm package).
 if ! command -v npm >/dev/null 2>&1; then

@@ -67,7 +67,8 @@ bool has_layer(const char* name) {
 
 // Instance creation shared by enumerate_devices() (no validation) and Context.
 // `next` is chained into VkInstanceCreateInfo (validation features + messenger info).
-UniqueInstance create_instance(const std::string& app_name, bool validation, const void* next) {
+UniqueInstance create_instance(const std::string& app_name, bool validation, const void* next,
+                               const std::vector<std::string>& extra_extensions = {}) {
     uint32_t loader_version = VK_API_VERSION_1_0;
     SPECULA_VK_CHECK(vkEnumerateInstanceVersion(&loader_version), "querying the Vulkan loader version");
     if (loader_version < kMinApiVersion)
@@ -92,6 +93,13 @@ UniqueInstance create_instance(const std::string& app_name, bool validation, con
             throw DeviceError("validation was requested but the instance extension VK_EXT_debug_utils is missing");
         layers.push_back(kValidationLayer);
         extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+    }
+    for (const std::string& e : extra_extensions) {
+        if (!has_instance_extension(e.c_str()))
+            throw DeviceError("the Vulkan instance extension " + e + " is required (" + app_name +
+                              ") but the loader does not offer it");
+        if (std::none_of(extensions.begin(), extensions.end(), [&](const char* x) { return e == x; }))
+            extensions.push_back(e.c_str());
     }
     const VkApplicationInfo app{.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO,
                                 .pApplicationName = app_name.c_str(),
@@ -167,6 +175,16 @@ DeviceInfo describe(VkPhysicalDevice physical, uint32_t index) {
     else if (!d.queue_family)
         d.unusable_reason = "no queue family with compute";
     return d;
+}
+
+std::vector<std::string> device_extension_names(VkPhysicalDevice physical) {
+    uint32_t count = 0;
+    SPECULA_VK_CHECK(vkEnumerateDeviceExtensionProperties(physical, nullptr, &count, nullptr), "counting device extensions");
+    std::vector<VkExtensionProperties> exts(count);
+    SPECULA_VK_CHECK(vkEnumerateDeviceExtensionProperties(physical, nullptr, &count, exts.data()), "listing device extensions");
+    std::vector<std::string> names;
+    for (const VkExtensionProperties& e : exts) names.emplace_back(e.extensionName);
+    return names;
 }
 
 std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
@@ -339,7 +357,8 @@ Context::Context(const ContextOptions& options) : m_validation_state(std::make_u
                                            .pNext = &messenger_info,
                                            .enabledValidationFeatureCount = 1,
                                            .pEnabledValidationFeatures = enables};
-    m_instance = create_instance(options.application_name, m_validation, m_validation ? &features : nullptr);
+    m_instance = create_instance(options.application_name, m_validation, m_validation ? &features : nullptr,
+                                 options.instance_extensions);
 
     if (m_validation) {
         auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
@@ -356,7 +375,16 @@ Context::Context(const ContextOptions& options) : m_validation_state(std::make_u
 
     const auto list = physical_devices(m_instance.get());
     std::vector<DeviceInfo> devices;
-    for (uint32_t i = 0; i < list.size(); ++i) devices.push_back(describe(list[i], i));
+    for (uint32_t i = 0; i < list.size(); ++i) {
+        devices.push_back(describe(list[i], i));
+        if (!devices.back().unusable_reason.empty()) continue;
+        const std::vector<std::string> offered = device_extension_names(list[i]);
+        for (const std::string& e : options.device_extensions)
+            if (std::find(offered.begin(), offered.end(), e) == offered.end()) {
+                devices.back().unusable_reason = "no device extension " + e;
+                break;
+            }
+    }
     std::string selector = options.device;
     if (selector.empty())
         if (const char* env = std::getenv("SPECULA_DEVICE")) selector = env;
@@ -375,6 +403,7 @@ Context::Context(const ContextOptions& options) : m_validation_state(std::make_u
                                              .queueCount = 1,
                                              .pQueuePriorities = &priority};
     std::vector<const char*> device_extensions;
+    for (const std::string& e : options.device_extensions) device_extensions.push_back(e.c_str());
     // Portability drivers (MoltenVK) require this extension to be enabled when offered.
     {
         uint32_t count = 0;

@@ -74,6 +74,12 @@ struct ContextOptions {
     /// nullopt = SPECULA_VALIDATION from the environment ("1", "true", "on").
     std::optional<bool> validation;
     std::string application_name = "specula";
+    /// Extra instance extensions (a window system's surface extensions, e.g. from
+    /// glfwGetRequiredInstanceExtensions). A missing one is a DeviceError naming it.
+    std::vector<std::string> instance_extensions;
+    /// Extra device extensions (VK_KHR_swapchain for a window). Devices that lack one
+    /// are unusable for this context (DeviceInfo::unusable_reason says which).
+    std::vector<std::string> device_extensions;
 };
 
 enum class MessageSeverity { Verbose, Info, Warning, Error };

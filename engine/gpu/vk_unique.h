@@ -86,6 +86,9 @@ using UniqueImageView = VkUnique<VkImageView, vkDestroyImageView>;
 using UniqueSampler = VkUnique<VkSampler, vkDestroySampler>;
 using UniqueRenderPass = VkUnique<VkRenderPass, vkDestroyRenderPass>;
 using UniqueFramebuffer = VkUnique<VkFramebuffer, vkDestroyFramebuffer>;
+// Presentation (swapchain.h).
+using UniqueSemaphore = VkUnique<VkSemaphore, vkDestroySemaphore>;
+using UniqueSwapchain = VkUnique<VkSwapchainKHR, vkDestroySwapchainKHR>;
 
 /// Owner of a VkDebugUtilsMessengerEXT (an extension object: destroyed through
 /// the instance's function pointer, so it is not a VkUnique).

@@ -4,6 +4,8 @@
 #include "core/timer.h"
 #include "render/projection.h"
 
+#include "render/both_analytic.frag.h"
+#include "render/both_factorized.frag.h"
 #include "render/diffuse.frag.h"
 #include "render/raster.vert.h"
 #include "render/specular_analytic.frag.h"
@@ -56,6 +58,8 @@ const char* mode_name(Mode mode) noexcept {
     }
     return "?";
 }
+
+const char* passes_name(Passes passes) noexcept { return passes == Passes::Separate ? "separate" : "fused"; }
 
 const char* specular_model_name(SpecularModel model) noexcept {
     return model == SpecularModel::Analytic ? "analytic" : "factorized";
@@ -123,9 +127,13 @@ struct Renderer::Impl {
     gpu::GraphicsPipeline diffuse;
     gpu::GraphicsPipeline specular_analytic;
     gpu::GraphicsPipeline specular_factorized;
+    gpu::GraphicsPipeline both_analytic;   // Passes::Fused
+    gpu::GraphicsPipeline both_factorized;
     gpu::DescriptorSet diffuse_set;
     gpu::DescriptorSet analytic_set;
     gpu::DescriptorSet factorized_set; // textures written by set_factorization
+    gpu::DescriptorSet both_analytic_set;
+    gpu::DescriptorSet both_factorized_set; // cube-maps written by set_factorization
     gpu::Sequence sequence;
 
     Impl(gpu::Context& c, const Scene& scene, const Options& opts)
@@ -144,16 +152,17 @@ struct Renderer::Impl {
           diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, 3, false)),
           specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, 3, true)),
           specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, 5, true)),
+          both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, 3, false)),
+          both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, 5, false)),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
+          both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized),
           sequence(c, 8) {
         vertex_count = static_cast<uint32_t>(3 * triangles);
-        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set}) {
+        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set, &both_factorized_set}) {
             set->write_buffer(kBindingParams, params);
             set->write_buffer(kBindingVertices, vertices);
+            set->write_image(kBindingAlbedo, albedo, sampler.get());
         }
-        diffuse_set.write_image(kBindingAlbedo, albedo, sampler.get());
-        analytic_set.write_image(kBindingAlbedo, albedo, sampler.get());
-        factorized_set.write_image(kBindingAlbedo, albedo, sampler.get());
     }
 
     static const Mesh* checked_mesh(const Scene& scene) {
@@ -205,14 +214,66 @@ struct Renderer::Impl {
         return d;
     }
 
-    void draw(VkCommandBuffer cmd, const gpu::GraphicsPipeline& pipeline, const gpu::DescriptorSet& set,
-              gpu::RenderTarget::Load load) const {
-        target->begin(cmd, load);
+    /// Checks the camera and settings, says which passes run, and writes the frame's
+    /// parameters (the previous frame must be done with them).
+    FrameInfo prepare(const Camera& camera, const PointLight& light, const Settings& settings) {
+        const Intrinsics& k = camera.intrinsics;
+        if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
+            throw Error("renderer: the camera needs a positive image size and focal lengths");
+        FrameInfo info;
+        info.triangles = triangles;
+        const bool want_diffuse = settings.mode != Mode::Specular;
+        const bool want_specular = settings.mode != Mode::Diffuse;
+        info.diffuse_pass = want_diffuse;
+        if (!want_specular) {
+            info.specular_note = "mode diffuse";
+        } else if (lobe.is_zero()) {
+            info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
+        } else if (settings.specular == SpecularModel::Factorized && !cube_g) {
+            throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
+        } else {
+            info.specular_pass = true;
+            info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
+        }
+
+        const double near = settings.near.value_or(near_plane_for(camera, bounds));
+        shared::RenderParams p{};
+        p.world_to_clip = glm::mat4(world_to_clip(camera, near));
+        p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
+        p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
+        p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
+        p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
+        p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
+        p.lobe_n = glm::vec4(lobe.n, 0.0f);
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
+        params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
+        return info;
+    }
+
+    // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
+    void draw_diffuse(VkCommandBuffer cmd, const gpu::RenderTarget& t) const {
+        draw(cmd, t, diffuse, diffuse_set, gpu::RenderTarget::Load::Clear);
+    }
+    // Passes::Fused: both terms in one pass, in place of the two.
+    void draw_fused(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
+        const bool analytic = model == SpecularModel::Analytic;
+        draw(cmd, t, analytic ? both_analytic : both_factorized, analytic ? both_analytic_set : both_factorized_set,
+             gpu::RenderTarget::Load::Clear);
+    }
+    void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
+        const bool analytic = model == SpecularModel::Analytic;
+        draw(cmd, t, analytic ? specular_analytic : specular_factorized, analytic ? analytic_set : factorized_set,
+             gpu::RenderTarget::Load::Keep);
+    }
+
+    void draw(VkCommandBuffer cmd, const gpu::RenderTarget& t, const gpu::GraphicsPipeline& pipeline,
+              const gpu::DescriptorSet& set, gpu::RenderTarget::Load load) const {
+        t.begin(cmd, load);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.pipeline());
         const VkDescriptorSet s = set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
         vkCmdDraw(cmd, vertex_count, 1, 0, 0);
-        target->end(cmd);
+        t.end(cmd);
     }
 };
 
@@ -238,62 +299,50 @@ void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
     m.cube_h.emplace(upload_cube(*m.ctx, h, "H cube-map"));
     m.factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
     m.factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
+    m.both_factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
+    m.both_factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
+}
+
+FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,
+                            const PointLight& light, const Settings& settings) {
+    Impl& m = *m_impl;
+    const Intrinsics& k = camera.intrinsics;
+    if (target.width() != static_cast<uint32_t>(k.w) || target.height() != static_cast<uint32_t>(k.h))
+        throw Error("renderer: the target is " + std::to_string(target.width()) + "x" + std::to_string(target.height()) +
+                    " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
+    FrameInfo info = m.prepare(camera, light, settings);
+    if (info.fused) {
+        m.draw_fused(cmd, target, settings.specular);
+        return info;
+    }
+    m.draw_diffuse(cmd, target);
+    if (info.specular_pass) m.draw_specular(cmd, target, settings.specular);
+    return info;
 }
 
 Frame Renderer::render(const Camera& camera, const PointLight& light, const Settings& settings) {
     const Stopwatch wall;
     Impl& m = *m_impl;
-    const Intrinsics& k = camera.intrinsics;
-    if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
-        throw Error("renderer: the camera needs a positive image size and focal lengths");
-
     Frame frame;
+    frame.info = m.prepare(camera, light, settings);
     FrameInfo& info = frame.info;
-    info.triangles = m.triangles;
-    const bool want_diffuse = settings.mode != Mode::Specular;
-    const bool want_specular = settings.mode != Mode::Diffuse;
-    info.diffuse_pass = want_diffuse;
-    if (!want_specular) {
-        info.specular_note = "mode diffuse";
-    } else if (m.lobe.is_zero()) {
-        info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
-    } else if (settings.specular == SpecularModel::Factorized && !m.cube_g) {
-        throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
-    } else {
-        info.specular_pass = true;
-    }
-
+    const Intrinsics& k = camera.intrinsics;
     if (m.target->width() != static_cast<uint32_t>(k.w) || m.target->height() != static_cast<uint32_t>(k.h))
         m.target = std::make_unique<gpu::RenderTarget>(*m.ctx, static_cast<uint32_t>(k.w), static_cast<uint32_t>(k.h),
                                                        "render target");
 
-    const double near = settings.near.value_or(near_plane_for(camera, m.bounds));
-    shared::RenderParams p{};
-    p.world_to_clip = glm::mat4(world_to_clip(camera, near));
-    p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
-    p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
-    p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
-    p.lobe_cx = glm::vec4(m.lobe.cx, 0.0f);
-    p.lobe_cz = glm::vec4(m.lobe.cz, 0.0f);
-    p.lobe_n = glm::vec4(m.lobe.n, 0.0f);
-    p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
-    m.params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
-
     gpu::Sequence& seq = m.sequence;
     seq.reset();
-    // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
-    seq.time_begin("diffuse pass")
-        .record([&](VkCommandBuffer cmd) { m.draw(cmd, m.diffuse, m.diffuse_set, gpu::RenderTarget::Load::Clear); })
-        .time_end();
-    if (info.specular_pass) {
-        const bool analytic = settings.specular == SpecularModel::Analytic;
-        seq.time_begin("specular pass")
-            .record([&](VkCommandBuffer cmd) {
-                m.draw(cmd, analytic ? m.specular_analytic : m.specular_factorized,
-                       analytic ? m.analytic_set : m.factorized_set, gpu::RenderTarget::Load::Keep);
-            })
+    if (info.fused)
+        seq.time_begin("diffuse pass")
+            .record([&](VkCommandBuffer cmd) { m.draw_fused(cmd, *m.target, settings.specular); })
             .time_end();
-    }
+    else
+        seq.time_begin("diffuse pass").record([&](VkCommandBuffer cmd) { m.draw_diffuse(cmd, *m.target); }).time_end();
+    if (info.specular_pass && !info.fused)
+        seq.time_begin("specular pass")
+            .record([&](VkCommandBuffer cmd) { m.draw_specular(cmd, *m.target, settings.specular); })
+            .time_end();
     seq.time_begin("readback").record([&](VkCommandBuffer cmd) { m.target->record_readback(cmd); }).time_end();
     seq.submit_and_wait();
     for (const gpu::GpuTiming& t : seq.timings()) {

@@ -77,9 +77,18 @@ enum class SpecularModel {
 [[nodiscard]] const char* mode_name(Mode mode) noexcept;
 [[nodiscard]] const char* specular_model_name(SpecularModel model) noexcept;
 
+/// How Mode::Both is drawn.
+enum class Passes {
+    Separate, ///< the thesis's two passes: diffuse, then specular blended additively (EQUAL depth)
+    Fused,    ///< one pass whose fragment shader sums the same two terms (render/terms.glsl): half
+              ///< the vertex, setup and binning work, which bounds lavapipe on large meshes
+};
+[[nodiscard]] const char* passes_name(Passes passes) noexcept;
+
 struct Settings {
     Mode mode = Mode::Both;
     SpecularModel specular = SpecularModel::Analytic;
+    Passes passes = Passes::Separate; ///< only Mode::Both with a specular term has a choice
     std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
 };
 
@@ -98,7 +107,8 @@ struct Options {
 /// What a frame drew and what it cost.
 struct FrameInfo {
     bool diffuse_pass = false;        ///< pass 1 wrote the diffuse term (it always writes depth and coverage)
-    bool specular_pass = false;       ///< pass 2 ran
+    bool specular_pass = false;       ///< pass 2 ran (or, fused, the specular term was drawn)
+    bool fused = false;               ///< both terms in one pass (Passes::Fused); timed as diffuse_gpu_ms
     std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
     std::optional<double> diffuse_gpu_ms;  ///< GPU time of pass 1 (timestamps); nullopt without timestamps
     std::optional<double> specular_gpu_ms; ///< GPU time of pass 2
@@ -139,6 +149,17 @@ public:
     /// Renders one frame and reads it back. Throws Error when `settings` asks for the
     /// factorized model before set_factorization().
     [[nodiscard]] Frame render(const Camera& camera, const PointLight& light, const Settings& settings = {});
+
+    /// The same passes as render(), recorded into the caller's command buffer and target
+    /// (the viewer's window-sized target, blitted to the swapchain): no submit, no wait,
+    /// no readback. The target must be camera-sized; pipelines are compatible with any
+    /// gpu::RenderTarget (same formats). Leaves the colour in COLOR_ATTACHMENT_OPTIMAL,
+    /// written by the colour-attachment stage. The per-frame parameters are written to a
+    /// host-visible buffer now, so the previous frame this renderer recorded (here or in
+    /// render()) must have finished executing. Returns what the frame will draw (no
+    /// timings, covered_pixels 0).
+    FrameInfo record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera, const PointLight& light,
+                     const Settings& settings = {});
 
     [[nodiscard]] std::size_t triangle_count() const noexcept;
     /// Whether back faces are culled (Options::culling, resolved for this mesh).

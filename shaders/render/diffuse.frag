@@ -1,11 +1,10 @@
 #version 450
-// Pass 1, diffuse: (rho / pi) I max(0, n.u) / d^2 (shared/render.h), rho from the albedo
-// atlas (bilinear, clamped: the atlas gutters make bilinear safe, engine/geometry/atlas.h),
-// n the interpolated vertex normal, normalized per fragment (as the synth renderer does).
+// Pass 1, diffuse: (rho / pi) I max(0, n.u) / d^2 (render/terms.glsl), n the
+// interpolated vertex normal, normalized per fragment (as the synth renderer does).
 // Alpha = 1 marks coverage. With params.flags.x == 0 the pass lays down depth and
 // coverage only (the specular-only mode).
 #extension GL_GOOGLE_include_directive : require
-#include "shared/render.h"
+#include "render/terms.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
 layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
@@ -15,15 +14,8 @@ layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 0) out vec4 out_color;
 
-const float kPi = 3.14159265358979;
-
 void main() {
     vec3 color = vec3(0.0);
-    if (params.flags.x != 0u) {
-        vec3 n = normalize(in_normal);
-        vec3 irradiance = point_light_irradiance(n, in_world, params.light_position.xyz, params.light_intensity.rgb);
-        vec3 rho = texture(albedo_atlas, in_uv).rgb;
-        color = rho / kPi * irradiance;
-    }
+    if (params.flags.x != 0u) color = diffuse_term(params, albedo_atlas, in_world, normalize(in_normal), in_uv);
     out_color = vec4(color, 1.0);
 }

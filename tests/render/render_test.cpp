@@ -459,6 +459,44 @@ TEST_F(RenderTest, FactorizedModeLooksUpBothCubeMaps) {
     EXPECT_GT(energy, 0.0);
 }
 
+/// Passes::Fused sums the same two terms (render/terms.glsl) in one fragment shader that
+/// the separate passes add in the blend unit: the same coverage, and colours equal up to
+/// float rounding (the two shaders are compiled separately, so the compiler may contract
+/// or reorder differently: 1e-5 relative), in both specular models.
+TEST_F(RenderTest, FusedPassMatchesTheTwoPasses) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.4f, 0.5f, 0.6f));
+    const Camera cam = make_camera(96, 96, 100.0, 100.0, 48.0, 48.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
+    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    CubeMapRgb g{8, std::vector<float>(6 * 8 * 8 * 3)}, h{8, std::vector<float>(6 * 8 * 8 * 3)};
+    for (std::size_t i = 0; i < g.rgb.size(); ++i) {
+        g.rgb[i] = 0.2f + 0.6f * static_cast<float>((i * 7919) % 97) / 97.0f; // varied texels: lookups must agree
+        h.rgb[i] = 0.1f + 0.8f * static_cast<float>((i * 104729) % 89) / 89.0f;
+    }
+    r.set_factorization(g, h);
+    for (const SpecularModel model : {SpecularModel::Analytic, SpecularModel::Factorized}) {
+        const Frame two = r.render(cam, light, {.mode = Mode::Both, .specular = model});
+        const Frame one = r.render(cam, light, {.mode = Mode::Both, .specular = model, .passes = Passes::Fused});
+        EXPECT_FALSE(two.info.fused);
+        EXPECT_TRUE(one.info.fused);
+        EXPECT_TRUE(one.info.specular_pass);
+        EXPECT_FALSE(one.info.specular_gpu_ms.has_value());
+        EXPECT_GT(one.info.covered_pixels, 500u);
+        EXPECT_EQ(one.mask, two.mask);
+        float max_rel = 0.0f;
+        for (std::size_t i = 0; i < one.color.pixels.size(); ++i)
+            max_rel = std::max(max_rel, std::abs(one.color.pixels[i] - two.color.pixels[i]) /
+                                            std::max(1e-3f, std::abs(two.color.pixels[i])));
+        EXPECT_LE(max_rel, 1e-5f) << specular_model_name(model);
+    }
+    // Fused changes nothing outside Mode::Both.
+    const Frame d1 = r.render(cam, light, {.mode = Mode::Diffuse, .passes = Passes::Fused});
+    const Frame d2 = r.render(cam, light, {.mode = Mode::Diffuse});
+    EXPECT_FALSE(d1.info.fused);
+    EXPECT_EQ(d1.color.pixels, d2.color.pixels);
+}
+
 TEST_F(RenderTest, TwoRendersAreIdentical) {
     const synth::Preset preset = synth::make_preset("knot");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));

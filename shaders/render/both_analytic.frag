@@ -1,0 +1,18 @@
+#version 450
+// Both terms in one pass (Settings::passes = Fused), analytic specular: the diffuse
+// term plus the lobe, summed here instead of by the blend unit. Alpha = 1: coverage.
+#extension GL_GOOGLE_include_directive : require
+#include "render/terms.glsl"
+
+layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
+layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
+
+layout(location = 0) in vec3 in_world;
+layout(location = 1) in vec3 in_normal;
+layout(location = 2) in vec2 in_uv;
+layout(location = 0) out vec4 out_color;
+
+void main() {
+    vec3 n = normalize(in_normal);
+    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv) + specular_analytic_term(params, in_world, n), 1.0);
+}

@@ -1,0 +1,21 @@
+#version 450
+// Both terms in one pass (Settings::passes = Fused), factorized specular.
+#extension GL_GOOGLE_include_directive : require
+#include "render/terms.glsl"
+
+layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
+layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
+layout(set = 0, binding = 3) uniform samplerCube cube_g;
+layout(set = 0, binding = 4) uniform samplerCube cube_h;
+
+layout(location = 0) in vec3 in_world;
+layout(location = 1) in vec3 in_normal;
+layout(location = 2) in vec2 in_uv;
+layout(location = 0) out vec4 out_color;
+
+void main() {
+    vec3 n = normalize(in_normal);
+    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv) +
+                         specular_factorized_term(params, cube_g, cube_h, in_world, n),
+                     1.0);
+}

@@ -1,0 +1,36 @@
+#pragma once
+// specula-view: shows a bundle in a window with the raster passes of engine/render
+// (Renderer::record into a window-sized target, blitted to the swapchain), or
+// renders it offscreen when there is no display.
+#include <optional>
+#include <string>
+
+namespace specula::view {
+
+struct ViewerConfig {
+    std::string bundle;                 ///< .glb written by `specula reconstruct`
+    std::string capture;                ///< capture folder: start from a frame's camera and light
+    std::optional<long long> frame;     ///< frame index in capture.json
+    std::string camera;                 ///< free start camera eye,target,up (9 numbers)
+    std::string light;                  ///< free start light x,y,z,I or x,y,z,r,g,b
+    std::string size = "512";           ///< free camera image size: N or WxH
+    std::optional<double> fov;          ///< free camera vertical field of view (degrees)
+    std::string mode = "both";          ///< both, diffuse, specular
+    std::string specular = "analytic";  ///< analytic, factorized
+    std::string passes = "fused";       ///< fused (one pass for both terms) or separate (the thesis's two)
+    std::string device;                 ///< Vulkan device selector
+    std::optional<int> frames;          ///< headless: render this many frames, then exit
+    std::string screenshot;             ///< save the last frame (.png sRGB 8-bit, .exr linear)
+    bool bench = false;                 ///< timed frames over a fixed camera and light path
+    int bench_frames = 240;
+    bool continuous = false;            ///< render every frame, not only on input
+    bool offscreen = false;             ///< never open a window
+    bool photo = false;                 ///< start showing the captured photograph (key C)
+    std::string resize_to;              ///< headless tests: resize the window to WxH after the first frame
+};
+
+/// Runs the viewer. Throws UsageError for bad options, InputError for bad files,
+/// Error for everything else (including validation messages when SPECULA_VALIDATION is on).
+void run_viewer(const ViewerConfig& config);
+
+} // namespace specula::view
