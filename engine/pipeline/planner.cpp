@@ -1,5 +1,7 @@
 #include "pipeline/planner.h"
 
+#include "core/error.h"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -279,6 +281,10 @@ factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, st
     factorization::FactorizationResolution r = factorization::default_resolution(lobe);
     if (forced_h != 0) r.grid_h = forced_h;
     if (forced_d != 0) r.grid_d = forced_d;
+    if (r.grid_h * r.grid_d > factorization::kMaxGridProduct)
+        throw UsageError("factorization grid h " + std::to_string(r.grid_h) + " x d " + std::to_string(r.grid_d) +
+                         ": R_h R_d must be at most " + std::to_string(factorization::kMaxGridProduct) +
+                         " (the matrix F, 3 R_h^2 R_d^2 floats, must fit one 128 MiB storage binding)");
     r.cube_g = factorization::cube_res_for_grid(r.grid_h);
     r.cube_h = factorization::cube_res_for_grid(r.grid_d);
     return r;

@@ -126,7 +126,7 @@ void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std
 /// (3 R_h^2 R_d^2 entries), into the estimated cost of the finest grid the rule allows.
 [[nodiscard]] PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d);
 void set_factorization_cost(PlanDecision& d, double matrix_and_decomposition_seconds);
-/// The grid a decision chose.
+/// The grid a decision chose. Throws UsageError when a forced grid has R_h R_d > kMaxGridProduct.
 [[nodiscard]] factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, std::uint32_t forced_h,
                                                                   std::uint32_t forced_d);
 

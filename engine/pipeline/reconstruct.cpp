@@ -331,6 +331,16 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         return lambert_solve(lambert_in, lambert, config.backend, ctx.get());
     });
     log::info(describe(solve.summary, lambert.mode));
+    {
+        PlanDecision& d = *plan.find("diffuse_mode");
+        if (d.forced) {
+            d.measured_seconds = stage_seconds(result, "diffuse solve");
+            d.cost_basis = std::string("measured: the diffuse solve in ") + to_string(lambert.mode) + " mode";
+        } else {
+            d.cost_basis = "no estimate: both modes read the same samples; photometric solves a 3x3 system where albedo "
+                           "mode divides two sums (force a mode to measure it)";
+        }
+    }
     for (const auto& [label, ms] : solve.summary.gpu_dispatch_ms)
         gpu_dispatches.push_back({{"stage", "diffuse solve"}, {"dispatch", label}, {"ms", ms}});
     if (ctx) device["validation_messages"] = ctx->validation_message_count();
@@ -522,6 +532,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                 eo.metrics_backend = render_ctx->info().kind == gpu::DeviceKind::Cpu ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
                 eo.max_frames_per_split = config.evaluate_max_frames;
                 eo.include_train = config.evaluate_train;
+                if (config.evaluate_factorized && bundle.cube_g) eo.render.specular = render::SpecularModel::Factorized;
                 if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
                 eo.bundle_name = "object.glb";
                 eo.progress = true;

@@ -56,6 +56,9 @@ struct ReconstructConfig {
     bool evaluate = true;
     std::size_t evaluate_max_frames = 0; ///< per split, evenly spaced (0: all frames)
     bool evaluate_train = true;          ///< false: score the test frames only
+    /// Render the lobe through the bundle's factorization cube-maps (what Specula's real-time
+    /// renderer draws) instead of the analytic lobe (the reference) when there are cube-maps.
+    bool evaluate_factorized = false;
     bool write_sheets = true;            ///< evaluation sheets in out_dir/sheets
     bool write_html = true;              ///< out_dir/report.html
     /// Time small probes so the report can estimate what skipped work would have cost

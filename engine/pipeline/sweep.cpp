@@ -5,6 +5,7 @@
 #include "core/file_util.h"
 #include "core/log.h"
 #include "core/timer.h"
+#include "factorization/resolution.h"
 #include "report/svg_plot.h"
 
 #include <algorithm>
@@ -36,6 +37,17 @@ double number(const json& j, double fallback = std::numeric_limits<double>::quie
 }
 
 json finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+// The inside of a double-quoted CSV field (RFC 4180: quotes doubled, no line breaks).
+std::string csv_quote(const std::string& text) {
+    std::string out;
+    for (const char c : text) {
+        if (c == '"') out += "\"\"";
+        else if (c == '\n' || c == '\r') out += ' ';
+        else out += c;
+    }
+    return out;
+}
 
 } // namespace
 
@@ -117,10 +129,12 @@ SweepResult run_sweep(const SweepOptions& o) {
         c.atlas.texels_per_pixel = p.texels_per_pixel;
         c.max_fit_samples = p.fit_samples;
         c.factorization_grid_h = p.factorization_grid;
-        c.factorization_grid_d = p.factorization_grid == 0 ? 0 : std::min<std::uint32_t>(p.factorization_grid, 64);
+        c.factorization_grid_d =
+            p.factorization_grid == 0 ? 0 : std::min<std::uint32_t>(p.factorization_grid, factorization::kMaxGridProduct / p.factorization_grid);
         c.backend = p.backend;
         c.evaluate = true;
         c.evaluate_train = false;
+        c.evaluate_factorized = true; // so the factorization grid shows in the error
         c.write_sheets = false;
         c.write_html = false;
         c.cost_probes = false;
@@ -129,6 +143,15 @@ SweepResult run_sweep(const SweepOptions& o) {
         ReconstructResult r;
         try {
             r = reconstruct(c, &capture);
+        } catch (const Error& e) {
+            // One bad point (a grid too fine for the device, ...) must not lose the others.
+            log::set_level(level);
+            p.failure = e.what();
+            p.seconds = p.error = p.test_q1 = p.test_psnr = p.test_full_rms_percent = std::numeric_limits<double>::quiet_NaN();
+            log::warn("bench sweep: point " + std::to_string(i) + " (" + p.label + ") failed: " + p.failure);
+            if (!o.keep_points) fs::remove_all(c.out_dir);
+            progress.update(i + 1);
+            continue;
         } catch (...) {
             log::set_level(level);
             throw;
@@ -191,7 +214,8 @@ json to_json(const SweepResult& r) {
                           {"has_lobe", p.has_lobe},
                           {"is_default", p.is_default},
                           {"on_front", p.on_front},
-                          {"stages", p.stages}});
+                          {"stages", p.stages},
+                          {"failure", p.failure.empty() ? json(nullptr) : json(p.failure)}});
     }
     json front = json::array();
     for (const std::size_t i : r.front) front.push_back(i);
@@ -206,7 +230,7 @@ json to_json(const SweepResult& r) {
 std::string to_csv(const SweepResult& r) {
     std::string out = "index,texels_per_pixel,fit_samples,factorization_grid,factorization_grid_used,backend,seconds,"
                       "test_masked_rms_percent,test_masked_q1,test_masked_psnr,test_full_rms_percent,particles,has_lobe,"
-                      "is_default,on_front\n";
+                      "is_default,on_front,failure\n";
     const auto g = [](double v) { return std::isfinite(v) ? fmt("%.6g", v) : std::string(); };
     for (std::size_t i = 0; i < r.points.size(); ++i) {
         const SweepPoint& p = r.points[i];
@@ -214,7 +238,7 @@ std::string to_csv(const SweepResult& r) {
                (p.factorization_grid == 0 ? std::string("auto") : std::to_string(p.factorization_grid)) + ",\"" + p.grid_used +
                "\"," + to_string(p.backend) + "," + g(p.seconds) + "," + (std::isfinite(p.error) ? fmt("%.9g", p.error) : std::string()) + "," + g(p.test_q1) + "," +
                g(p.test_psnr) + "," + g(p.test_full_rms_percent) + "," + std::to_string(p.particles) + "," +
-               (p.has_lobe ? "1" : "0") + "," + (p.is_default ? "1" : "0") + "," + (p.on_front ? "1" : "0") + "\n";
+               (p.has_lobe ? "1" : "0") + "," + (p.is_default ? "1" : "0") + "," + (p.on_front ? "1" : "0") + ",\"" + csv_quote(p.failure) + "\"\n";
     }
     return out;
 }

@@ -11,7 +11,9 @@
 ///   backend              backend (vulkan | cpu)                   vulkan
 ///
 /// The capture is loaded once (its load time is reported apart); a point's run time is the
-/// sum of its stages without the self-evaluation (scoring is not reconstruction). The point
+/// sum of its stages without the self-evaluation (scoring is not reconstruction). The lobe
+/// is rendered through the factorization's cube-maps (what the real-time renderer draws),
+/// so the grid's error shows. The point
 /// with every knob at its default is always run and marked. Outputs in out_dir:
 /// sweep.csv, sweep.json, sweep.svg (each written atomically), and points/NN/ with each
 /// point's outputs when keep_points is set.
@@ -46,7 +48,7 @@ struct SweepOptions {
 struct SweepPoint {
     double texels_per_pixel = 1.0;
     std::uint32_t fit_samples = 0;
-    std::uint32_t factorization_grid = 0; ///< 0: auto
+    std::uint32_t factorization_grid = 0; ///< 0: auto; N: h grid N, d grid min(N, kMaxGridProduct / N)
     LambertBackend backend = LambertBackend::Vulkan;
     std::string label;        ///< e.g. "tpp 0.5, fit 20k, grid auto, vulkan"
     bool is_default = false;
@@ -60,6 +62,7 @@ struct SweepPoint {
     std::string grid_used;    ///< the factorization grid the run used ("none" without a lobe)
     bool has_lobe = false;
     nlohmann::json stages;    ///< [{name, seconds}]
+    std::string failure;      ///< why the run failed (then seconds and error are NaN); the sweep goes on
 };
 
 struct SweepResult {
@@ -75,7 +78,8 @@ struct SweepResult {
 [[nodiscard]] std::vector<std::size_t> pareto_front(std::span<const std::pair<double, double>> xy);
 
 /// Runs the sweep and writes its files. Throws UsageError for an empty knob list or a
-/// capture with no test frames (the error is measured on them).
+/// capture with no test frames (the error is measured on them). A point whose run fails
+/// is recorded with the reason and left off the front; the others still run.
 SweepResult run_sweep(const SweepOptions& options);
 
 [[nodiscard]] nlohmann::json to_json(const SweepResult& r);

@@ -33,6 +33,7 @@ struct BenchSweepArgs {
     std::vector<std::string> grids{"auto"};
     std::vector<std::string> backends{"vulkan", "cpu"};
     std::string device;
+    std::string specular = "auto";
     unsigned threads = 2;
     bool keep = false;
 };
@@ -44,6 +45,7 @@ void run_sweep_command(const BenchSweepArgs& a) {
     o.keep_points = a.keep;
     o.base.device = a.device;
     o.base.threads = a.threads;
+    o.base.specular = a.specular == "on" ? SpecularMode::On : a.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     o.knobs.texels_per_pixel = a.tpp;
     o.knobs.fit_samples = a.fit_samples;
     o.knobs.factorization_grid.clear();
@@ -66,9 +68,14 @@ void run_sweep_command(const BenchSweepArgs& a) {
     for (const std::string& b : a.backends) o.knobs.backends.push_back(b == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan);
     const SweepResult r = run_sweep(o);
     std::printf("%-44s %10s %12s %9s %s\n", "point", "seconds", "test RMS %", "test Q1", "");
-    for (const SweepPoint& p : r.points)
+    for (const SweepPoint& p : r.points) {
+        if (!p.failure.empty()) {
+            std::printf("%-44s failed: %s\n", p.label.c_str(), p.failure.c_str());
+            continue;
+        }
         std::printf("%-44s %10.2f %12.3f %9.2f %s%s\n", p.label.c_str(), p.seconds, p.error, p.test_q1,
                     p.on_front ? "front " : "", p.is_default ? "default" : "");
+    }
     std::printf("Pareto front (run time, test masked RMS %%):");
     for (const std::size_t i : r.front) std::printf(" [%s: %.2f s, %.3f %%]", r.points[i].label.c_str(), r.points[i].seconds, r.points[i].error);
     std::printf("\ncapture load %.2f s (shared, not in the run times); wrote %s/sweep.csv, sweep.json, sweep.svg\n", r.load_seconds,
@@ -110,7 +117,8 @@ void add_bench_command(CLI::App& app) {
         "Run the pipeline over a grid of the knobs that trade accuracy for time and write OUT/sweep.csv, OUT/sweep.json\n"
         "and OUT/sweep.svg: test-frame error (masked RMS %, = 100 - Q1) against run time (the stages without the\n"
         "capture load, which is shared, and without the self-evaluation), the default point and the Pareto front\n"
-        "marked. The grid is the product of the lists below; the default point is added when missing.");
+        "marked. The lobe is rendered through its factorization cube-maps. The grid is the product of the lists\n"
+        "below; the default point is added when missing. A point that fails is listed with its reason.");
     sweep->add_option("capture", sa->capture, "Capture folder (or its capture.json); needs test frames")->required();
     sweep->add_option("-o,--out", sa->out, "Output folder (created if missing)")->required();
     sweep->add_option("--tpp", sa->tpp, "Atlas texels per pixel (the atlas size)")
@@ -126,6 +134,11 @@ void add_bench_command(CLI::App& app) {
     sweep->add_option("--backends", sa->backends, "Backends of the compute stages: vulkan, cpu")
         ->delimiter(',')
         ->check(CLI::IsMember({"vulkan", "cpu"}))
+        ->capture_default_str();
+    sweep->add_option("--specular", sa->specular,
+                      "Specular stages at every point: auto (the planner's energy test), on, off. The fit-samples and\n"
+                      "grids knobs only matter where a lobe is fitted")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
     sweep->add_option("-d,--device", sa->device, "Vulkan device: index or name substring (see `specula devices`)");
     sweep->add_option("--threads", sa->threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();

@@ -40,8 +40,9 @@ void run_reconstruct(ReconstructArgs& args) {
     if (!args.grid.empty()) {
         for (std::uint32_t g : args.grid)
             if (g < 4 || g > 256) throw UsageError("--factorization-grid: each resolution must be in [4, 256], got " + std::to_string(g));
-        if (args.grid[0] * (args.grid.size() > 1 ? args.grid[1] : args.grid[0]) > 4096)
-            throw UsageError("--factorization-grid: H x D must be at most 4096 (the matrix F must fit one storage binding)");
+        if (args.grid[0] * (args.grid.size() > 1 ? args.grid[1] : args.grid[0]) > factorization::kMaxGridProduct)
+            throw UsageError("--factorization-grid: H x D must be at most " + std::to_string(factorization::kMaxGridProduct) +
+                             " (the matrix F, 3 H^2 D^2 floats, must fit one 128 MiB storage binding)");
         c.factorization_grid_h = args.grid[0];
         c.factorization_grid_d = args.grid.size() > 1 ? args.grid[1] : args.grid[0];
     }
@@ -117,7 +118,7 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_flag("--force-occlusion-rays", args->force_occlusion_rays, "The same as --occlusion-rays on");
     cmd->add_option("--factorization-grid", args->grid,
                     "H[,D]: the factorization's h and d grid resolutions (default: the planner's, from the lobe's width:\n"
-                    "2 cells per lobe half-width, h in [16, 128], d in [16, 64])")
+                    "2 cells per lobe half-width, h in [16, 128], d in [16, 64]); H x D at most 3072")
         ->delimiter(',')
         ->expected(1, 2);
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
