@@ -6,6 +6,7 @@
 #include "core/log.h"
 #include "core/timer.h"
 #include "factorization/resolution.h"
+#include "report/report_html.h"
 #include "report/svg_plot.h"
 
 #include <algorithm>
@@ -190,6 +191,7 @@ SweepResult run_sweep(const SweepOptions& o) {
     const std::string title = "Specula: test-frame error against run time (" + capture_json_path(o.capture).parent_path().filename().string() + ")";
     write_text_file(o.out_dir / "sweep.csv", to_csv(result));
     write_text_file(o.out_dir / "sweep.svg", to_svg(result, title));
+    write_text_file(o.out_dir / "sweep.html", to_html(result, title));
     write_text_file(o.out_dir / "sweep.json", to_json(result).dump(2) + "\n");
     return result;
 }
@@ -247,6 +249,36 @@ std::string to_svg(const SweepResult& r, const std::string& title) {
     std::vector<report::PlotPoint> pts;
     for (const SweepPoint& p : r.points) pts.push_back({p.seconds, p.error, p.label, p.is_default, p.on_front});
     return report::svg_pareto_plot(pts, title, "run time (s, without load and evaluation)", "test-frame error: masked RMS %");
+}
+
+} // namespace specula
+
+namespace specula {
+
+std::string to_html(const SweepResult& r, const std::string& title) {
+    using report::html_escape;
+    std::string out = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + html_escape(title) +
+                      "</title>\n<style>" + std::string(report::report_css()) + "</style>\n</head>\n<body>\n<h1>" +
+                      html_escape(title) + "</h1>\n";
+    out += "<p>Error: the test frames' masked RMS % (100 &minus; Q1), the lobe rendered through its factorization "
+           "cube-maps. Run time: the reconstruction's stages without the capture load (" + fmt("%.2f", r.load_seconds) +
+           " s, shared) and the self-evaluation. " + std::to_string(r.test_frames) + " test frames.</p>\n";
+    out += to_svg(r, title);
+    out += "<table>\n<tr><th>#</th><th>texels/pixel</th><th>fit samples</th><th>grid</th><th>grid used</th><th>backend</th>"
+           "<th>seconds</th><th>test RMS %</th><th>test Q1</th><th>test PSNR</th><th></th></tr>\n";
+    for (std::size_t i = 0; i < r.points.size(); ++i) {
+        const SweepPoint& p = r.points[i];
+        std::string mark = p.on_front ? "Pareto front" : "";
+        if (p.is_default) mark += mark.empty() ? "default" : ", default";
+        if (!p.failure.empty()) mark = "failed: " + html_escape(p.failure);
+        out += "<tr><td>" + std::to_string(i) + "</td><td>" + fmt("%g", p.texels_per_pixel) + "</td><td>" +
+               samples_text(p.fit_samples) + "</td><td>" +
+               (p.factorization_grid == 0 ? std::string("auto") : std::to_string(p.factorization_grid)) + "</td><td>" +
+               html_escape(p.grid_used) + "</td><td>" + to_string(p.backend) + "</td><td>" + fmt("%.2f", p.seconds) +
+               "</td><td>" + fmt("%.3f", p.error) + "</td><td>" + fmt("%.2f", p.test_q1) + "</td><td>" +
+               fmt("%.2f", p.test_psnr) + "</td><td>" + mark + "</td></tr>\n";
+    }
+    return out + "</table>\n</body>\n</html>\n";
 }
 
 } // namespace specula

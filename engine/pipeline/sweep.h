@@ -16,7 +16,8 @@
 /// so the grid's error shows. The point
 /// with every knob at its default is always run and marked. Outputs in out_dir:
 /// sweep.csv, sweep.json, sweep.svg (each written atomically), and points/NN/ with each
-/// point's outputs when keep_points is set.
+/// point's outputs when keep_points is set, and sweep.html (the plot and the table on one
+/// self-contained page).
 #include "pipeline/reconstruct.h"
 
 #include <nlohmann/json.hpp>
@@ -85,5 +86,6 @@ SweepResult run_sweep(const SweepOptions& options);
 [[nodiscard]] nlohmann::json to_json(const SweepResult& r);
 [[nodiscard]] std::string to_csv(const SweepResult& r);
 [[nodiscard]] std::string to_svg(const SweepResult& r, const std::string& title);
+[[nodiscard]] std::string to_html(const SweepResult& r, const std::string& title);
 
 } // namespace specula

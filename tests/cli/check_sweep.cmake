@@ -1,7 +1,7 @@
 # The sweep's files in OUT, and its Pareto front: every front point is dominated by no
 # other point, every other point is dominated by a front point, and the default is marked.
 #   cmake -DOUT=dir -P check_sweep.cmake
-foreach(f sweep.csv sweep.json sweep.svg)
+foreach(f sweep.csv sweep.json sweep.svg sweep.html)
   if(NOT EXISTS "${OUT}/${f}")
     message(FATAL_ERROR "${OUT}/${f} is missing")
   endif()

@@ -78,7 +78,7 @@ void run_sweep_command(const BenchSweepArgs& a) {
     }
     std::printf("Pareto front (run time, test masked RMS %%):");
     for (const std::size_t i : r.front) std::printf(" [%s: %.2f s, %.3f %%]", r.points[i].label.c_str(), r.points[i].seconds, r.points[i].error);
-    std::printf("\ncapture load %.2f s (shared, not in the run times); wrote %s/sweep.csv, sweep.json, sweep.svg\n", r.load_seconds,
+    std::printf("\ncapture load %.2f s (shared, not in the run times); wrote %s/sweep.csv, sweep.json, sweep.svg, sweep.html\n", r.load_seconds,
                 a.out.c_str());
 }
 
@@ -114,11 +114,12 @@ void add_bench_command(CLI::App& app) {
     auto sa = std::make_shared<BenchSweepArgs>();
     CLI::App* sweep = bench->add_subcommand(
         "sweep",
-        "Run the pipeline over a grid of the knobs that trade accuracy for time and write OUT/sweep.csv, OUT/sweep.json\n"
-        "and OUT/sweep.svg: test-frame error (masked RMS %, = 100 - Q1) against run time (the stages without the\n"
-        "capture load, which is shared, and without the self-evaluation), the default point and the Pareto front\n"
-        "marked. The lobe is rendered through its factorization cube-maps. The grid is the product of the lists\n"
-        "below; the default point is added when missing. A point that fails is listed with its reason.");
+        "Run the pipeline over a grid of the knobs that trade accuracy for time and write OUT/sweep.csv,\n"
+        "OUT/sweep.json, OUT/sweep.svg and OUT/sweep.html (plot and table): test-frame error (masked RMS %,\n"
+        "= 100 - Q1) against run time (the stages without the capture load, which is shared, and without the\n"
+        "self-evaluation), the default point and the Pareto front marked. The lobe is rendered through its\n"
+        "factorization cube-maps. The grid is the product of the lists below; the default point is added when\n"
+        "missing. A point that fails is listed with its reason.");
     sweep->add_option("capture", sa->capture, "Capture folder (or its capture.json); needs test frames")->required();
     sweep->add_option("-o,--out", sa->out, "Output folder (created if missing)")->required();
     sweep->add_option("--tpp", sa->tpp, "Atlas texels per pixel (the atlas size)")
