@@ -315,10 +315,10 @@ PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t f
     return d;
 }
 
-void set_factorization_cost(PlanDecision& d, double seconds) {
+void set_factorization_cost(PlanDecision& d, double seconds, const std::string& what) {
     if (d.forced) {
         d.measured_seconds = seconds;
-        d.cost_basis = "measured: matrix and decomposition at the forced grid";
+        d.cost_basis = "measured: " + what + " at the forced grid";
         return;
     }
     // The finest grid the rule allows: R_h R_d at kMaxGridProduct (h 128 x d 24).
@@ -327,8 +327,8 @@ void set_factorization_cost(PlanDecision& d, double seconds) {
     const double ratio = (max_product * max_product) / ((h * g) * (h * g));
     if (ratio <= 1.0) return;
     d.avoided_seconds = seconds * (ratio - 1.0);
-    d.cost_basis = "estimate: the matrix and decomposition (measured " + fmt("%.3g", seconds) +
-                   " s) scale with the matrix size 3 R_h^2 R_d^2; the finest grid the rule allows (R_h R_d = " +
+    d.cost_basis = "estimate: the " + what + " (" + fmt("%.3g", seconds) +
+                   " s) scales with the matrix size 3 R_h^2 R_d^2; the finest grid the rule allows (R_h R_d = " +
                    std::to_string(factorization::kMaxGridProduct) + ") has " + fmt("%.3g", ratio) + "x the entries";
 }
 

@@ -42,13 +42,13 @@ TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGridThanABroadOne) {
 
 TEST(Planner, FactorizationCostIsAnEstimateWhenAutoAndMeasuredWhenForced) {
     PlanDecision a = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 0, 0);
-    set_factorization_cost(a, 0.01);
+    set_factorization_cost(a, 0.01, "matrix and decomposition wall time");
     ASSERT_TRUE(a.avoided_seconds.has_value());
     // 16 x 16 against R_h R_d = 3072: (3072 / 256)^2 = 144 times the entries.
     EXPECT_NEAR(*a.avoided_seconds, 0.01 * 143.0, 1e-9);
     EXPECT_FALSE(a.measured_seconds.has_value());
     PlanDecision f = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 64, 32);
-    set_factorization_cost(f, 0.5);
+    set_factorization_cost(f, 0.5, "matrix and decomposition wall time");
     EXPECT_FALSE(f.avoided_seconds.has_value());
     EXPECT_EQ(f.measured_seconds.value_or(0.0), 0.5);
 }
