@@ -327,6 +327,12 @@ std::string report_html(const json& r, const ReportHtmlOptions& o) {
     out += counts_section(r);
     out += lobe_section(r);
     out += sheets_section(r, o);
+    const json& tex = r.value("albedo_texture", json());
+    if (tex.is_object())
+        out += "<p>Albedo atlas (" + num(tex.value("width", json()), "%g") + " x " + num(tex.value("height", json()), "%g") +
+               " texels, " + num(tex.value("solved", json()), "%g") +
+               " solved): <a href=\"albedo.png\">albedo.png</a> (sRGB) and <a href=\"albedo.exr\">albedo.exr</a> (linear), "
+               "beside this page.</p>\n";
     const json& w = r.value("warnings", json());
     if (w.is_array() && !w.empty()) {
         out += "<h2>Warnings</h2>\n<ul>\n";
