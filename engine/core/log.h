@@ -2,6 +2,7 @@
 // Minimal leveled logging to stderr. Quiet mode silences info and progress;
 // warnings are also collected by the caller where a report needs them.
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -33,5 +34,27 @@ private:
     bool m_enabled;
     bool m_finished = false;
 };
+
+/// Progress for a stage with no natural count: after `delay` seconds, a self-overwriting
+/// line "label: 3.2 s" redrawn four times a second by a background thread, on a terminal
+/// only (nothing when stderr is not a terminal or in quiet mode). While a Progress bar is
+/// drawing, the ticker stays silent so the two never fight over the line; log messages
+/// clear the line before they print.
+class Ticker {
+public:
+    explicit Ticker(std::string label, double delay = 1.0);
+    ~Ticker();
+    Ticker(const Ticker&) = delete;
+    Ticker& operator=(const Ticker&) = delete;
+    /// Stops the thread and ends the line (idempotent).
+    void stop();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+/// True when progress lines are drawn (stderr is a terminal and the level is not quiet).
+[[nodiscard]] bool progress_enabled();
 
 } // namespace specula::log

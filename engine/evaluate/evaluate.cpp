@@ -100,7 +100,9 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     if (options.render.mode != render::Mode::Diffuse && !renderer.has_lobe())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
 
-    const std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);
+    std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);
+    if (!options.include_train)
+        std::erase_if(frames, [&](std::size_t f) { return desc.frames[f].split == Split::Train; });
     std::set<std::size_t> sheet_set(options.sheet_frames.begin(), options.sheet_frames.end());
     if (options.sheet_dir && sheet_set.empty()) {
         for (const Split split : {Split::Train, Split::Test}) {

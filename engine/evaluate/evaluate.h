@@ -51,6 +51,8 @@ struct EvaluateOptions {
     metrics::MetricsOptions metrics;
     /// At most this many frames per split, evenly spaced over the split (0: all).
     std::size_t max_frames_per_split = 0;
+    /// false: score the test frames only (the sweep needs only those).
+    bool include_train = true;
     /// Sheets are written here when set (created if missing).
     std::optional<std::filesystem::path> sheet_dir;
     /// Frames (indices into capture.desc.frames) to make sheets of; empty: the first

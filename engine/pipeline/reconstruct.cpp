@@ -12,8 +12,10 @@
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "gpu/context.h"
+#include "report/report_html.h"
 #include "visibility/visibility.h"
 
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -26,9 +28,11 @@ using nlohmann::json;
 namespace {
 
 // Times one stage, logs it, and records it in the result.
+// On a terminal, a stage that runs longer than a second shows its elapsed time (log::Ticker).
 template <class Fn>
 auto run_stage(ReconstructResult& result, const std::string& name, Fn&& fn) {
     log::info("[" + name + "] ...");
+    log::Ticker ticker(name);
     Stopwatch watch;
     if constexpr (std::is_void_v<decltype(fn())>) {
         fn();
@@ -174,19 +178,90 @@ json specular_json(const ResidualSamples& rs, const ResidualEnergy& energy, cons
 
 } // namespace
 
-ReconstructResult reconstruct(const ReconstructConfig& config) {
+const char* to_string(SpecularMode mode) noexcept {
+    switch (mode) {
+    case SpecularMode::Auto: return "auto";
+    case SpecularMode::On: return "on";
+    case SpecularMode::Off: return "off";
+    }
+    return "?";
+}
+
+namespace {
+
+// Seconds per occlusion ray, timed on up to `max_rays` (particle, view) rays of the pairs the
+// views see (a deterministic stride over the particles): the planner's cheap measurement of
+// what the rays a convex mesh makes unnecessary would have cost.
+std::optional<double> probe_ray_seconds(const RayScene& scene, std::span<const Particle> particles, const Visibility& vis,
+                                        std::span<const VisibilityView> views, std::size_t max_rays) {
+    std::vector<Ray> rays;
+    const std::size_t per_particle = std::max<std::size_t>(1, views.size() / 4);
+    const std::size_t stride = std::max<std::size_t>(1, particles.size() * per_particle / std::max<std::size_t>(1, max_rays));
+    for (std::size_t p = 0; p < particles.size() && rays.size() < max_rays; p += stride)
+        for (std::size_t v = 0; v < views.size() && rays.size() < max_rays; ++v)
+            if (vis.sees(p, v))
+                rays.push_back(scene.ray_toward(particles[p].p(), particles[p].n(), glm::vec3(views[v].camera.center())));
+    if (rays.size() < 16) return std::nullopt;
+    std::vector<std::uint8_t> hit(rays.size());
+    const Stopwatch watch;
+    scene.occluded(rays, hit);
+    return watch.seconds() / static_cast<double>(rays.size());
+}
+
+std::vector<LafortuneSample> stride_subsample(std::vector<LafortuneSample> all, std::size_t max_samples) {
+    if (max_samples != 0 && all.size() > max_samples) {
+        const std::size_t stride = (all.size() + max_samples - 1) / max_samples;
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < all.size(); i += stride) all[k++] = all[i];
+        all.resize(k);
+    }
+    return all;
+}
+
+double stage_seconds(const ReconstructResult& r, const std::string& name) {
+    double s = 0.0;
+    for (const StageRecord& st : r.stages)
+        if (st.name == name) s += st.seconds;
+    return s;
+}
+
+} // namespace
+
+ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* preloaded) {
     ReconstructResult result;
     Stopwatch total;
     if (config.out_dir.empty()) throw UsageError("no output folder given");
+    Plan& plan = result.plan;
 
     // 1. Capture: description, mesh, train and test images (test frames are only counted here).
-    const Capture capture = run_stage(result, "load", [&] {
-        return load_capture(config.capture, CaptureLoadOptions{.threads = static_cast<int>(config.threads)});
-    });
+    std::optional<Capture> loaded;
+    if (preloaded == nullptr)
+        loaded = run_stage(result, "load", [&] {
+            return load_capture(config.capture, CaptureLoadOptions{.threads = static_cast<int>(config.threads)});
+        });
+    const Capture& capture = preloaded != nullptr ? *preloaded : *loaded;
+    if (capture.images.empty()) throw Error("reconstruct: the capture was loaded without its images");
     result.warnings = capture.warnings;
     for (const std::string& w : capture.warnings) log::warn(w);
     if (capture.frame_count(Split::Train) == 0)
         throw InputError(capture_json_path(config.capture), "frames", "no train frames: nothing to reconstruct from");
+
+    // 2. The plan from the capture alone: can the mesh occlude itself, do the lights allow
+    //    the photometric solve (the atlas, specular and factorization decisions follow
+    //    from later measurements).
+    LambertOptions lambert = config.lambert;
+    run_stage(result, "plan", [&] {
+        plan.add(decide_occlusion_rays(analyze_convexity(capture.mesh), config.occlusion_rays));
+        const PlanDecision& mode =
+            plan.add(decide_diffuse_mode(light_conditioning(capture, static_cast<double>(lambert.min_rcond)), config.diffuse_mode,
+                                        config.specular != SpecularMode::Off));
+        lambert.mode = decided_photometric(mode) ? LambertMode::Photometric : LambertMode::Albedo;
+        plan.add(PlanDecision{.name = "atlas"}); // filled once the particle stages are timed
+    });
+    for (const PlanDecision& d : plan.decisions)
+        if (!d.value.empty()) log::info("plan: " + d.name + " = " + d.value + " (" + (d.forced ? "forced" : "auto") + ")");
+    if (plan.find("diffuse_mode")->value == "albedo" && !plan.find("diffuse_mode")->forced)
+        result.left_out.push_back({"photometric solve (refined normals)", plan.find("diffuse_mode")->reason});
 
     // Cameras of the views that have train frames size the atlas (test views must not).
     std::vector<Camera> train_cameras;
@@ -197,24 +272,49 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                 break;
             }
 
-    // 2. Atlas and particles.
+    // 3. Atlas and particles.
     const Atlas atlas = run_stage(result, "atlas", [&] { return build_atlas(capture.mesh, train_cameras, config.atlas); });
     log::info(describe(atlas.summary));
     const ParticleSet particles = run_stage(result, "particles", [&] { return build_particles(capture.mesh, atlas); });
 
-    // 3. Visibility: Embree occlusion rays unless the mesh is convex.
+    // 4. Visibility: Embree occlusion rays unless the planner (or a flag) leaves them out.
+    const bool cast_rays = plan.find("occlusion_rays")->value == "cast";
+    std::optional<RayScene> scene; // built inside the stage (its BVH is part of its cost), kept for the probe
+    const VisibilityInputs vis_inputs = visibility_inputs(capture);
     const Visibility visibility = run_stage(result, "visibility", [&] {
-        const RayScene scene(capture.mesh);
-        const VisibilityInputs inputs = visibility_inputs(capture);
-        return compute_visibility(particles.particles, capture.mesh, scene, inputs.views, inputs.lights,
+        scene.emplace(capture.mesh);
+        return compute_visibility(particles.particles, capture.mesh, *scene, vis_inputs.views, vis_inputs.lights,
                                   VisibilityOptions{.threads = config.threads,
-                                                    .force_rays = config.force_occlusion_rays,
-                                                    .frame_view = inputs.frame_view});
+                                                    .force_rays = cast_rays,
+                                                    .skip_rays = !cast_rays,
+                                                    .frame_view = vis_inputs.frame_view});
     });
-    if (!visibility.stats.skipped.empty())
-        result.left_out.push_back({"occlusion rays (visibility and shadows)", visibility.stats.skipped});
+    {
+        PlanDecision& d = *plan.find("occlusion_rays");
+        d.detail["rays_cast"] = visibility.stats.rays_cast;
+        d.detail["rays_avoided"] = visibility.stats.rays_avoided;
+        if (!cast_rays) {
+            result.left_out.push_back({"occlusion rays (visibility and shadows)", d.reason});
+            if (config.cost_probes && visibility.stats.rays_avoided > 0) {
+                const auto per_ray = run_stage(result, "probe: occlusion rays", [&] {
+                    return probe_ray_seconds(*scene, particles.particles, visibility, vis_inputs.views, 20000);
+                });
+                if (per_ray) {
+                    d.avoided_seconds = *per_ray * static_cast<double>(visibility.stats.rays_avoided);
+                    d.cost_basis = "estimate: " + std::to_string(visibility.stats.rays_avoided) + " rays avoided x " +
+                                   std::to_string(*per_ray * 1e9) + " ns per ray (timed on up to 20000 particle-to-camera "
+                                   "rays); the footprint test's depth and shadow maps, skipped too, are not included";
+                }
+            }
+        } else {
+            d.measured_seconds = stage_seconds(result, "visibility");
+            d.cost_basis = "measured: the visibility stage with " + std::to_string(visibility.stats.rays_cast) +
+                           " occlusion rays, " + std::to_string(visibility.stats.depth_rays) + " depth-map rays and " +
+                           std::to_string(visibility.stats.shadow_map_rays) + " shadow-map rays";
+        }
+    }
 
-    // 4. Diffuse solve on the chosen backend.
+    // 5. Diffuse solve on the chosen backend.
     std::unique_ptr<gpu::Context> ctx;
     json device = nullptr;
     if (config.backend == LambertBackend::Vulkan) {
@@ -225,55 +325,81 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                   {"validation", ctx->validation_enabled()}};
         log::info("Vulkan device: " + ctx->info().name);
     }
+    json gpu_dispatches = json::array();
     const LambertInputs lambert_in = lambert_inputs(capture, particles.particles, visibility);
     LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
-        return lambert_solve(lambert_in, config.lambert, config.backend, ctx.get());
+        return lambert_solve(lambert_in, lambert, config.backend, ctx.get());
     });
-    log::info(describe(solve.summary, config.lambert.mode));
+    log::info(describe(solve.summary, lambert.mode));
+    {
+        PlanDecision& d = *plan.find("diffuse_mode");
+        if (d.forced) {
+            d.measured_seconds = stage_seconds(result, "diffuse solve");
+            d.cost_basis = std::string("measured: the diffuse solve in ") + to_string(lambert.mode) + " mode";
+        } else {
+            d.cost_basis = "no estimate: both modes read the same samples; photometric solves a 3x3 system where albedo "
+                           "mode divides two sums (force a mode to measure it)";
+        }
+    }
+    for (const auto& [label, ms] : solve.summary.gpu_dispatch_ms)
+        gpu_dispatches.push_back({{"stage", "diffuse solve"}, {"dispatch", label}, {"ms", ms}});
     if (ctx) device["validation_messages"] = ctx->validation_message_count();
     if (solve.summary.fallback > 0)
         result.left_out.push_back({"photometric solve for " + std::to_string(solve.summary.fallback) + " particles",
                                    "fewer than three usable, non-coplanar light directions in their best view: "
                                    "albedo mode (known normals) used instead"});
 
-    // 5. Specular: residual samples, then the Lafortune fit when the residuals hold energy
+    // 6. Specular: residual samples, then the Lafortune fit when the residuals hold energy
     //    above the noise (pipeline.md sections 4, 5 and 9) or when forced.
     json specular = nullptr;
     std::optional<LafortuneFitRgb> fitted_lobe;
+    double fit_seconds = 0.0;
+    std::size_t fit_samples = 0;
     if (config.specular == SpecularMode::Off) {
-        result.left_out.push_back({"specular fit (residual samples and Lafortune lobe)", "--specular off"});
+        PlanDecision d = decide_specular(ResidualEnergy{}, Toggle::Off);
+        d.detail = nullptr;
+        plan.add(std::move(d));
+        result.left_out.push_back({"specular fit, factorization and specular pass (residual samples too)", "--specular off"});
     } else {
-        const ResidualOptions residual_options{.min_light_cos = config.lambert.min_light_cos, .max_binding_bytes = 0,
+        const ResidualOptions residual_options{.min_light_cos = lambert.min_light_cos, .max_binding_bytes = 0,
                                                .max_albedo_spread = 0.02f};
         ResidualSamples rs = run_stage(result, "residual samples", [&] {
             return residual_samples(lambert_in, solve, residual_options, config.backend, ctx.get());
         });
+        if (rs.gpu_ms) gpu_dispatches.push_back({{"stage", "residual samples"}, {"dispatch", "residuals (" + std::to_string(rs.chunks) + " dispatches)"}, {"ms", *rs.gpu_ms}});
         const ResidualEnergy energy =
-            residual_energy(rs.samples, static_cast<double>(config.lambert.noise_sigma), config.specular_energy_threshold);
-        const std::string energy_text = "mean squared residual " + std::to_string(energy.mean_square) + " = " +
-                                        std::to_string(energy.ratio) + " noise variances (threshold " +
-                                        std::to_string(energy.threshold) + ")";
-        log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + energy_text);
-        if (config.specular == SpecularMode::Auto && !energy.has_specular) {
-            result.left_out.push_back({"specular fit, factorization and specular pass",
-                                       "the residuals hold no more energy than the noise: " + energy_text});
+            residual_energy(rs.samples, static_cast<double>(lambert.noise_sigma), config.specular_energy_threshold);
+        const Toggle toggle = config.specular == SpecularMode::On ? Toggle::On : Toggle::Auto;
+        PlanDecision& decision = plan.add(decide_specular(energy, toggle));
+        log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + decision.reason);
+        LafortuneFitOptions fo = config.lafortune;
+        fo.noise_sigma = static_cast<double>(lambert.noise_sigma);
+        std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
+        const std::size_t would_fit = config.max_fit_samples != 0 ? std::min<std::size_t>(all.size(), config.max_fit_samples) : all.size();
+        if (decision.skipped) {
+            result.left_out.push_back({"specular fit, factorization and specular pass", decision.reason});
             specular = specular_json(rs, energy, nullptr, 0.0, config.backend, "skipped: no specular energy (--specular auto)");
+            if (config.cost_probes && all.size() >= 100) {
+                constexpr std::size_t kProbe = 4000;
+                std::optional<double> probe;
+                std::size_t probe_n = 0;
+                run_stage(result, "probe: lafortune fit", [&] {
+                    const std::vector<LafortuneSample> sub = stride_subsample(all, kProbe);
+                    probe_n = sub.size();
+                    const Stopwatch w;
+                    (void)fit_lafortune(sub, fo);
+                    probe = w.seconds();
+                });
+                set_specular_cost(decision, probe, probe_n, would_fit, std::nullopt);
+            }
         } else {
             Stopwatch fit_watch;
-            std::size_t fit_samples = 0;
-            const auto run_fit = [&](const char* stage) {
+            const auto run_fit = [&](const std::string& stage) {
                 return run_stage(result, stage, [&] {
-                    LafortuneFitOptions fo = config.lafortune;
-                    fo.noise_sigma = static_cast<double>(config.lambert.noise_sigma);
-                    std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
-                    if (config.max_fit_samples != 0 && all.size() > config.max_fit_samples) {
-                        const std::size_t stride = (all.size() + config.max_fit_samples - 1) / config.max_fit_samples;
-                        std::size_t k = 0;
-                        for (std::size_t i = 0; i < all.size(); i += stride) all[k++] = all[i];
-                        all.resize(k);
-                    }
-                    fit_samples = all.size();
-                    return fit_lafortune(all, fo);
+                    const std::vector<LafortuneSample> sub =
+                        stride_subsample(to_lafortune_samples(rs.samples), config.max_fit_samples);
+                    fit_samples = sub.size();
+                    return fit_lafortune(sub, fo);
                 });
             };
             LafortuneFitRgb fit = run_fit("lafortune fit");
@@ -301,13 +427,19 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                     break;
                 }
                 const std::string tag = " (joint round " + std::to_string(round) + ")";
-                LambertOptions lo = config.lambert;
+                LambertOptions lo = lambert;
                 lo.lobe = previous;
                 solve = run_stage(result, "diffuse solve" + tag, [&] { return lambert_solve(lambert_in, lo, config.backend, ctx.get()); });
                 rs = run_stage(result, "residual samples" + tag, [&] {
                     return residual_samples(lambert_in, solve, residual_options, config.backend, ctx.get());
                 });
-                fit = run_fit(("lafortune fit" + tag).c_str());
+                for (const auto& [label, ms] : solve.summary.gpu_dispatch_ms)
+                    gpu_dispatches.push_back({{"stage", "diffuse solve" + tag}, {"dispatch", label}, {"ms", ms}});
+                if (rs.gpu_ms)
+                    gpu_dispatches.push_back({{"stage", "residual samples" + tag},
+                                              {"dispatch", "residuals (" + std::to_string(rs.chunks) + " dispatches)"},
+                                              {"ms", *rs.gpu_ms}});
+                fit = run_fit("lafortune fit" + tag);
                 const LafortuneRgb next = lobe_of(fit);
                 double change = 0.0;
                 for (int k = 0; k < 3; ++k) {
@@ -323,7 +455,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
             }
             if (config.joint_rounds == 0)
                 result.left_out.push_back({"joint albedo and lobe estimate", "--joint-rounds 0: the thesis's one-pass estimate"});
-            const double fit_seconds = fit_watch.seconds();
+            fit_seconds = fit_watch.seconds();
             fitted_lobe = fit;
             for (int k = 0; k < 3; ++k)
                 log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(fit.channel[k].cx) + " Cz " +
@@ -336,16 +468,22 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
             specular["joint"] = {{"rounds", rounds}, {"stop", joint_stop}, {"tolerance", config.joint_tolerance}};
         }
     }
+    {
+        const double particle_seconds = stage_seconds(result, "visibility") + stage_seconds(result, "diffuse solve") +
+                                        stage_seconds(result, "residual samples");
+        plan.add(decide_atlas(atlas.summary, config.atlas, particles.particles.size(), particle_seconds));
+    }
 
-    // 6. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
+    // 7. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
     const AlbedoTexture texture = run_stage(result, "albedo texture", [&] {
         AlbedoTexture t = make_albedo_texture(atlas, particles.particles, solve);
         write_albedo_texture(t, config.out_dir / "albedo");
         return t;
     });
 
-    // 7. Factorization of the lobe into the two cube-maps (Kautz and McCool), channels
-    //    whose fit did not converge carry no lobe (they render diffuse only, and say so).
+    // 8. Factorization of the lobe into the two cube-maps (Kautz and McCool), on the grid
+    //    the planner chose from the lobe's width. Channels whose fit did not converge carry
+    //    no lobe (they render diffuse only, and say so).
     std::optional<LafortuneRgb> lobe;
     std::vector<std::string> lobe_status;
     if (fitted_lobe) {
@@ -363,25 +501,69 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
     json factorization_report = nullptr;
     std::optional<factorization::Factorization> cubes;
     if (lobe) {
+        PlanDecision& grid = plan.add(decide_factorization_grid(*lobe, config.factorization_grid_h, config.factorization_grid_d));
+        const factorization::FactorizationResolution res =
+            decided_grid(*lobe, config.factorization_grid_h, config.factorization_grid_d);
         cubes = run_stage(result, "factorization", [&] {
             const auto backend = config.backend == LambertBackend::Vulkan ? factorization::FactorizationBackend::Vulkan
                                                                           : factorization::FactorizationBackend::Cpu;
-            return factorization::factorize(*lobe, {}, backend, ctx.get());
+            factorization::FactorizationOptions fo;
+            fo.grid_h = res.grid_h;
+            fo.grid_d = res.grid_d;
+            fo.cube_g = res.cube_g;
+            fo.cube_h = res.cube_h;
+            return factorization::factorize(*lobe, fo, backend, ctx.get());
         });
+        {
+            // The CPU path times each step; the Vulkan path records the three kernels in one
+            // submission (no per-step wall time), so its dispatches' GPU time stands in.
+            const factorization::FactorizationTimings& t = cubes->timings;
+            double seconds = t.matrix_s + t.decomposition_s;
+            std::string what = "matrix and decomposition wall time";
+            if (!(seconds > 0.0)) {
+                if (t.matrix_gpu_ns && t.decomposition_g_gpu_ns && t.decomposition_h_gpu_ns) {
+                    seconds = (*t.matrix_gpu_ns + *t.decomposition_g_gpu_ns + *t.decomposition_h_gpu_ns) * 1e-9;
+                    what = "GPU time of the matrix and decomposition dispatches";
+                } else {
+                    seconds = t.total_s;
+                    what = "factorization wall time";
+                }
+            }
+            set_factorization_cost(grid, seconds, what);
+        }
         const factorization::DirectError err =
             factorization::direct_relative_rms(*lobe, cubes->decomposition, &cubes->cube_g, &cubes->cube_h, 1u << 16);
+        grid.detail["relative_rms_vs_lobe_cubemaps"] = std::isfinite(err.cube) ? json(err.cube) : json(nullptr);
         factorization_report = {{"grid_h", cubes->resolution.grid_h},
                                 {"grid_d", cubes->resolution.grid_d},
                                 {"cube_g", cubes->resolution.cube_g},
                                 {"cube_h", cubes->resolution.cube_h},
-                                {"resolution_reason", cubes->resolution.reason},
+                                {"resolution_reason", grid.reason},
                                 {"relative_rms_vs_lobe_grid", err.grid},
                                 {"relative_rms_vs_lobe_cubemaps", err.cube},
                                 {"seconds", cubes->timings.total_s}};
         if (const auto ns = cubes->timings.gpu_total_ns()) factorization_report["gpu_ms"] = *ns * 1e-6;
-    } // else: the entries above already say why there is no lobe
+        const auto add_gpu = [&](const char* label, const std::optional<double>& ns) {
+            if (ns) gpu_dispatches.push_back({{"stage", "factorization"}, {"dispatch", label}, {"ms", *ns * 1e-6}});
+        };
+        add_gpu("brdf_matrix", cubes->timings.matrix_gpu_ns);
+        add_gpu("decomposition G", cubes->timings.decomposition_g_gpu_ns);
+        add_gpu("decomposition H", cubes->timings.decomposition_h_gpu_ns);
+        add_gpu("cube-map G", cubes->timings.cube_g_gpu_ns);
+        add_gpu("cube-map H", cubes->timings.cube_h_gpu_ns);
+    } else {
+        plan.add(PlanDecision{.name = "factorization_grid",
+                              .value = "none",
+                              .forced = false,
+                              .skipped = true,
+                              .reason = fitted_lobe ? "no channel's fit converged: no lobe to factorize"
+                                                    : "no lobe: the specular stages were left out"});
+    }
+    if (PlanDecision* spec = plan.find("specular_stages"); spec != nullptr && !spec->skipped && spec->forced)
+        set_specular_cost(*spec, std::nullopt, 0, fit_samples,
+                          fit_seconds + (cubes ? stage_seconds(result, "factorization") : 0.0));
 
-    // 8. The bundle: mesh with atlas coordinates, albedo, lobe, cube-maps (object.glb).
+    // 9. The bundle: mesh with atlas coordinates, albedo, lobe, cube-maps (object.glb).
     Bundle bundle = run_stage(result, "bundle", [&] {
         Bundle b = make_bundle(capture.mesh, atlas.corner_uv, texture.image, lobe);
         b.lobe_status = lobe_status;
@@ -400,7 +582,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
         return b;
     });
 
-    // 9. Self-evaluation: every frame re-rendered from the bundle, train and test, masked and full.
+    // 10. Self-evaluation: every frame re-rendered from the bundle, train and test, masked and full.
     json evaluation_report = nullptr;
     if (!config.evaluate) {
         result.left_out.push_back({"evaluation", "--no-evaluate"});
@@ -423,7 +605,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
                 // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
                 eo.metrics_backend = render_ctx->info().kind == gpu::DeviceKind::Cpu ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
                 eo.max_frames_per_split = config.evaluate_max_frames;
-                eo.sheet_dir = config.out_dir / "sheets";
+                eo.include_train = config.evaluate_train;
+                if (config.evaluate_factorized && bundle.cube_g) eo.render.specular = render::SpecularModel::Factorized;
+                if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
                 eo.bundle_name = "object.glb";
                 eo.progress = true;
                 return evaluate::evaluate(*render_ctx, bundle, capture, eo);
@@ -434,10 +618,15 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
             evaluation_report = full;
             evaluation_report.erase("frames"); // per frame: evaluation.json
             evaluation_report["file"] = "evaluation.json";
+            // Sheets as paths relative to the output folder (the report may move with it).
+            json sheets = json::array();
+            for (const fs::path& sp : ev.sheets) sheets.push_back(fs::relative(sp, config.out_dir).generic_string());
+            evaluation_report["sheets"] = sheets;
+            if (!config.evaluate_train) result.left_out.push_back({"evaluation of the train frames", "test frames only (evaluate_train off)"});
         }
     }
 
-    // report.json, written last: its presence means the outputs above are complete.
+    // report.html, then report.json last: its presence means the outputs above are complete.
     result.total_seconds = total.seconds();
     json stages = json::array();
     for (const StageRecord& s : result.stages) stages.push_back({{"name", s.name}, {"seconds", s.seconds}});
@@ -450,14 +639,18 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
           {"views", capture.views.size()},
           {"train_frames", capture.frame_count(Split::Train)},
           {"test_frames", capture.frame_count(Split::Test)},
-          {"mesh_triangles", capture.mesh.triangle_count()}}},
+          {"mesh_triangles", capture.mesh.triangle_count()},
+          {"load_seconds", capture.load_seconds},
+          {"preloaded", preloaded != nullptr}}},
         {"device", device},
+        {"planner", plan.to_json()},
         {"stages", stages},
         {"total_seconds", result.total_seconds},
+        {"gpu_dispatches", gpu_dispatches},
         {"atlas", atlas_json(atlas.summary, config.atlas)},
         {"particles", {{"count", particles.particles.size()}, {"interior", particles.interior}, {"gutter", particles.gutter}}},
         {"visibility", visibility_json(visibility.stats)},
-        {"diffuse", lambert_json(solve, config.lambert, config.backend)},
+        {"diffuse", lambert_json(solve, lambert, config.backend)},
         {"specular", specular},
         {"factorization", factorization_report},
         {"bundle", {{"file", "object.glb"}, {"has_lobe", bundle.lobe.has_value()}, {"has_cubemaps", bundle.cube_g.has_value()}}},
@@ -473,6 +666,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config) {
           {"filled_global_mean", texture.stats.filled_global}}},
         {"left_out", left_out},
         {"warnings", result.warnings}};
+    if (config.write_html)
+        write_text_file(config.out_dir / "report.html", report::report_html(result.report, {.out_dir = config.out_dir}));
     write_text_file(config.out_dir / "report.json", result.report.dump(2) + "\n");
     return result;
 }

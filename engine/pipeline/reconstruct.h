@@ -1,14 +1,19 @@
 #pragma once
 // The pipeline: the only code that knows the stage order (pipeline.md; style.md
 // layout). `specula reconstruct` maps its arguments to a ReconstructConfig and
-// calls reconstruct(); everything is timed, counted, and written to report.json
-// with what was left out for this scene and why.
+// calls reconstruct(); the planner (planner.h) decides what this scene needs, and
+// everything is timed, counted, and written to report.json and report.html with the
+// planner's decisions and what was left out for this scene and why.
 //
-//   load capture -> atlas -> particles -> visibility (Embree) -> diffuse solve
-//     -> residual samples -> Lafortune fit (when the residuals hold specular energy) -> albedo texture
-//     -> factorization (when there is a lobe) -> bundle (object.glb) -> self-evaluation
+//   load capture -> plan (convexity, light directions) -> atlas -> particles
+//     -> visibility (Embree; occlusion rays only where the mesh can occlude itself)
+//     -> diffuse solve (photometric where the lights allow it) -> residual samples
+//     -> Lafortune fit (when the residuals hold specular energy) -> albedo texture
+//     -> factorization (grid from the lobe's width) -> bundle (object.glb)
+//     -> self-evaluation -> report.html -> report.json
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
+#include "pipeline/planner.h"
 #include "specular/lafortune_fit.h"
 #include "specular/residuals.h"
 
@@ -30,8 +35,15 @@ struct ReconstructConfig {
     std::string device;             ///< Vulkan device selector (empty: SPECULA_DEVICE, then the default)
     LambertOptions lambert;         ///< solve mode, view choice, rejection thresholds
     AtlasOptions atlas;             ///< texture budget and texels per pixel
-    bool force_occlusion_rays = false; ///< cast occlusion rays even where the mesh is convex
+    /// Occlusion rays: auto casts them only where the mesh can occlude itself; on/off force it.
+    Toggle occlusion_rays = Toggle::Auto;
+    /// Diffuse solve mode: auto picks photometric where the lights allow it (planner.h); the
+    /// forced modes set lambert.mode. (lambert.mode itself is overwritten by this choice.)
+    DiffuseModeChoice diffuse_mode = DiffuseModeChoice::Auto;
     SpecularMode specular = SpecularMode::Auto;
+    /// Factorization grid (0: the planner's choice from the lobe's width, per axis).
+    std::uint32_t factorization_grid_h = 0;
+    std::uint32_t factorization_grid_d = 0;
     /// Auto: specular energy is present when the mean squared residual exceeds this many noise
     /// variances (lambert.noise_sigma, floored at one 16-bit step).
     double specular_energy_threshold = 4.0;
@@ -47,6 +59,15 @@ struct ReconstructConfig {
     /// device; left out, with the reason, when none can be had).
     bool evaluate = true;
     std::size_t evaluate_max_frames = 0; ///< per split, evenly spaced (0: all frames)
+    bool evaluate_train = true;          ///< false: score the test frames only
+    /// Render the lobe through the bundle's factorization cube-maps (what Specula's real-time
+    /// renderer draws) instead of the analytic lobe (the reference) when there are cube-maps.
+    bool evaluate_factorized = false;
+    bool write_sheets = true;            ///< evaluation sheets in out_dir/sheets
+    bool write_html = true;              ///< out_dir/report.html
+    /// Time small probes so the report can estimate what skipped work would have cost
+    /// (occlusion rays on a subset of pairs, the fit on a subsample).
+    bool cost_probes = true;
 };
 
 struct StageRecord {
@@ -61,6 +82,7 @@ struct LeftOut {
 };
 
 struct ReconstructResult {
+    Plan plan;
     std::vector<StageRecord> stages;
     std::vector<LeftOut> left_out;
     std::vector<std::string> warnings;
@@ -71,6 +93,11 @@ struct ReconstructResult {
 /// Runs every stage built so far and writes the outputs into config.out_dir
 /// (each file atomically; report.json last, so its presence means a complete run).
 /// Throws InputError for a bad capture, Error for a failed stage.
-ReconstructResult reconstruct(const ReconstructConfig& config);
+/// `preloaded`: a capture already loaded with its mesh and images (the sweep loads once);
+/// its load time is then not part of this run's stages.
+ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* preloaded = nullptr);
+
+/// The SpecularMode as written on the command line.
+[[nodiscard]] const char* to_string(SpecularMode mode) noexcept;
 
 } // namespace specula

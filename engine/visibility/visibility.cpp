@@ -155,8 +155,10 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     st.views = views.size();
     st.frames = lights.size();
     st.convexity = analyze_convexity(mesh);
-    const bool skip_rays = st.convexity.convex && !options.force_rays;
-    if (skip_rays) st.skipped = "mesh is convex (closed, connected, no reflex edge): the facing test is exact";
+    const bool skip_rays = options.skip_rays || (st.convexity.convex && !options.force_rays);
+    if (skip_rays)
+        st.skipped = st.convexity.convex ? "mesh is convex (closed, connected, no reflex edge): the facing test is exact"
+                                         : "occlusion rays turned off (the mesh can occlude itself: " + st.convexity.reason + ")";
 
     std::vector<glm::vec3> face_normal(mesh.triangles.size());
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
@@ -171,7 +173,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     // A convex mesh has no occluders and no surface behind an edge: the test would be exact and is skipped.
     // (On a convex mesh a tap off the particle's surface can only be background, which the
     // capture's mask already flags.)
-    const bool footprint_test = options.footprint_test && !st.convexity.convex;
+    const bool footprint_test = options.footprint_test && !st.convexity.convex && !options.skip_rays;
     std::vector<std::vector<float>> depth(footprint_test ? views.size() : 0);
     for (std::size_t v = 0; v < depth.size(); ++v) {
         depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));

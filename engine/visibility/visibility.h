@@ -48,6 +48,10 @@ struct VisibilityView {
 struct VisibilityOptions {
     unsigned threads = 2;
     bool force_rays = false;                  ///< cast occlusion rays even on a convex mesh
+    /// Cast no occlusion rays at all, and run no footprint test, even where the mesh can occlude
+    /// itself (the planner's forced "off", to measure what the rays cost; the result is then
+    /// biased where the mesh shadows or hides itself). Wins over force_rays.
+    bool skip_rays = false;
     std::uint8_t reject_flags = kOutsideMask; ///< pixel flags that make a view not see a particle
     /// Footprint test (on meshes that can occlude themselves): a view sees a particle only
     /// when the 4 pixels its bilinear sample reads show the particle's own surface, not an

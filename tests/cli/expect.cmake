@@ -1,5 +1,5 @@
 # Runs one command and checks its exit status and output (ctest checks only one of them).
-#   cmake -DCMD="prog|arg|arg" -DEXPECT_RC=N [-DEXPECT_REGEX=re] [-DWRITE_FILE=path -DWRITE_TEXT=text] -P expect.cmake
+#   cmake -DCMD="prog|arg|arg" -DEXPECT_RC=N [-DEXPECT_REGEX=re] [-DREJECT_REGEX=re] [-DWRITE_FILE=path -DWRITE_TEXT=text] -P expect.cmake
 if(DEFINED WRITE_FILE)
   file(WRITE "${WRITE_FILE}" "${WRITE_TEXT}")
 endif()
@@ -11,4 +11,7 @@ if(NOT "${rc}" STREQUAL "${EXPECT_RC}")
 endif()
 if(DEFINED EXPECT_REGEX AND NOT "${out}${err}" MATCHES "${EXPECT_REGEX}")
   message(FATAL_ERROR "output does not match '${EXPECT_REGEX}'")
+endif()
+if(DEFINED REJECT_REGEX AND "${out}${err}" MATCHES "${REJECT_REGEX}")
+  message(FATAL_ERROR "output matches '${REJECT_REGEX}', which it must not")
 endif()

@@ -11,9 +11,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 namespace specula {
 namespace {
@@ -189,6 +191,168 @@ TEST(Reconstruct, LambertianSkipsTheSpecularFitWithAutoAndSaysWhy) {
     EXPECT_TRUE(s["lobe"].is_null());
     EXPECT_TRUE(left_out_mentions(r.report, "specular fit"));
     EXPECT_GT(s["samples"]["used"].get<std::uint64_t>(), 0u);
+}
+
+const nlohmann::json& decision(const nlohmann::json& report, const std::string& name) {
+    for (const auto& d : report["planner"])
+        if (d["name"] == name) return d;
+    static const nlohmann::json kNull;
+    ADD_FAILURE() << "no planner decision " << name;
+    return kNull;
+}
+
+std::string read_all(const fs::path& p) {
+    std::ifstream in(p);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+double mean_abs_difference(const fs::path& a_path, const fs::path& b_path) {
+    const Image a = read_image(a_path, ColorSpace::Linear);
+    const Image b = read_image(b_path, ColorSpace::Linear);
+    EXPECT_EQ(a.pixels.size(), b.pixels.size());
+    double sum = 0.0;
+    for (std::size_t i = 0; i < std::min(a.pixels.size(), b.pixels.size()); ++i)
+        sum += std::abs(static_cast<double>(a.pixels[i]) - b.pixels[i]);
+    return a.pixels.empty() ? 0.0 : sum / static_cast<double>(a.pixels.size());
+}
+
+// Planner (pipeline.md section 9), convex preset: auto skips the occlusion rays and
+// estimates what they would have cost; forcing them on changes the albedo by less than
+// kRaysTolerance (mean absolute difference, albedo units: on a convex mesh the rays
+// cannot hit anything, so only float rounding at the facing test may differ) and the
+// report says they were cast, what they cost, and no longer lists them as left out.
+TEST(Planner, ConvexSphereSkipsRaysAndForcingThemChangesNothing) {
+    constexpr double kRaysTolerance = 1e-4;
+    test::TempDir dir("plan");
+    const fs::path capture = make_capture(dir, "sphere");
+    ReconstructConfig c;
+    c.capture = capture;
+    c.backend = LambertBackend::Cpu;
+    c.out_dir = dir / "auto";
+    const ReconstructResult a = reconstruct(c);
+    c.out_dir = dir / "forced";
+    c.occlusion_rays = Toggle::On;
+    const ReconstructResult f = reconstruct(c);
+
+    const auto& da = decision(a.report, "occlusion_rays");
+    EXPECT_EQ(da["value"], "skip");
+    EXPECT_EQ(da["mode"], "auto");
+    ASSERT_TRUE(da["avoided_seconds"].is_number());
+    EXPECT_GT(da["avoided_seconds"].get<double>(), 0.0);
+    EXPECT_NE(da["cost_basis"].get<std::string>().find("estimate"), std::string::npos);
+    EXPECT_TRUE(left_out_mentions(a.report, "occlusion rays"));
+
+    const auto& df = decision(f.report, "occlusion_rays");
+    EXPECT_EQ(df["value"], "cast");
+    EXPECT_EQ(df["mode"], "forced");
+    ASSERT_TRUE(df["measured_seconds"].is_number());
+    EXPECT_GT(f.report["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
+    EXPECT_EQ(f.report["visibility"]["rays_occluded"].get<std::uint64_t>(), 0u); // nothing to hit on a convex mesh
+    EXPECT_FALSE(left_out_mentions(f.report, "occlusion rays"));
+
+    EXPECT_LT(mean_abs_difference(dir / "auto" / "albedo.exr", dir / "forced" / "albedo.exr"), kRaysTolerance);
+    const double qa = a.report["evaluation"]["test"]["masked"]["q1"].get<double>();
+    const double qf = f.report["evaluation"]["test"]["masked"]["q1"].get<double>();
+    EXPECT_NEAR(qa, qf, 0.01);
+
+    // The page shows the decision and both pixel sets.
+    const std::string html = read_all(dir / "auto" / "report.html");
+    EXPECT_NE(html.find("occlusion_rays"), std::string::npos);
+    EXPECT_NE(html.find("avoided &asymp;"), std::string::npos);
+    EXPECT_NE(html.find("<td>masked</td>"), std::string::npos);
+    EXPECT_NE(html.find("<td>full</td>"), std::string::npos);
+    EXPECT_NE(html.find("data:image/png;base64,"), std::string::npos); // the sheets, embedded
+}
+
+// Planner, Lambertian variant: auto leaves the specular stages out with an estimate of
+// their cost; --specular on runs them, reports the measured cost, and changes the
+// test-frame quality by less than kSpecularTolerance (Q1 points): there is no lobe to find.
+TEST(Planner, LambertianLeavesSpecularOutAndForcingItChangesLittle) {
+    constexpr double kSpecularTolerance = 0.5;
+    test::TempDir dir("plan");
+    const fs::path capture = make_capture(dir, "sphere", /*lambertian=*/true);
+    ReconstructConfig c;
+    c.capture = capture;
+    c.backend = LambertBackend::Cpu;
+    c.out_dir = dir / "auto";
+    const ReconstructResult a = reconstruct(c);
+    c.out_dir = dir / "forced";
+    c.specular = SpecularMode::On;
+    const ReconstructResult f = reconstruct(c);
+
+    const auto& da = decision(a.report, "specular_stages");
+    EXPECT_EQ(da["value"], "skip");
+    EXPECT_EQ(da["mode"], "auto");
+    ASSERT_TRUE(da["avoided_seconds"].is_number());
+    EXPECT_GT(da["avoided_seconds"].get<double>(), 0.0);
+    EXPECT_EQ(decision(a.report, "factorization_grid")["value"], "none");
+    EXPECT_TRUE(left_out_mentions(a.report, "specular fit"));
+    EXPECT_FALSE(a.report["bundle"]["has_lobe"].get<bool>());
+
+    const auto& df = decision(f.report, "specular_stages");
+    EXPECT_EQ(df["value"], "fit");
+    EXPECT_EQ(df["mode"], "forced");
+    ASSERT_TRUE(df["measured_seconds"].is_number());
+    EXPECT_FALSE(left_out_mentions(f.report, "specular fit, factorization"));
+
+    const double qa = a.report["evaluation"]["test"]["masked"]["q1"].get<double>();
+    const double qf = f.report["evaluation"]["test"]["masked"]["q1"].get<double>();
+    EXPECT_NEAR(qa, qf, kSpecularTolerance);
+    // The albedo does not depend on the specular stages at all.
+    EXPECT_EQ(mean_abs_difference(dir / "auto" / "albedo.exr", dir / "forced" / "albedo.exr"), 0.0);
+}
+
+// Planner, near-mirror lobe: the factorization grid follows the fitted lobe's width
+// (factorization/resolution.h: R_h = ceil(2 sqrt(N)), clamped to [16, 128]), so a lobe of
+// N ~ 300 gets a finer h grid than the 16 a broad lobe gets. --specular on: at 128 px the
+// energy test alone does not see so small a highlight (about 3 noise variances).
+TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
+    test::TempDir dir("plan");
+    synth::SynthOptions o;
+    o.size = 128;
+    o.views = 8;
+    o.lights = 6;
+    o.test_views = 1;
+    o.test_lights = 1;
+    o.format = synth::ImageFormat::Png16;
+    synth::SynthObject object = synth::to_object(synth::make_preset("sphere"));
+    object.material.lobe = {glm::vec3(-1.0f), glm::vec3(1.0f), glm::vec3(300.0f)};
+    (void)synth::write_synthetic_capture(object, dir / "mirror", o);
+    ReconstructConfig c;
+    c.capture = dir / "mirror";
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    c.specular = SpecularMode::On;
+    c.evaluate = false;
+    const ReconstructResult r = reconstruct(c);
+    ASSERT_TRUE(r.report["bundle"]["has_lobe"].get<bool>()) << r.report["specular"].dump();
+    const auto& d = decision(r.report, "factorization_grid");
+    EXPECT_EQ(d["mode"], "auto");
+    const double n = d["detail"]["max_exponent"].get<double>();
+    EXPECT_GT(n, 100.0); // a narrow lobe was fitted (truth 300)
+    const int expected = std::clamp(static_cast<int>(std::ceil(2.0 * std::sqrt(n))), 16, 128);
+    EXPECT_EQ(d["detail"]["grid_h"].get<int>(), expected);
+    EXPECT_GT(d["detail"]["grid_h"].get<int>(), 16);
+    EXPECT_EQ(r.report["factorization"]["grid_h"].get<int>(), expected); // the grid the factorization used
+    ASSERT_TRUE(d["avoided_seconds"].is_number());
+    EXPECT_GT(d["avoided_seconds"].get<double>(), 0.0);
+}
+
+TEST(Planner, EveryDecisionIsInTheReport) {
+    test::TempDir dir("plan");
+    ReconstructConfig c;
+    c.capture = make_capture(dir, "can");
+    c.out_dir = dir / "out";
+    c.backend = LambertBackend::Cpu;
+    c.evaluate = false;
+    const ReconstructResult r = reconstruct(c);
+    for (const char* name : {"occlusion_rays", "diffuse_mode", "atlas", "specular_stages", "factorization_grid"}) {
+        const auto& d = decision(r.report, name);
+        EXPECT_FALSE(d["value"].get<std::string>().empty()) << name;
+        EXPECT_FALSE(d["reason"].get<std::string>().empty()) << name;
+    }
+    EXPECT_EQ(decision(r.report, "occlusion_rays")["value"], "cast"); // the can is not convex
+    EXPECT_TRUE(decision(r.report, "atlas")["avoided_seconds"].is_number());
 }
 
 TEST(Reconstruct, MissingCaptureFailsWithoutWritingOutputs) {

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace specula::cli {
 
@@ -16,7 +17,10 @@ namespace {
 struct ReconstructArgs {
     ReconstructConfig config;
     std::string backend = "vulkan";
-    std::string mode = "albedo";
+    std::string mode = "auto";
+    std::string occlusion_rays = "auto";
+    bool force_occlusion_rays = false;
+    std::vector<std::uint32_t> grid;
     std::string views = "best";
     std::uint32_t texture_size = 4096;
     std::string specular = "auto";
@@ -25,15 +29,38 @@ struct ReconstructArgs {
 void run_reconstruct(ReconstructArgs& args) {
     ReconstructConfig& c = args.config;
     c.backend = args.backend == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan;
-    c.lambert.mode = args.mode == "photometric" ? LambertMode::Photometric : LambertMode::Albedo;
+    c.diffuse_mode = args.mode == "photometric" ? DiffuseModeChoice::Photometric
+                     : args.mode == "albedo"    ? DiffuseModeChoice::Albedo
+                                                : DiffuseModeChoice::Auto;
+    c.occlusion_rays = args.occlusion_rays == "on" || args.force_occlusion_rays ? Toggle::On
+                       : args.occlusion_rays == "off"                          ? Toggle::Off
+                                                                               : Toggle::Auto;
+    if (args.force_occlusion_rays && args.occlusion_rays == "off")
+        throw UsageError("--force-occlusion-rays contradicts --occlusion-rays off");
+    if (!args.grid.empty()) {
+        for (std::uint32_t g : args.grid)
+            if (g < 4 || g > 256) throw UsageError("--factorization-grid: each resolution must be in [4, 256], got " + std::to_string(g));
+        if (args.grid[0] * (args.grid.size() > 1 ? args.grid[1] : args.grid[0]) > factorization::kMaxGridProduct)
+            throw UsageError("--factorization-grid: H x D must be at most " + std::to_string(factorization::kMaxGridProduct) +
+                             " (the matrix F, 3 H^2 D^2 floats, must fit one 128 MiB storage binding)");
+        c.factorization_grid_h = args.grid[0];
+        c.factorization_grid_d = args.grid.size() > 1 ? args.grid[1] : args.grid[0];
+    }
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
     const ReconstructResult result = reconstruct(c);
     log::info("wrote " + c.out_dir.string() + ": object.glb, albedo.exr, albedo.png, report.json" +
+              (c.write_html ? ", report.html" : "") +
               (c.evaluate ? ", evaluation.json, sheets/" : "") + " in " + std::to_string(result.total_seconds) + " s");
     for (const LeftOut& l : result.left_out) log::info("left out: " + l.what + " (" + l.why + ")");
+    for (const PlanDecision& d : result.plan.decisions) {
+        std::string cost;
+        if (d.avoided_seconds) cost = ", avoided ~" + std::to_string(*d.avoided_seconds) + " s";
+        else if (d.measured_seconds) cost = ", cost " + std::to_string(*d.measured_seconds) + " s";
+        log::info("planner: " + d.name + " = " + d.value + " (" + (d.forced ? "forced" : "auto") + cost + ")");
+    }
 }
 
 } // namespace
@@ -44,8 +71,10 @@ void add_reconstruct_command(CLI::App& app) {
         "reconstruct",
         "Reconstruct a capture: the albedo texture and the specular lobe. Writes OUT/object.glb (the bundle),\n"
         "OUT/albedo.exr (linear), OUT/albedo.png (sRGB), OUT/evaluation.json and OUT/sheets/ (every frame\n"
-        "re-rendered and compared), and OUT/report.json (stage times, counts, choices, quality figures, and\n"
-        "what was left out for this scene and why).");
+        "re-rendered and compared), OUT/report.html (one self-contained page) and OUT/report.json (the planner's\n"
+        "decisions, stage times, GPU dispatch times, counts, quality figures, the lobe, and what was left out\n"
+        "for this scene and why). Every planner decision can be forced: --occlusion-rays, --mode, --specular,\n"
+        "--texels-per-pixel/--texture-size, --factorization-grid; the report then gives the cost of the forced work.");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
     cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
     cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
@@ -53,9 +82,12 @@ void add_reconstruct_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("-d,--device", args->config.device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->add_option("--mode", args->mode,
-                    "albedo: known mesh normals, one unknown per channel; photometric: the thesis's eq. 3.1, also refines\n"
-                    "normals, falls back to albedo per particle when its light directions are nearly coplanar")
-        ->check(CLI::IsMember({"albedo", "photometric"}))
+                    "Diffuse solve. auto: albedo while a lobe may be fitted (the photometric solve would absorb part of\n"
+                    "each highlight into a tilted normal); with --specular off, photometric when at least half the train\n"
+                    "views have >= 3 non-coplanar light directions; albedo: known mesh normals, one unknown per channel;\n"
+                    "photometric: the thesis's eq. 3.1, also refines normals, falls back to albedo per particle when its\n"
+                    "light directions are nearly coplanar")
+        ->check(CLI::IsMember({"auto", "albedo", "photometric"}))
         ->capture_default_str();
     cmd->add_option("--views", args->views,
                     "best: the thesis's choice, the seeing view closest to the normal; robust: combine all views")
@@ -65,7 +97,8 @@ void add_reconstruct_command(CLI::App& app) {
         ->check(CLI::Range(16u, 32767u))
         ->capture_default_str();
     cmd->add_option("--texels-per-pixel", args->config.atlas.texels_per_pixel,
-                    "Atlas texels per image pixel of a triangle's best view (more adds cost, no information)")
+                    "Atlas texels per image pixel of a triangle's best view; the planner uses 1 (more adds cost, no\n"
+                    "information; less trades detail for time)")
         ->check(CLI::Range(0.05, 8.0))
         ->capture_default_str();
     cmd->add_option("--noise", args->config.lambert.noise_sigma,
@@ -82,8 +115,18 @@ void add_reconstruct_command(CLI::App& app) {
                     "lobe settles; 0 = the thesis's single pass")
         ->check(CLI::Range(0u, 10u))
         ->capture_default_str();
-    cmd->add_flag("--force-occlusion-rays", args->config.force_occlusion_rays,
-                  "Cast occlusion rays even when the mesh is convex (the default skips them there)");
+    cmd->add_option("--occlusion-rays", args->occlusion_rays,
+                    "auto: Embree occlusion rays only where the mesh can occlude itself (not convex); on: always (the\n"
+                    "report gives their measured cost); off: never (biased where the mesh shadows or hides itself)")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
+    cmd->add_flag("--force-occlusion-rays", args->force_occlusion_rays, "The same as --occlusion-rays on");
+    cmd->add_option("--factorization-grid", args->grid,
+                    "H[,D]: the factorization's h and d grid resolutions (default: the planner's, from the lobe's width:\n"
+                    "2 cells per lobe half-width, h in [16, 128], d in [16, 64]); H x D at most 3072")
+        ->delimiter(',')
+        ->expected(1, 2);
+    cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
     cmd->add_flag("--no-evaluate{false}", args->config.evaluate,
                   "Skip the self-evaluation (re-rendering every frame from object.glb and comparing)");

@@ -1,0 +1,335 @@
+#include "pipeline/planner.h"
+
+#include "core/error.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace specula {
+
+using nlohmann::json;
+
+namespace {
+
+std::string fmt(const char* format, double a) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, format, a);
+    return buf;
+}
+
+} // namespace
+
+const char* to_string(Toggle t) noexcept {
+    switch (t) {
+    case Toggle::Auto: return "auto";
+    case Toggle::On: return "on";
+    case Toggle::Off: return "off";
+    }
+    return "?";
+}
+
+const char* to_string(DiffuseModeChoice m) noexcept {
+    switch (m) {
+    case DiffuseModeChoice::Auto: return "auto";
+    case DiffuseModeChoice::Albedo: return "albedo";
+    case DiffuseModeChoice::Photometric: return "photometric";
+    }
+    return "?";
+}
+
+PlanDecision* Plan::find(const std::string& name) {
+    for (PlanDecision& d : decisions)
+        if (d.name == name) return &d;
+    return nullptr;
+}
+
+const PlanDecision* Plan::find(const std::string& name) const {
+    for (const PlanDecision& d : decisions)
+        if (d.name == name) return &d;
+    return nullptr;
+}
+
+PlanDecision& Plan::add(PlanDecision d) {
+    if (PlanDecision* existing = find(d.name)) {
+        *existing = std::move(d);
+        return *existing;
+    }
+    decisions.push_back(std::move(d));
+    return decisions.back();
+}
+
+json Plan::to_json() const {
+    json out = json::array();
+    for (const PlanDecision& d : decisions) {
+        const auto num = [](const std::optional<double>& v) { return v && std::isfinite(*v) ? json(*v) : json(nullptr); };
+        out.push_back({{"name", d.name},
+                       {"value", d.value},
+                       {"mode", d.forced ? "forced" : "auto"},
+                       {"skipped", d.skipped},
+                       {"reason", d.reason},
+                       {"avoided_seconds", num(d.avoided_seconds)},
+                       {"measured_seconds", num(d.measured_seconds)},
+                       {"cost_basis", d.cost_basis},
+                       {"detail", d.detail}});
+    }
+    return out;
+}
+
+// ---- occlusion rays ---------------------------------------------------------------------
+
+PlanDecision decide_occlusion_rays(const ConvexityReport& c, Toggle toggle) {
+    PlanDecision d;
+    d.name = "occlusion_rays";
+    d.forced = toggle != Toggle::Auto;
+    d.detail = {{"convex", c.convex},
+                {"closed", c.closed},
+                {"connected", c.connected},
+                {"boundary_edges", c.boundary_edges},
+                {"nonmanifold_edges", c.nonmanifold_edges},
+                {"reflex_edges", c.reflex_edges},
+                {"components", c.components}};
+    const bool cast = toggle == Toggle::On || (toggle == Toggle::Auto && !c.convex);
+    d.value = cast ? "cast" : "skip";
+    d.skipped = !cast;
+    if (toggle == Toggle::Auto)
+        d.reason = c.convex ? "the mesh is convex (closed, connected, no reflex edge): it cannot shadow or hide itself, "
+                              "the facing test is exact"
+                            : "the mesh can occlude itself: " + c.reason;
+    else if (toggle == Toggle::On)
+        d.reason = c.convex ? "--occlusion-rays on: cast although the mesh is convex (they cannot hit anything)"
+                            : "--occlusion-rays on (the planner would cast them too: " + c.reason + ")";
+    else
+        d.reason = c.convex ? "--occlusion-rays off (the planner would skip them too: the mesh is convex)"
+                            : "--occlusion-rays off on a mesh that can occlude itself (" + c.reason +
+                                  "): shadowed and hidden samples are taken as seen and lit, the result is biased there";
+    return d;
+}
+
+// ---- diffuse mode -----------------------------------------------------------------------
+
+LightConditioning light_conditioning(const Capture& capture, double min_rcond) {
+    LightConditioning lc;
+    lc.min_rcond = min_rcond;
+    glm::dvec3 lo(1e300), hi(-1e300);
+    for (const glm::vec3& p : capture.mesh.positions) {
+        lo = glm::min(lo, glm::dvec3(p));
+        hi = glm::max(hi, glm::dvec3(p));
+    }
+    const glm::dvec3 center = capture.mesh.positions.empty() ? glm::dvec3(0.0) : 0.5 * (lo + hi);
+    std::vector<double> rconds;
+    lc.min_lights = static_cast<std::size_t>(-1);
+    for (const View& view : capture.views) {
+        Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+        std::size_t lights = 0;
+        for (const std::size_t f : view.frames) {
+            const FrameDesc& fd = capture.desc.frames[f];
+            if (fd.split != Split::Train) continue;
+            const glm::dvec3 d = fd.light.position - center;
+            const double len = glm::length(d);
+            if (!(len > 0.0)) continue;
+            const Eigen::Vector3d u(d.x / len, d.y / len, d.z / len);
+            c += u * u.transpose();
+            ++lights;
+        }
+        if (lights == 0) continue; // a test-only view
+        ++lc.views;
+        lc.min_lights = std::min(lc.min_lights, lights);
+        double rcond = 0.0;
+        if (lights >= 3) {
+            const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(c, Eigen::EigenvaluesOnly);
+            const Eigen::Vector3d ev = es.eigenvalues(); // ascending
+            rcond = ev(2) > 0.0 ? std::max(0.0, ev(0)) / ev(2) : 0.0;
+        }
+        rconds.push_back(rcond);
+        if (lights >= 3 && rcond >= min_rcond) ++lc.capable_views;
+    }
+    if (lc.views == 0) lc.min_lights = 0;
+    if (!rconds.empty()) {
+        std::sort(rconds.begin(), rconds.end());
+        lc.median_rcond = rconds[rconds.size() / 2];
+    }
+    return lc;
+}
+
+PlanDecision decide_diffuse_mode(const LightConditioning& lc, DiffuseModeChoice choice, bool specular_may_run) {
+    PlanDecision d;
+    d.name = "diffuse_mode";
+    d.forced = choice != DiffuseModeChoice::Auto;
+    d.detail = {{"train_views", lc.views},
+                {"photometric_capable_views", lc.capable_views},
+                {"fewest_lights_per_view", lc.min_lights},
+                {"median_rcond", lc.median_rcond},
+                {"min_rcond", lc.min_rcond},
+                {"required_fraction", kPhotometricViewFraction}};
+    const bool allowed = lc.views > 0 &&
+                         static_cast<double>(lc.capable_views) >= kPhotometricViewFraction * static_cast<double>(lc.views);
+    const std::string why = std::to_string(lc.capable_views) + " of " + std::to_string(lc.views) +
+                            " train views have >= 3 light directions with rcond >= " + fmt("%.3g", lc.min_rcond) +
+                            " (median rcond " + fmt("%.3g", lc.median_rcond) + ", fewest lights in a view " +
+                            std::to_string(lc.min_lights) + ")";
+    const bool photometric = allowed && !specular_may_run;
+    const std::string highlight =
+        "the specular stages may run, and the photometric solve would fit a tilted normal to part of each highlight, "
+        "hiding specular energy from the energy test: albedo mode (known mesh normals)";
+    d.detail["specular_may_run"] = specular_may_run;
+    if (choice == DiffuseModeChoice::Auto) {
+        d.value = photometric ? "photometric" : "albedo";
+        d.skipped = !photometric;
+        d.reason = !allowed ? why + ": the lights do not constrain a normal, albedo mode (known normals) everywhere"
+                   : specular_may_run ? why + ", but " + highlight
+                                      : why + "; --specular off: photometric solve (eq. 3.1, refines normals), albedo mode "
+                                              "per particle where its view's lights are coplanar";
+    } else {
+        d.value = to_string(choice);
+        d.reason = std::string("--mode ") + to_string(choice) + " (the planner would choose " +
+                   (photometric ? "photometric" : "albedo") + ": " + why + (allowed && specular_may_run ? "; " + highlight : "") +
+                   ")";
+    }
+    return d;
+}
+
+bool decided_photometric(const PlanDecision& d) { return d.value == "photometric"; }
+
+// ---- atlas ------------------------------------------------------------------------------
+
+PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::size_t particles, double particle_stage_seconds) {
+    const AtlasOptions defaults;
+    PlanDecision d;
+    d.name = "atlas";
+    d.forced = o.texels_per_pixel != defaults.texels_per_pixel || o.max_width != defaults.max_width ||
+               o.max_height != defaults.max_height;
+    d.value = std::to_string(s.width) + "x" + std::to_string(s.height) + ", " + fmt("%.3g", o.texels_per_pixel) +
+              " texel(s) per pixel";
+    d.detail = {{"width", s.width},
+                {"height", s.height},
+                {"texels_per_pixel", o.texels_per_pixel},
+                {"budget", {o.max_width, o.max_height}},
+                {"budget_clipped", s.budget_clipped},
+                {"particles", particles},
+                {"size_source", s.size_source}};
+    std::string base = s.size_source == "cameras"
+                           ? "patch sizes follow each triangle's pixel footprint in its best train view"
+                           : "no camera sees the mesh: patch sizes follow surface area";
+    if (s.budget_clipped) base += "; the " + std::to_string(o.max_width) + "x" + std::to_string(o.max_height) +
+                                  " budget clipped them (scale " + fmt("%.3g", s.budget_scale) + ")";
+    if (!d.forced) {
+        d.reason = base + ", one texel per pixel: a finer atlas adds particles and no information (a pixel has one value)";
+        // Twice the linear resolution: 4x the particles; the particle-proportional stages scale with them.
+        d.avoided_seconds = 3.0 * particle_stage_seconds;
+        d.cost_basis = "estimate: at 2 texels per pixel (4x the particles) the particle stages (visibility, diffuse "
+                       "solve, residual samples; measured " + fmt("%.3g", particle_stage_seconds) +
+                       " s) would take about 4x as long";
+    } else {
+        d.reason = base + "; forced by --texels-per-pixel " + fmt("%.3g", o.texels_per_pixel) + " / --texture-size " +
+                   std::to_string(o.max_width) + " (the planner uses 1 texel per pixel, 4096 budget)";
+        d.measured_seconds = particle_stage_seconds;
+        d.cost_basis = "measured: visibility, diffuse solve and residual samples at this atlas (" + std::to_string(particles) +
+                       " particles)";
+    }
+    return d;
+}
+
+// ---- specular stages --------------------------------------------------------------------
+
+PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle) {
+    PlanDecision d;
+    d.name = "specular_stages";
+    d.forced = toggle != Toggle::Auto;
+    const bool fit = toggle == Toggle::On || (toggle == Toggle::Auto && e.has_specular);
+    d.value = fit ? "fit" : "skip";
+    d.skipped = !fit;
+    const std::string energy = "mean squared residual " + fmt("%.3g", e.mean_square) + " = " + fmt("%.3g", e.ratio) +
+                               " noise variances (noise sigma " + fmt("%.3g", e.noise_sigma) + ", threshold " +
+                               fmt("%.3g", e.threshold) + ")";
+    d.detail = {{"mean_square_residual", e.mean_square},
+                {"ratio_to_noise_variance", e.ratio},
+                {"threshold", e.threshold},
+                {"noise_sigma", e.noise_sigma},
+                {"has_specular", e.has_specular}};
+    if (toggle == Toggle::Auto)
+        d.reason = e.has_specular ? "the residuals hold specular energy: " + energy + "; fit, factorization and specular pass run"
+                                  : "the residuals hold no more energy than the noise: " + energy +
+                                        "; no Lafortune fit, factorization or specular pass";
+    else if (toggle == Toggle::On)
+        d.reason = "--specular on (the planner would " + std::string(e.has_specular ? "fit too" : "skip: ") +
+                   (e.has_specular ? "" : energy) + ")";
+    else
+        d.reason = "--specular off: no residual samples, fit, factorization or specular pass";
+    return d;
+}
+
+void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std::size_t probe_samples, std::size_t fit_samples,
+                       std::optional<double> measured_seconds) {
+    if (measured_seconds) {
+        d.measured_seconds = measured_seconds;
+        d.cost_basis = "measured: Lafortune fit on " + std::to_string(fit_samples) + " samples plus the factorization";
+    } else if (probe_seconds && probe_samples > 0) {
+        const double scale = static_cast<double>(std::max(fit_samples, probe_samples)) / static_cast<double>(probe_samples);
+        d.avoided_seconds = *probe_seconds * scale;
+        d.cost_basis = "estimate: the fit timed on a " + std::to_string(probe_samples) + "-sample subsample (" +
+                       fmt("%.3g", *probe_seconds) + " s), scaled linearly to the " + std::to_string(fit_samples) +
+                       " samples it would use; the factorization and specular pass are not included";
+    }
+}
+
+// ---- factorization grid -----------------------------------------------------------------
+
+factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d) {
+    factorization::FactorizationResolution r = factorization::default_resolution(lobe);
+    if (forced_h != 0) r.grid_h = forced_h;
+    if (forced_d != 0) r.grid_d = forced_d;
+    if (r.grid_h * r.grid_d > factorization::kMaxGridProduct)
+        throw UsageError("factorization grid h " + std::to_string(r.grid_h) + " x d " + std::to_string(r.grid_d) +
+                         ": R_h R_d must be at most " + std::to_string(factorization::kMaxGridProduct) +
+                         " (the matrix F, 3 R_h^2 R_d^2 floats, must fit one 128 MiB storage binding)");
+    r.cube_g = factorization::cube_res_for_grid(r.grid_h);
+    r.cube_h = factorization::cube_res_for_grid(r.grid_d);
+    return r;
+}
+
+PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d) {
+    const factorization::FactorizationResolution def = factorization::default_resolution(lobe);
+    const factorization::FactorizationResolution r = decided_grid(lobe, forced_h, forced_d);
+    PlanDecision d;
+    d.name = "factorization_grid";
+    d.forced = forced_h != 0 || forced_d != 0;
+    d.value = "h " + std::to_string(r.grid_h) + " x d " + std::to_string(r.grid_d) + " (cube faces " + std::to_string(r.cube_g) +
+              ", " + std::to_string(r.cube_h) + ")";
+    double n_max = 1.0;
+    for (int c = 0; c < 3; ++c)
+        if (std::isfinite(lobe.n[c])) n_max = std::max(n_max, static_cast<double>(lobe.n[c]));
+    d.detail = {{"grid_h", r.grid_h},
+                {"grid_d", r.grid_d},
+                {"cube_g", r.cube_g},
+                {"cube_h", r.cube_h},
+                {"auto_grid_h", def.grid_h},
+                {"auto_grid_d", def.grid_d},
+                {"max_exponent", n_max}};
+    d.reason = d.forced ? "--factorization-grid " + std::to_string(r.grid_h) + "," + std::to_string(r.grid_d) +
+                              " (the planner would use h " + std::to_string(def.grid_h) + " x d " + std::to_string(def.grid_d) +
+                              ": " + def.reason + ")"
+                        : def.reason;
+    return d;
+}
+
+void set_factorization_cost(PlanDecision& d, double seconds, const std::string& what) {
+    if (d.forced) {
+        d.measured_seconds = seconds;
+        d.cost_basis = "measured: " + what + " at the forced grid";
+        return;
+    }
+    // The finest grid the rule allows: R_h R_d at kMaxGridProduct (h 128 x d 24).
+    const double h = d.detail["grid_h"].get<double>(), g = d.detail["grid_d"].get<double>();
+    const double max_product = static_cast<double>(factorization::kMaxGridProduct);
+    const double ratio = (max_product * max_product) / ((h * g) * (h * g));
+    if (ratio <= 1.0) return;
+    d.avoided_seconds = seconds * (ratio - 1.0);
+    d.cost_basis = "estimate: the " + what + " (" + fmt("%.3g", seconds) +
+                   " s) scales with the matrix size 3 R_h^2 R_d^2; the finest grid the rule allows (R_h R_d = " +
+                   std::to_string(factorization::kMaxGridProduct) + ") has " + fmt("%.3g", ratio) + "x the entries";
+}
+
+} // namespace specula

@@ -1,0 +1,134 @@
+#pragma once
+// The planner (pipeline.md section 9): what this scene needs, decided from the capture
+// and from cheap measurements, each decision explicit data that the report shows.
+//
+//   decision            auto rule                                          forced by
+//   occlusion_rays      cast only where the mesh can occlude itself       --occlusion-rays on|off
+//                       (visibility/convexity.h)
+//   diffuse_mode        photometric only where enough train views have    --mode albedo|photometric
+//                       >= 3 non-coplanar light directions and no
+//                       specular fit needs the highlights
+//   atlas               texels <= image pixels (texels_per_pixel 1),      --texels-per-pixel, --texture-size
+//                       within the budget (geometry/atlas.h)
+//   specular_stages     residual samples, then the fit, factorization and  --specular on|off
+//                       specular pass only when the residuals hold more
+//                       energy than the noise (specular/residuals.h)
+//   factorization_grid  no finer than the lobe's width needs              --factorization-grid H,D
+//                       (factorization/resolution.h)
+//
+// Each decision says whether it was automatic or forced, why, and what it cost or saved:
+// when auto skips or coarsens work, `avoided_seconds` is an ESTIMATE of the time that work
+// would have taken (from a cheap measurement; `cost_basis` says which); when a flag forces
+// the work on, `measured_seconds` is what it took. The decision functions are pure (the
+// tests call them directly); reconstruct.cpp is the only caller that runs stages.
+#include "capture/capture.h"
+#include "core/lafortune.h"
+#include "factorization/resolution.h"
+#include "geometry/atlas.h"
+#include "specular/residuals.h"
+#include "visibility/convexity.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+/// A decision left to the planner, or forced either way from the command line.
+enum class Toggle { Auto, On, Off };
+[[nodiscard]] const char* to_string(Toggle t) noexcept;
+
+/// The diffuse solve's mode: the planner's choice, or forced.
+enum class DiffuseModeChoice { Auto, Albedo, Photometric };
+[[nodiscard]] const char* to_string(DiffuseModeChoice m) noexcept;
+
+struct PlanDecision {
+    std::string name;    ///< occlusion_rays, diffuse_mode, atlas, specular_stages, factorization_grid
+    std::string value;   ///< what was chosen, e.g. "skip", "cast", "photometric", "h 16 x d 16"
+    bool forced = false; ///< a flag chose it (else: auto)
+    bool skipped = false; ///< the choice leaves a stage or a mode out
+    std::string reason;
+    std::optional<double> avoided_seconds;  ///< estimated time of the work left out (auto)
+    std::optional<double> measured_seconds; ///< measured time of work a flag forced on
+    std::string cost_basis;                 ///< how the figure above was obtained
+    nlohmann::json detail = nlohmann::json::object();
+};
+
+struct Plan {
+    std::vector<PlanDecision> decisions;
+    [[nodiscard]] PlanDecision* find(const std::string& name);
+    [[nodiscard]] const PlanDecision* find(const std::string& name) const;
+    PlanDecision& add(PlanDecision d);
+    /// [{name, value, mode: "auto"|"forced", skipped, reason, avoided_seconds, measured_seconds, cost_basis, detail}]
+    [[nodiscard]] nlohmann::json to_json() const;
+};
+
+// ---- occlusion rays ---------------------------------------------------------------------
+
+/// Auto: cast where the mesh is not convex. Off on a non-convex mesh is allowed (to measure
+/// what the rays cost) and the reason says the result is then wrong where the mesh shadows
+/// or hides itself.
+[[nodiscard]] PlanDecision decide_occlusion_rays(const ConvexityReport& convexity, Toggle toggle);
+
+// ---- diffuse mode -----------------------------------------------------------------------
+
+/// How well each train view's lights constrain the photometric solve (thesis eq. 3.1),
+/// seen from the mesh's bounding-box centre: per view, the unit light directions u_i give
+/// C = sum u_i u_i^T, and rcond = lambda_min / lambda_max of C (0: coplanar or < 3 lights).
+struct LightConditioning {
+    std::size_t views = 0;          ///< train views
+    std::size_t capable_views = 0;  ///< >= 3 lights and rcond >= min_rcond
+    double median_rcond = 0.0;
+    double min_rcond = 0.0;         ///< the threshold used
+    std::size_t min_lights = 0;     ///< fewest train lights of a view
+};
+[[nodiscard]] LightConditioning light_conditioning(const Capture& capture, double min_rcond);
+
+/// Fraction of the train views that must allow the photometric solve for auto to pick it.
+inline constexpr double kPhotometricViewFraction = 0.5;
+
+/// Auto: albedo mode while the specular stages may run: the photometric solve fits a
+/// tilted normal to part of a highlight and hides specular energy from the energy test
+/// (measured on the glossy sphere at 128 px: 5.1 -> 2.8 noise variances, below the
+/// threshold 4, so the lobe was left out). With the specular stages off, photometric where
+/// at least kPhotometricViewFraction of the train views allow it (per particle, the solve
+/// still falls back where its best view's lights do not), else albedo.
+[[nodiscard]] PlanDecision decide_diffuse_mode(const LightConditioning& lc, DiffuseModeChoice choice, bool specular_may_run);
+/// The LambertMode a decision chose.
+[[nodiscard]] bool decided_photometric(const PlanDecision& d);
+
+// ---- atlas ------------------------------------------------------------------------------
+
+/// Auto: the default AtlasOptions (one texel per pixel of the best view, 4096 budget);
+/// forced when the options differ from those defaults. `particle_stage_seconds` (the measured
+/// time of the stages whose work grows with the particle count: visibility, diffuse solve,
+/// residual samples) gives the estimate of what twice the linear resolution would cost
+/// (4x the particles, no information: a pixel has one value).
+[[nodiscard]] PlanDecision decide_atlas(const AtlasSummary& summary, const AtlasOptions& options, std::size_t particles,
+                                        double particle_stage_seconds);
+
+// ---- specular stages --------------------------------------------------------------------
+
+/// Auto: fit when energy.has_specular. `probe_seconds` / `probe_samples`: a fit timed on a
+/// small subsample when auto skips (nullopt otherwise), scaled to `fit_samples`.
+[[nodiscard]] PlanDecision decide_specular(const ResidualEnergy& energy, Toggle toggle);
+/// Fills the cost figures of a specular decision once known.
+void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std::size_t probe_samples,
+                       std::size_t fit_samples, std::optional<double> measured_seconds);
+
+// ---- factorization grid -----------------------------------------------------------------
+
+/// Auto: factorization::default_resolution(lobe); forced: the given grid (0 = auto for
+/// that axis). `measured_seconds` (matrix + decomposition) scales, by the matrix size
+/// (3 R_h^2 R_d^2 entries), into the estimated cost of the finest grid the rule allows.
+[[nodiscard]] PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d);
+/// `what` names the measurement (wall time of the steps, or their dispatches' GPU time).
+void set_factorization_cost(PlanDecision& d, double matrix_and_decomposition_seconds, const std::string& what);
+/// The grid a decision chose. Throws UsageError when a forced grid has R_h R_d > kMaxGridProduct.
+[[nodiscard]] factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, std::uint32_t forced_h,
+                                                                  std::uint32_t forced_d);
+
+} // namespace specula

@@ -1,0 +1,26 @@
+# The outputs of `specula reconstruct` in OUT, and the content report.html must show.
+#   cmake -DOUT=dir -P check_report.cmake
+foreach(f object.glb albedo.png albedo.exr report.json report.html evaluation.json)
+  if(NOT EXISTS "${OUT}/${f}")
+    message(FATAL_ERROR "${OUT}/${f} is missing")
+  endif()
+endforeach()
+file(GLOB sheets "${OUT}/sheets/*.png")
+list(LENGTH sheets n)
+if(n LESS 2)
+  message(FATAL_ERROR "expected a train and a test sheet in ${OUT}/sheets, found ${n}")
+endif()
+file(READ "${OUT}/report.html" html)
+foreach(needle "Planner decisions" "<code>occlusion_rays</code>" "<code>specular_stages</code>" "<code>factorization_grid</code>"
+               "<td>masked</td>" "<td>full</td>" "Left out" "GPU time per dispatch" "data:image/png;base64," "<svg")
+  string(FIND "${html}" "${needle}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "report.html lacks '${needle}'")
+  endif()
+endforeach()
+# report.json names the same decisions.
+file(READ "${OUT}/report.json" report)
+string(JSON count LENGTH "${report}" planner)
+if(count LESS 5)
+  message(FATAL_ERROR "report.json: planner has ${count} decisions, expected 5")
+endif()

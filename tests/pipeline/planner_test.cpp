@@ -1,0 +1,177 @@
+// The planner's decision functions, the sweep's Pareto front and the HTML report, on
+// plain data (no capture, no device).
+#include "pipeline/planner.h"
+#include "pipeline/sweep.h"
+#include "report/report_html.h"
+#include "report/svg_plot.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace specula {
+namespace {
+
+using nlohmann::json;
+
+LafortuneRgb lobe(float cx, float cz, float n) {
+    LafortuneRgb l;
+    l.cx = glm::vec3(cx);
+    l.cz = glm::vec3(cz);
+    l.n = glm::vec3(n);
+    return l;
+}
+
+TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGridThanABroadOne) {
+    const PlanDecision broad = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 0, 0);
+    const PlanDecision mirror = decide_factorization_grid(lobe(-1.0f, 1.0f, 2000.0f), 0, 0);
+    EXPECT_FALSE(broad.forced);
+    EXPECT_FALSE(mirror.forced);
+    // 2 cells per half-width sqrt(2/N): R_h = ceil(2 sqrt(N)) clamped to [16, 128].
+    EXPECT_EQ(broad.detail["grid_h"].get<int>(), 16);
+    EXPECT_EQ(mirror.detail["grid_h"].get<int>(), 90);
+    EXPECT_GT(mirror.detail["cube_g"].get<int>(), broad.detail["cube_g"].get<int>());
+    EXPECT_NE(mirror.reason.find("N = 2000"), std::string::npos) << mirror.reason;
+    // Forcing the grid is recorded as forced, and the reason keeps the planner's own choice.
+    const PlanDecision forced = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 64, 32);
+    EXPECT_TRUE(forced.forced);
+    EXPECT_EQ(forced.detail["grid_h"].get<int>(), 64);
+    EXPECT_EQ(forced.detail["grid_d"].get<int>(), 32);
+    EXPECT_NE(forced.reason.find("would use h 16"), std::string::npos) << forced.reason;
+}
+
+TEST(Planner, FactorizationCostIsAnEstimateWhenAutoAndMeasuredWhenForced) {
+    PlanDecision a = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 0, 0);
+    set_factorization_cost(a, 0.01, "matrix and decomposition wall time");
+    ASSERT_TRUE(a.avoided_seconds.has_value());
+    // 16 x 16 against R_h R_d = 3072: (3072 / 256)^2 = 144 times the entries.
+    EXPECT_NEAR(*a.avoided_seconds, 0.01 * 143.0, 1e-9);
+    EXPECT_FALSE(a.measured_seconds.has_value());
+    PlanDecision f = decide_factorization_grid(lobe(-1.0f, 1.0f, 10.0f), 64, 32);
+    set_factorization_cost(f, 0.5, "matrix and decomposition wall time");
+    EXPECT_FALSE(f.avoided_seconds.has_value());
+    EXPECT_EQ(f.measured_seconds.value_or(0.0), 0.5);
+}
+
+TEST(Planner, OcclusionRaysFollowConvexityUnlessForced) {
+    ConvexityReport convex;
+    convex.convex = true;
+    ConvexityReport concave;
+    concave.reason = "12 reflex edges";
+    EXPECT_EQ(decide_occlusion_rays(convex, Toggle::Auto).value, "skip");
+    EXPECT_TRUE(decide_occlusion_rays(convex, Toggle::Auto).skipped);
+    EXPECT_EQ(decide_occlusion_rays(concave, Toggle::Auto).value, "cast");
+    const PlanDecision on = decide_occlusion_rays(convex, Toggle::On);
+    EXPECT_EQ(on.value, "cast");
+    EXPECT_TRUE(on.forced);
+    const PlanDecision off = decide_occlusion_rays(concave, Toggle::Off);
+    EXPECT_EQ(off.value, "skip");
+    EXPECT_NE(off.reason.find("biased"), std::string::npos) << off.reason; // honest about what forcing off costs
+}
+
+TEST(Planner, SpecularStagesFollowTheEnergyTest) {
+    ResidualEnergy quiet{.mean_square = 1e-5, .mean = 0.0, .noise_sigma = 0.004, .ratio = 0.6, .threshold = 4.0, .has_specular = false};
+    ResidualEnergy shiny = quiet;
+    shiny.ratio = 40.0, shiny.has_specular = true;
+    EXPECT_EQ(decide_specular(quiet, Toggle::Auto).value, "skip");
+    EXPECT_EQ(decide_specular(shiny, Toggle::Auto).value, "fit");
+    const PlanDecision forced = decide_specular(quiet, Toggle::On);
+    EXPECT_EQ(forced.value, "fit");
+    EXPECT_TRUE(forced.forced);
+    PlanDecision skip = decide_specular(quiet, Toggle::Auto);
+    set_specular_cost(skip, 0.2, 4000, 200000, std::nullopt);
+    EXPECT_NEAR(skip.avoided_seconds.value_or(0.0), 10.0, 1e-9); // 0.2 s x 200000 / 4000
+}
+
+TEST(Planner, DiffuseModeNeedsNonCoplanarLights) {
+    LightConditioning good{.views = 10, .capable_views = 10, .median_rcond = 0.05, .min_rcond = 1e-3, .min_lights = 6};
+    LightConditioning bad{.views = 10, .capable_views = 2, .median_rcond = 0.0, .min_rcond = 1e-3, .min_lights = 2};
+    EXPECT_EQ(decide_diffuse_mode(good, DiffuseModeChoice::Auto, /*specular_may_run=*/false).value, "photometric");
+    EXPECT_EQ(decide_diffuse_mode(bad, DiffuseModeChoice::Auto, false).value, "albedo");
+    // While a lobe may be fitted, the photometric solve would eat the highlights.
+    const PlanDecision keep = decide_diffuse_mode(good, DiffuseModeChoice::Auto, true);
+    EXPECT_EQ(keep.value, "albedo");
+    EXPECT_NE(keep.reason.find("highlight"), std::string::npos) << keep.reason;
+    const PlanDecision forced = decide_diffuse_mode(bad, DiffuseModeChoice::Photometric, true);
+    EXPECT_EQ(forced.value, "photometric");
+    EXPECT_TRUE(forced.forced);
+    EXPECT_NE(forced.reason.find("would choose albedo"), std::string::npos) << forced.reason;
+}
+
+TEST(Planner, PlanJsonSaysAutoOrForced) {
+    Plan plan;
+    plan.add(decide_specular(ResidualEnergy{}, Toggle::Off));
+    plan.add(PlanDecision{.name = "atlas", .value = "64x64"});
+    plan.add(PlanDecision{.name = "atlas", .value = "128x128"}); // replaces in place
+    const json j = plan.to_json();
+    ASSERT_EQ(j.size(), 2u);
+    EXPECT_EQ(j[0]["mode"], "forced");
+    EXPECT_EQ(j[1]["mode"], "auto");
+    EXPECT_EQ(j[1]["value"], "128x128");
+    EXPECT_TRUE(j[1]["avoided_seconds"].is_null());
+}
+
+TEST(Sweep, ParetoFrontIsNonDominatedAndCoversEveryOtherPoint) {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int trial = 0; trial < 20; ++trial) {
+        std::vector<std::pair<double, double>> xy;
+        for (int i = 0; i < 30; ++i) xy.emplace_back(u(rng), u(rng));
+        xy.emplace_back(xy[4]); // an exact tie: only one of them is on the front
+        const std::vector<std::size_t> front = pareto_front(xy);
+        ASSERT_FALSE(front.empty());
+        for (std::size_t k = 1; k < front.size(); ++k) {
+            EXPECT_LE(xy[front[k - 1]].first, xy[front[k]].first); // by increasing time
+            EXPECT_GT(xy[front[k - 1]].second, xy[front[k]].second); // and strictly decreasing error
+        }
+        for (std::size_t i = 0; i < xy.size(); ++i) {
+            const bool on = std::find(front.begin(), front.end(), i) != front.end();
+            bool dominated = false;
+            for (std::size_t f : front)
+                if (f != i && xy[f].first <= xy[i].first && xy[f].second <= xy[i].second) dominated = true;
+            EXPECT_NE(on, dominated) << "point " << i;
+        }
+    }
+    const std::vector<std::pair<double, double>> with_nan{{1.0, std::nan("")}, {2.0, 1.0}};
+    EXPECT_EQ(pareto_front(with_nan), std::vector<std::size_t>{1});
+}
+
+TEST(ReportHtml, EscapesAndEncodes) {
+    EXPECT_EQ(report::html_escape("<a href=\"x\">&'</a>"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;&lt;/a&gt;");
+    const std::string text = "Man";
+    EXPECT_EQ(report::base64(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), 3)), "TWFu");
+    EXPECT_EQ(report::base64(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), 2)), "TWE=");
+    EXPECT_EQ(report::base64(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), 1)), "TQ==");
+}
+
+TEST(ReportHtml, ShowsPlannerLeftOutAndBothPixelSetsWithEscapedStrings) {
+    json q = {{"frames", 3}, {"q1", 93.5}, {"q2", 97.0}, {"rms_percent", 6.5}, {"psnr", 30.1}};
+    json r = {{"capture", {{"path", "/tmp/<script>"}, {"views", 4}}},
+              {"planner", json::array({{{"name", "occlusion_rays"}, {"value", "skip"}, {"mode", "auto"}, {"skipped", true},
+                                        {"reason", "convex & closed"}, {"avoided_seconds", 1.25}, {"cost_basis", "estimate"}}})},
+              {"left_out", json::array({{{"what", "occlusion rays"}, {"why", "a < b"}}})},
+              {"stages", json::array({{{"name", "visibility"}, {"seconds", 2.0}}})},
+              {"evaluation", {{"train", {{"masked", q}, {"full", q}}}, {"test", {{"masked", q}, {"full", q}}}}}};
+    const std::string html = report::report_html(r);
+    EXPECT_EQ(html.find("<script>"), std::string::npos);
+    EXPECT_NE(html.find("/tmp/&lt;script&gt;"), std::string::npos);
+    EXPECT_NE(html.find("convex &amp; closed"), std::string::npos);
+    EXPECT_NE(html.find("avoided &asymp; 1.25 s"), std::string::npos);
+    EXPECT_NE(html.find("a &lt; b"), std::string::npos);
+    EXPECT_NE(html.find("<td>masked</td>"), std::string::npos);
+    EXPECT_NE(html.find("<td>full</td>"), std::string::npos);
+    EXPECT_NE(html.find("<svg"), std::string::npos);
+    EXPECT_EQ(html.find("http://"), html.find("http://www.w3.org/2000/svg")); // no external asset
+}
+
+TEST(SvgPlot, MarksTheDefaultAndDrawsTheFront) {
+    const std::vector<report::PlotPoint> pts{{1.0, 5.0, "fast", false, true}, {2.0, 3.0, "default <1>", true, true},
+                                             {3.0, 4.0, "slow", false, false}};
+    const std::string svg = report::svg_pareto_plot(pts, "t", "x", "y");
+    EXPECT_NE(svg.find(">default</text>"), std::string::npos);
+    EXPECT_NE(svg.find("<path d=\"M"), std::string::npos);
+    EXPECT_NE(svg.find("default &lt;1&gt;"), std::string::npos);
+}
+
+} // namespace
+} // namespace specula
