@@ -41,6 +41,25 @@ double lower_median(std::vector<double> v) { // rank (n - 1) / 2 in ascending or
     return v[k];
 }
 
+// Lower median weighted by the used samples (shared/lambert.h): in (value, position) order,
+// the element where the cumulative weight first reaches half of the total. Unit weights give
+// the element of rank (n - 1) / 2, the plain lower median.
+double weighted_lower_median(const std::vector<std::pair<double, std::uint32_t>>& v) {
+    std::vector<std::size_t> order(v.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return v[a].first < v[b].first || (v[a].first == v[b].first && a < b);
+    });
+    std::uint64_t total = 0;
+    for (const auto& e : v) total += e.second;
+    std::uint64_t cum = 0;
+    for (std::size_t i : order) {
+        cum += v[i].second;
+        if (2 * cum >= total) return v[i].first;
+    }
+    return v[order.back()].first;
+}
+
 } // namespace
 
 namespace detail {
@@ -191,7 +210,7 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
     r.normal = glm::vec4(particle.n(), 0.0f);
     r.best_view = shared::kLambertNoView;
     r.views = static_cast<std::uint32_t>(pairs.size());
-    std::vector<double> lum;
+    std::vector<std::pair<double, std::uint32_t>> lum; // (luminance, used samples), in view order
     for (const auto& p : pairs) {
         r.rejected_shadow += shared::lambert_byte(p.counts0, 1u);
         r.rejected_clipped += shared::lambert_byte(p.counts0, 2u);
@@ -200,7 +219,7 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
         r.rejected_highlight += shared::lambert_byte(p.counts1, 1u);
         r.rejected_low += shared::lambert_byte(p.counts1, 3u);
         if (p.status & shared::kLambertPairHasSample)
-            lum.push_back(double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z));
+            lum.push_back({double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z), shared::lambert_byte(p.counts0, 0u)});
     }
     if (pairs.empty()) {
         r.status = shared::kLambertNotSeen;
@@ -210,7 +229,7 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
         r.status = shared::kLambertNoSample;
         return r;
     }
-    const double ref = lower_median(lum);
+    const double ref = weighted_lower_median(lum);
     glm::dvec3 sum(0.0);
     double weight = 0.0;
     double best_cos = -2.0;

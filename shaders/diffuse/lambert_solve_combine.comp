@@ -70,8 +70,11 @@ void main() {
     } else if (with_sample == 0u) {
         r.status = kLambertNoSample;
     } else {
-        // Lower median of the views' luminance: the one with rank (n - 1) / 2 (ties by position).
-        uint rank = (with_sample - 1u) / 2u;
+        // Lower median of the views' luminance weighted by their used samples (shared/lambert.h):
+        // in (luminance, position) order, the view where the cumulative weight reaches half.
+        uint total = 0u;
+        for (uint i = begin; i < end; ++i)
+            if ((pairs[i].status & kLambertPairHasSample) != 0u) total += lambert_byte(pairs[i].counts0, 0u);
         float ref = 0.0;
         for (uint i = begin; i < end; ++i) {
             if ((pairs[i].status & kLambertPairHasSample) == 0u) continue;
@@ -80,9 +83,10 @@ void main() {
             for (uint j = begin; j < end; ++j) {
                 if ((pairs[j].status & kLambertPairHasSample) == 0u) continue;
                 float lj = lum(pairs[j]);
-                if (lj < li || (lj == li && j < i)) ++below;
+                if (lj < li || (lj == li && j < i)) below += lambert_byte(pairs[j].counts0, 0u);
             }
-            if (below == rank) ref = li;
+            uint cum = below + lambert_byte(pairs[i].counts0, 0u);
+            if (2u * below < total && 2u * cum >= total) ref = li;
         }
         vec3 sum = vec3(0.0);
         float weight = 0.0;

@@ -38,7 +38,9 @@
 //                      sqrt(3 / rcond) = 55), or a refined normal facing away from the mesh normal.
 //
 // Per particle (combine step), over the views that see it and kept >= 1 sample:
-//   L_j = rho_r + rho_g + rho_b of view j; ref = lower median of L_j;
+//   L_j = rho_r + rho_g + rho_b of view j; ref = lower median of L_j weighted by the views'
+//   used samples (a view that kept one sample, e.g. taps on a shadow edge the visibility
+//   missed, cannot outvote one that kept five);
 //   view j is an outlier when |L_j - ref| > view_tau ref + view_abs (defaults 0.15, 0.02):
 //   a view whose samples are all highlights (the camera near the mirror direction of
 //   every light of its ring) stands out against the other views. ref itself is always kept.
