@@ -327,8 +327,26 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     }
     json gpu_dispatches = json::array();
     const LambertInputs lambert_in = lambert_inputs(capture, particles.particles, visibility);
+    // The per-particle passes (diffuse solve, residual samples) run on the chosen backend;
+    // when one of their buffers would exceed a storage binding of this device (gpu::LimitError:
+    // knot_hd's 2.8 M particles need 134 MB, lavapipe allows 128 MiB), the C++ reference runs
+    // them instead, and the report says so.
+    LambertBackend particle_backend = config.backend;
+    const auto on_backend = [&](const std::string& what, auto&& fn) {
+        if (particle_backend == LambertBackend::Vulkan) {
+            try {
+                return fn(LambertBackend::Vulkan);
+            } catch (const gpu::LimitError& e) {
+                particle_backend = LambertBackend::Cpu;
+                const std::string why = std::string(e.what()) + ": the C++ reference ran instead";
+                result.left_out.push_back({"Vulkan " + what + " and the later per-particle passes", why});
+                log::warn("Vulkan " + what + ": " + why);
+            }
+        }
+        return fn(LambertBackend::Cpu);
+    };
     LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
-        return lambert_solve(lambert_in, lambert, config.backend, ctx.get());
+        return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lambert, b, ctx.get()); });
     });
     log::info(describe(solve.summary, lambert.mode));
     {
@@ -364,7 +382,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         const ResidualOptions residual_options{.min_light_cos = lambert.min_light_cos, .max_binding_bytes = 0,
                                                .max_albedo_spread = 0.02f};
         ResidualSamples rs = run_stage(result, "residual samples", [&] {
-            return residual_samples(lambert_in, solve, residual_options, config.backend, ctx.get());
+            return on_backend("residual samples",
+                              [&](LambertBackend b) { return residual_samples(lambert_in, solve, residual_options, b, ctx.get()); });
         });
         if (rs.gpu_ms) gpu_dispatches.push_back({{"stage", "residual samples"}, {"dispatch", "residuals (" + std::to_string(rs.chunks) + " dispatches)"}, {"ms", *rs.gpu_ms}});
         const ResidualEnergy energy =
@@ -378,7 +397,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         const std::size_t would_fit = config.max_fit_samples != 0 ? std::min<std::size_t>(all.size(), config.max_fit_samples) : all.size();
         if (decision.skipped) {
             result.left_out.push_back({"specular fit, factorization and specular pass", decision.reason});
-            specular = specular_json(rs, energy, nullptr, 0.0, config.backend, "skipped: no specular energy (--specular auto)");
+            specular = specular_json(rs, energy, nullptr, 0.0, particle_backend, "skipped: no specular energy (--specular auto)");
             if (config.cost_probes && all.size() >= 100) {
                 constexpr std::size_t kProbe = 4000;
                 std::optional<double> probe;
@@ -429,9 +448,13 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                 const std::string tag = " (joint round " + std::to_string(round) + ")";
                 LambertOptions lo = lambert;
                 lo.lobe = previous;
-                solve = run_stage(result, "diffuse solve" + tag, [&] { return lambert_solve(lambert_in, lo, config.backend, ctx.get()); });
+                solve = run_stage(result, "diffuse solve" + tag, [&] {
+                    return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lo, b, ctx.get()); });
+                });
                 rs = run_stage(result, "residual samples" + tag, [&] {
-                    return residual_samples(lambert_in, solve, residual_options, config.backend, ctx.get());
+                    return on_backend("residual samples", [&](LambertBackend b) {
+                        return residual_samples(lambert_in, solve, residual_options, b, ctx.get());
+                    });
                 });
                 for (const auto& [label, ms] : solve.summary.gpu_dispatch_ms)
                     gpu_dispatches.push_back({{"stage", "diffuse solve" + tag}, {"dispatch", label}, {"ms", ms}});
@@ -461,7 +484,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                 log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(fit.channel[k].cx) + " Cz " +
                           std::to_string(fit.channel[k].cz) + " N " + std::to_string(fit.channel[k].n) + " (" +
                           to_string(fit.channel[k].status) + ")");
-            specular = specular_json(rs, energy, &fit, fit_seconds, config.backend,
+            specular = specular_json(rs, energy, &fit, fit_seconds, particle_backend,
                                      config.specular == SpecularMode::On ? "fitted (--specular on)"
                                                                          : "fitted: residuals above the noise (--specular auto)");
             specular["samples"]["fitted"] = fit_samples; // stride subsample (max_fit_samples)
@@ -650,7 +673,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         {"atlas", atlas_json(atlas.summary, config.atlas)},
         {"particles", {{"count", particles.particles.size()}, {"interior", particles.interior}, {"gutter", particles.gutter}}},
         {"visibility", visibility_json(visibility.stats)},
-        {"diffuse", lambert_json(solve, lambert, config.backend)},
+        {"diffuse", lambert_json(solve, lambert, particle_backend)},
         {"specular", specular},
         {"factorization", factorization_report},
         {"bundle", {{"file", "object.glb"}, {"has_lobe", bundle.lobe.has_value()}, {"has_cubemaps", bundle.cube_g.has_value()}}},
