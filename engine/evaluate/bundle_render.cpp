@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 #include <utility>
 
 namespace specula::evaluate {
@@ -57,6 +59,40 @@ render::Frame BundleRenderer::render(const Camera& camera, const PointLight& lig
                     ": the bundle has no factorization cube-maps (SPECULA_lafortune cube_g / cube_h): "
                     "render with --specular analytic, or reconstruct with the factorization");
     return m_renderer.render(camera, light, settings);
+}
+
+std::vector<double> parse_numbers(const std::string& text, const std::string& option, std::initializer_list<std::size_t> counts,
+                                  const std::string& form) {
+    std::vector<double> v;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        try {
+            std::size_t used = 0;
+            const double d = std::stod(item, &used);
+            if (used != item.size() || !std::isfinite(d)) throw std::invalid_argument(item);
+            v.push_back(d);
+        } catch (const std::exception&) {
+            throw UsageError(option + ": '" + item + "' is not a number (expected " + form + ")");
+        }
+    }
+    for (const std::size_t c : counts)
+        if (v.size() == c) return v;
+    throw UsageError(option + ": expected " + form + ", got " + std::to_string(v.size()) + " values");
+}
+
+Camera parse_free_camera(const std::string& text, int width, int height, std::optional<double> fov_y_degrees,
+                         std::optional<double> focal_px) {
+    const auto c = parse_numbers(text, "--camera", {9}, "eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z");
+    return free_camera({c[0], c[1], c[2]}, {c[3], c[4], c[5]}, {c[6], c[7], c[8]}, width, height, fov_y_degrees, focal_px);
+}
+
+PointLight parse_light(const std::string& text) {
+    const auto l = parse_numbers(text, "--light", {4, 6}, "x,y,z,intensity or x,y,z,r,g,b");
+    PointLight light;
+    light.position = {l[0], l[1], l[2]};
+    light.intensity = l.size() == 4 ? glm::dvec3(l[3]) : glm::dvec3(l[3], l[4], l[5]);
+    return light;
 }
 
 Camera free_camera(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up, int width, int height,

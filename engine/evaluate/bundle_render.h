@@ -14,7 +14,10 @@
 #include "render/renderer.h"
 
 #include <filesystem>
+#include <initializer_list>
 #include <optional>
+#include <string>
+#include <vector>
 #include <string>
 #include <string_view>
 
@@ -49,6 +52,19 @@ void require_specular_model(const Bundle& bundle, render::SpecularModel model, s
 /// or a focal length in pixels (exactly one). Throws UsageError on degenerate input.
 [[nodiscard]] Camera free_camera(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up, int width,
                                  int height, std::optional<double> fov_y_degrees, std::optional<double> focal_px);
+
+/// Comma-separated numbers of a command-line option ("1,2,3"): exactly one of `counts`
+/// values, each finite. Throws UsageError naming `option` and the expected `form`.
+[[nodiscard]] std::vector<double> parse_numbers(const std::string& text, const std::string& option,
+                                                std::initializer_list<std::size_t> counts, const std::string& form);
+
+/// A free camera from "--camera eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z"
+/// (free_camera's rules for the size and the field of view or focal length).
+[[nodiscard]] Camera parse_free_camera(const std::string& text, int width, int height, std::optional<double> fov_y_degrees,
+                                       std::optional<double> focal_px);
+
+/// A point light from "--light x,y,z,intensity" or "x,y,z,r,g,b".
+[[nodiscard]] PointLight parse_light(const std::string& text);
 
 /// Writes a render by the path's extension: .exr linear 32-bit float; .png sRGB 8-bit
 /// (clamped to [0, 1]). Throws UsageError for another extension.

@@ -38,26 +38,6 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Options
 
-std::vector<double> parse_numbers(const std::string& text, const std::string& option, std::initializer_list<std::size_t> counts,
-                                  const std::string& form) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        try {
-            std::size_t used = 0;
-            const double d = std::stod(item, &used);
-            if (used != item.size() || !std::isfinite(d)) throw std::invalid_argument(item);
-            v.push_back(d);
-        } catch (const std::exception&) {
-            throw UsageError(option + ": '" + item + "' is not a number (expected " + form + ")");
-        }
-    }
-    for (const std::size_t c : counts)
-        if (v.size() == c) return v;
-    throw UsageError(option + ": expected " + form + ", got " + std::to_string(v.size()) + " values");
-}
-
 std::pair<int, int> parse_size(const std::string& text) {
     const auto x = text.find('x');
     try {
@@ -134,17 +114,15 @@ Start resolve_start(const ViewerConfig& c, const Bundle& bundle) {
     const double r = std::max(static_cast<double>(b.radius()), 1e-6);
     const double distance = 1.15 * r / std::sin(0.5 * glm::radians(fov));
     if (!c.camera.empty()) {
-        const auto v = parse_numbers(c.camera, "--camera", {9}, "eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z");
-        s.camera = evaluate::free_camera({v[0], v[1], v[2]}, {v[3], v[4], v[5]}, {v[6], v[7], v[8]}, w, h, fov, std::nullopt);
+        const auto v = evaluate::parse_numbers(c.camera, "--camera", {9}, "eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z");
+        s.camera = evaluate::parse_free_camera(c.camera, w, h, fov, std::nullopt);
         s.up = glm::normalize(glm::dvec3(v[6], v[7], v[8]));
     } else {
         s.camera = evaluate::free_camera(center + distance * glm::normalize(glm::dvec3(0.0, 0.35, 1.0)), center,
                                          {0.0, 1.0, 0.0}, w, h, fov, std::nullopt);
     }
     if (!c.light.empty()) {
-        const auto l = parse_numbers(c.light, "--light", {4, 6}, "x,y,z,intensity or x,y,z,r,g,b");
-        s.light.position = {l[0], l[1], l[2]};
-        s.light.intensity = l.size() == 4 ? glm::dvec3(l[3]) : glm::dvec3(l[3], l[4], l[5]);
+        s.light = evaluate::parse_light(c.light);
     } else {
         // Above, right of and behind the camera; rho/pi * I/d^2 = 0.8 rho on a surface facing it.
         const glm::dvec3 eye = s.camera.center();

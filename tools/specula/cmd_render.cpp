@@ -36,26 +36,6 @@ struct RenderArgs {
     std::string device;
 };
 
-std::vector<double> parse_numbers(const std::string& text, const std::string& option, std::initializer_list<std::size_t> counts,
-                                  const std::string& form) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        try {
-            std::size_t used = 0;
-            const double d = std::stod(item, &used);
-            if (used != item.size() || !std::isfinite(d)) throw std::invalid_argument(item);
-            v.push_back(d);
-        } catch (const std::exception&) {
-            throw UsageError(option + ": '" + item + "' is not a number (expected " + form + ")");
-        }
-    }
-    for (const std::size_t c : counts)
-        if (v.size() == c) return v;
-    throw UsageError(option + ": expected " + form + ", got " + std::to_string(v.size()) + " values");
-}
-
 render::Mode parse_mode(const std::string& m) {
     return m == "diffuse" ? render::Mode::Diffuse : m == "specular" ? render::Mode::Specular : render::Mode::Both;
 }
@@ -85,8 +65,6 @@ void run_render(const RenderArgs& a) {
         what = "frame " + std::to_string(*a.frame) + " (" + f.file_path.generic_string() + ")";
     } else {
         if (a.camera.empty() || a.light.empty()) throw UsageError("a free pose needs both --camera and --light");
-        const auto c = parse_numbers(a.camera, "--camera", {9}, "eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z");
-        const auto l = parse_numbers(a.light, "--light", {4, 6}, "x,y,z,intensity or x,y,z,r,g,b");
         int w = 0, h = 0;
         const auto x = a.size.find('x');
         try {
@@ -97,9 +75,8 @@ void run_render(const RenderArgs& a) {
         }
         std::optional<double> fov = a.fov;
         if (!fov && !a.fl) fov = 40.0;
-        camera = evaluate::free_camera({c[0], c[1], c[2]}, {c[3], c[4], c[5]}, {c[6], c[7], c[8]}, w, h, fov, a.fl);
-        light.position = {l[0], l[1], l[2]};
-        light.intensity = l.size() == 4 ? glm::dvec3(l[3]) : glm::dvec3(l[3], l[4], l[5]);
+        camera = evaluate::parse_free_camera(a.camera, w, h, fov, a.fl);
+        light = evaluate::parse_light(a.light);
         what = "a free pose";
     }
     const Bundle bundle = read_bundle(a.bundle);
