@@ -1,6 +1,7 @@
 // Writes a bundle of a synth preset built from its truth, for `specula-view --bench`
-// on presets that `specula reconstruct` cannot yet handle (knot_hd: its Lambert
-// solve exceeds one storage binding). Run by hand, not a ctest:
+// without a full reconstruction (knot_hd takes minutes: its 2.8 M particles exceed one
+// storage binding on lavapipe, so the per-particle passes run on the CPU reference).
+// Run by hand, not a ctest:
 //   build/tests/view/view_bench_bundle knot_hd /tmp/knot_hd.glb
 // The atlas is a real one (build_atlas, default budget) filled with the true albedo,
 // as tests/render/render_bench builds it, so the renderer's load (mesh split at
