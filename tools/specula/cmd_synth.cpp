@@ -122,7 +122,7 @@ void add_synth_command(CLI::App& app) {
     sub->add_option("--export-preset", args->export_preset, "Write only NAME's mesh.glb and albedo texture into --out");
     sub->add_option("--size", args->options.size, "Image width and height in pixels")->capture_default_str();
     sub->add_option("--views", args->options.views, "Train views around the object")->capture_default_str();
-    sub->add_option("--lights", args->options.lights, "Lights per train view, on a ring around the camera")->capture_default_str();
+    sub->add_option("--lights", args->options.lights, "Lights per train view, around the camera (see --light-angles)")->capture_default_str();
     sub->add_option("--light-angles", args->options.light_angles_deg,
                     "Train lights' angles off the camera direction seen from the object, degrees (cycled over the "
                     "lights; wide angles see grazing highlights)")
