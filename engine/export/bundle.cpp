@@ -31,7 +31,10 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kExtension = "SPECULA_lafortune";
-constexpr int kExtensionVersion = 1;
+// Version 1: one factorization term (cubeG, cubeH). Version 2 adds cubeTerms (terms 2..K);
+// a bundle is written as version 1 when it has one term, so older readers still load it.
+constexpr int kExtensionVersion = 2;
+constexpr std::size_t kMaxExtraTerms = 3; // K <= 4 (render::kMaxFactorTerms)
 
 constexpr std::uint32_t kGlbMagic = 0x46546C67u;  // "glTF"
 constexpr std::uint32_t kChunkJson = 0x4E4F534Au; // "JSON"
@@ -284,7 +287,9 @@ glm::vec3 read_vec3(const Document& d, const json& obj, const char* key, const s
 
 BundleCubeMap read_cube(const Document& d, const json& ext, const char* key, const std::string& ext_field) {
     const std::string field = ext_field + "." + key;
+    if (!ext.contains(key)) throw InputError(d.file, field, "missing: G and H go together");
     const json& c = ext[key];
+    if (!c.is_object()) throw InputError(d.file, field, "not an object");
     BundleCubeMap cube;
     const std::size_t r = get_index(d, c, "resolution", field);
     if (r == 0 || r > 65536) throw InputError(d.file, field + ".resolution", "out of range");
@@ -422,6 +427,16 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
             throw InputError(path, cube == &bundle.cube_g ? "cube_g" : "cube_h", "size is not 6 * resolution^2 * 3");
     if (bundle.cube_g.has_value() != bundle.cube_h.has_value())
         throw InputError(path, "cube_g", "the factorization needs both cube-maps (G and H)");
+    if (!bundle.extra_terms.empty() && !bundle.cube_g)
+        throw InputError(path, "extra_terms", "further factorization terms need term 1 (cube_g, cube_h)");
+    if (bundle.extra_terms.size() > kMaxExtraTerms)
+        throw InputError(path, "extra_terms", std::to_string(bundle.extra_terms.size()) + " further terms (at most " +
+                                                  std::to_string(kMaxExtraTerms) + ")");
+    for (std::size_t k = 0; k < bundle.extra_terms.size(); ++k)
+        for (const BundleCubeMap* cube : {&bundle.extra_terms[k].g, &bundle.extra_terms[k].h})
+            if (cube->resolution == 0 || cube->rgb.size() != 6ull * cube->resolution * cube->resolution * 3)
+                throw InputError(path, "extra_terms[" + std::to_string(k) + "]." + (cube == &bundle.extra_terms[k].g ? "g" : "h"),
+                                 "size is not 6 * resolution^2 * 3");
 
     // Unit normals (glTF 3.7.2.1), as write_mesh_glb writes them.
     const std::vector<glm::vec3> normals = gltf_unit_normals(mesh);
@@ -468,7 +483,7 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     const std::vector<unsigned char> png = encode_srgb_png(albedo, path);
     const std::size_t png_view = add_view(png.data(), png.size(), 0);
 
-    json ext = {{"version", kExtensionVersion}};
+    json ext = {{"version", bundle.extra_terms.empty() ? 1 : kExtensionVersion}};
     if (bundle.lobe) {
         ext["lobe"] = {{"cx", vec3_json(bundle.lobe->cx)}, {"cz", vec3_json(bundle.lobe->cz)},
                        {"n", vec3_json(bundle.lobe->n)}, {"status", bundle.lobe_status}};
@@ -480,6 +495,15 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
                         {"resolution", bundle.cube_g->resolution}};
         ext["cubeH"] = {{"bufferView", add_view(bundle.cube_h->rgb.data(), bundle.cube_h->rgb.size() * sizeof(float), 0)},
                         {"resolution", bundle.cube_h->resolution}};
+    }
+    if (!bundle.extra_terms.empty()) {
+        json terms = json::array();
+        for (const BundleFactorTerm& t : bundle.extra_terms)
+            terms.push_back({{"cubeG", {{"bufferView", add_view(t.g.rgb.data(), t.g.rgb.size() * sizeof(float), 0)},
+                                        {"resolution", t.g.resolution}}},
+                             {"cubeH", {{"bufferView", add_view(t.h.rgb.data(), t.h.rgb.size() * sizeof(float), 0)},
+                                        {"resolution", t.h.resolution}}}});
+        ext["cubeTerms"] = std::move(terms);
     }
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
@@ -565,8 +589,9 @@ Bundle read_bundle(const fs::path& path) {
     }
 
     if (!ext->is_object()) throw InputError(path, ext_field, "not an object");
-    if (ext->value("version", 0) != kExtensionVersion)
-        throw InputError(path, ext_field + ".version", "unsupported version (this reader knows " +
+    const json version = ext->value("version", json());
+    if (!version.is_number_integer() || version.get<int>() < 1 || version.get<int>() > kExtensionVersion)
+        throw InputError(path, ext_field + ".version", "unsupported version (this reader knows 1 to " +
                                                            std::to_string(kExtensionVersion) + ")");
 
     // The mesh: one mesh, one triangle primitive, no node transform (docs/SPECULA_lafortune.md).
@@ -649,6 +674,19 @@ Bundle read_bundle(const fs::path& path) {
     if (ext->contains("cubeG")) {
         b.cube_g = read_cube(d, *ext, "cubeG", ext_field);
         b.cube_h = read_cube(d, *ext, "cubeH", ext_field);
+    }
+    if (ext->contains("cubeTerms")) { // terms 2..K, version 2
+        const std::string tf = ext_field + ".cubeTerms";
+        const json& terms = (*ext)["cubeTerms"];
+        if (version.get<int>() < 2) throw InputError(path, tf, "present in a version 1 extension (needs version 2)");
+        if (!ext->contains("cubeG")) throw InputError(path, tf, "further terms without term 1 (cubeG, cubeH)");
+        if (!terms.is_array() || terms.empty() || terms.size() > kMaxExtraTerms)
+            throw InputError(path, tf, "not an array of 1 to " + std::to_string(kMaxExtraTerms) + " terms");
+        for (std::size_t k = 0; k < terms.size(); ++k) {
+            const std::string kf = tf + "[" + std::to_string(k) + "]";
+            if (!terms[k].is_object()) throw InputError(path, kf, "not an object");
+            b.extra_terms.push_back({read_cube(d, terms[k], "cubeG", kf), read_cube(d, terms[k], "cubeH", kf)});
+        }
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) throw InputError(path, ext_field + ".info", "not an object");

@@ -30,6 +30,12 @@ struct BundleCubeMap {
     std::vector<float> rgb;
 };
 
+/// One further term G_k(h) H_k(d) of a multi-term factorization (k >= 2).
+struct BundleFactorTerm {
+    BundleCubeMap g;
+    BundleCubeMap h;
+};
+
 struct Bundle {
     /// World-space mesh. Every vertex has exactly one atlas coordinate (texcoords),
     /// so triangles that share a position but not a patch have their own vertices.
@@ -39,6 +45,9 @@ struct Bundle {
     std::vector<std::string> lobe_status;  ///< per channel, as the fit reported it (may be empty)
     std::optional<BundleCubeMap> cube_g;   ///< factorization G(h), when computed
     std::optional<BundleCubeMap> cube_h;   ///< factorization H(d)
+    /// Terms 2..K of the factorization f ~ max(0, sum_k G_k H_k) (K - 1 entries, at most 3;
+    /// needs cube_g / cube_h, which are term 1). Empty: the thesis's single term.
+    std::vector<BundleFactorTerm> extra_terms;
     nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.

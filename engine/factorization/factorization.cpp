@@ -4,7 +4,9 @@
 #include "core/error.h"
 #include "core/timer.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -19,6 +21,83 @@ std::optional<double> FactorizationTimings::gpu_total_ns() const {
         return std::nullopt;
     return *matrix_gpu_ns + *decomposition_g_gpu_ns + *decomposition_h_gpu_ns + *cube_g_gpu_ns + *cube_h_gpu_ns;
 }
+
+namespace {
+
+/// K_max of the run: the forced K, or max_terms; 1 when the lobe is too high for the
+/// residual kernels' float sums (note says so).
+uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, std::string& note) {
+    if (o.terms > kMaxTerms)
+        throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxTerms) + " (got " +
+                    std::to_string(o.terms) + ")");
+    if (o.max_terms < 1 || o.max_terms > kMaxTerms)
+        throw Error("factorize: max_terms must be in [1, " + std::to_string(kMaxTerms) + "]");
+    if (!(o.term_target >= 0.0)) throw Error("factorize: term_target must be >= 0");
+    const uint32_t k = o.terms != 0 ? o.terms : o.max_terms;
+    if (k == 1) return 1;
+    double height = 0.0;
+    for (int c = 0; c < 3; ++c)
+        height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
+                                                    std::abs(static_cast<double>(lobe.cz[c]))),
+                                           static_cast<double>(lobe.n[c])));
+    if (!(height <= kResidualMaxValue)) {
+        note = "the lobe's height max(|Cx|, |Cz|)^N exceeds " + std::to_string(kResidualMaxValue) +
+               " (float sums of the residual kernels could overflow): one term only";
+        return 1;
+    }
+    return k;
+}
+
+std::string percent(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f%%", 100.0 * x);
+    return buf;
+}
+
+/// Matrix errors of the first k terms for every k, then K by the rule of FactorizationOptions::terms.
+/// m may be null only when there is one term (the Vulkan path without keep_matrix): no errors then.
+TermChoice choose_terms(const BrdfMatrix* m, const Decomposition& first, const std::vector<Decomposition>& rest,
+                        const FactorizationOptions& o, const std::string& note) {
+    TermChoice t;
+    t.target = o.term_target;
+    t.forced = o.terms != 0;
+    if (m == nullptr) {
+        t.count = 1;
+        t.reason = (t.forced ? std::string("forced K = 1") : "max_terms = 1") + (note.empty() ? "" : "; " + note);
+        if (!t.forced && !note.empty()) t.reason = "automatic: " + note;
+        return t;
+    }
+    std::vector<const Decomposition*> terms{&first};
+    t.matrix_rms.push_back(matrix_relative_rms(*m, terms));
+    for (const Decomposition& d : rest) {
+        terms.push_back(&d);
+        t.matrix_rms.push_back(matrix_relative_rms(*m, terms));
+    }
+    std::string errors;
+    for (std::size_t k = 0; k < t.matrix_rms.size(); ++k)
+        errors += std::string(k ? ", " : "") + "K=" + std::to_string(k + 1) + " " + percent(t.matrix_rms[k]);
+    if (t.forced) {
+        t.count = static_cast<uint32_t>(t.matrix_rms.size());
+        t.reason = "forced K = " + std::to_string(o.terms) + (note.empty() ? "" : "; " + note) +
+                   " (matrix relative RMS " + errors + ")";
+        return t;
+    }
+    const auto hit = std::find_if(t.matrix_rms.begin(), t.matrix_rms.end(), [&](double e) { return e <= o.term_target; });
+    if (hit != t.matrix_rms.end()) {
+        t.count = static_cast<uint32_t>(hit - t.matrix_rms.begin()) + 1;
+        t.reason = "automatic: K = " + std::to_string(t.count) + ", the fewest terms whose matrix relative RMS is <= " +
+                   percent(o.term_target) + " (" + errors + ")";
+    } else {
+        t.count = static_cast<uint32_t>(std::min_element(t.matrix_rms.begin(), t.matrix_rms.end()) - t.matrix_rms.begin()) + 1;
+        t.reason = "automatic: the target " + percent(o.term_target) + " is not reached within " +
+                   std::to_string(t.matrix_rms.size()) + " term(s); K = " + std::to_string(t.count) +
+                   " has the least matrix relative RMS (" + errors + ")";
+    }
+    if (!note.empty()) t.reason += "; " + note;
+    return t;
+}
+
+} // namespace
 
 FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& o) {
     FactorizationResolution r = default_resolution(lobe);
@@ -54,12 +133,31 @@ Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions
     f.cube_g = cubemaps_cpu({.grid = f.decomposition.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g});
     f.cube_h = cubemaps_cpu({.grid = f.decomposition.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h});
     f.timings.cubemaps_s = step.seconds();
+    std::string note;
+    const uint32_t kmax = terms_to_compute(lobe, options, note);
+    step.restart();
+    std::vector<Decomposition> rest;
+    if (kmax > 1)
+        rest = residual_terms_cpu({.matrix = &m, .first = &f.decomposition, .terms = kmax, .iterations = options.iterations});
+    f.terms = choose_terms(&m, f.decomposition, rest, options, note);
+    rest.resize(f.terms.count - 1);
+    f.timings.residual_s = step.seconds();
+    step.restart();
+    for (Decomposition& d : rest) {
+        FactorTerm t;
+        t.cube_g = cubemaps_cpu({.grid = d.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g});
+        t.cube_h = cubemaps_cpu({.grid = d.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h});
+        t.grids = std::move(d);
+        f.extra.push_back(std::move(t));
+    }
+    f.timings.cubemaps_s += step.seconds();
     f.timings.total_s = total.seconds();
     if (options.keep_matrix) f.matrix = std::move(m);
     return f;
 }
 
-FactorizeVk::FactorizeVk(gpu::Context& ctx) : m_ctx(&ctx), m_matrix(ctx), m_decomposition(ctx), m_cubemaps(ctx) {}
+FactorizeVk::FactorizeVk(gpu::Context& ctx)
+    : m_ctx(&ctx), m_matrix(ctx), m_decomposition(ctx), m_residual(ctx), m_cubemaps(ctx) {}
 
 Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOptions& options) {
     Factorization f;
@@ -70,32 +168,74 @@ Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOpti
     const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d};
     brdf_matrix_validate(min);
     if (!(options.p >= 1.0f && options.p <= 64.0f)) throw Error("factorize: p must be in [1, 64]");
+    std::string note;
+    const uint32_t kmax = terms_to_compute(lobe, options, note);
+    if (kmax > 1 && (options.iterations < 1 || options.iterations > 1000))
+        throw Error("factorize: iterations must be in [1, 1000]");
     Stopwatch total;
     const std::size_t rows = std::size_t{r.grid_h} * r.grid_h;
     const std::size_t cols = std::size_t{r.grid_d} * r.grid_d;
     const std::size_t texels_g = std::size_t{6} * r.cube_g * r.cube_g;
     const std::size_t texels_h = std::size_t{6} * r.cube_h * r.cube_h;
     gpu::Buffer matrix = gpu::Buffer::of<float>(*m_ctx, 3 * rows * cols, "factorization F");
-    gpu::Buffer g = gpu::Buffer::of<glm::vec3>(*m_ctx, rows, "factorization G grid");
-    gpu::Buffer h = gpu::Buffer::of<glm::vec3>(*m_ctx, cols, "factorization H grid");
+    gpu::Buffer g = gpu::Buffer::of<glm::vec3>(*m_ctx, kmax * rows, "factorization G grids"); // term-major
+    gpu::Buffer h = gpu::Buffer::of<glm::vec3>(*m_ctx, kmax * cols, "factorization H grids");
     gpu::Buffer cube_g = gpu::Buffer::of<glm::vec3>(*m_ctx, texels_g, "factorization G cube-map");
     gpu::Buffer cube_h = gpu::Buffer::of<glm::vec3>(*m_ctx, texels_h, "factorization H cube-map");
 
-    gpu::Sequence seq(*m_ctx, 8);
+    gpu::Sequence seq(*m_ctx, 8 + kMaxTerms);
     m_matrix.record(seq, matrix, min);
     seq.barrier(gpu::Barrier::ComputeToCompute);
     m_decomposition.record(seq, matrix, g, h, r.grid_h, r.grid_d, options.p, options.weighting);
     seq.barrier(gpu::Barrier::ComputeToCompute);
     m_cubemaps.record(seq, g, cube_g, r.grid_h, r.cube_g, "cube_g");
     m_cubemaps.record(seq, h, cube_h, r.grid_d, r.cube_h, "cube_h");
+    // Terms 2..K_max read term 1's G and H and write their own parts of g and h, which the
+    // cube-map dispatches above read: the validator tracks whole buffers, so a barrier first.
+    if (kmax > 1) {
+        seq.barrier(gpu::Barrier::ComputeToCompute);
+        m_residual.record(seq, matrix, g, h, r.grid_h, r.grid_d, kmax, options.iterations);
+    }
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
 
     f.decomposition = Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
                                     .h = h.download<glm::vec3>(cols)};
     f.cube_g = Cubemap{.res = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)};
     f.cube_h = Cubemap{.res = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)};
-    if (options.keep_matrix)
-        f.matrix = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .values = matrix.download<float>(3 * rows * cols)};
+    std::optional<BrdfMatrix> m;
+    if (options.keep_matrix || kmax > 1)
+        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .values = matrix.download<float>(3 * rows * cols)};
+    std::vector<Decomposition> rest;
+    if (kmax > 1) {
+        const std::vector<glm::vec3> ga = g.download<glm::vec3>(kmax * rows);
+        const std::vector<glm::vec3> ha = h.download<glm::vec3>(kmax * cols);
+        for (uint32_t k = 1; k < kmax; ++k)
+            rest.push_back(Decomposition{.res_h = r.grid_h, .res_d = r.grid_d,
+                                         .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
+                                         .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols}});
+    }
+    f.terms = choose_terms(m ? &*m : nullptr, f.decomposition, rest, options, note);
+    rest.resize(f.terms.count - 1);
+    if (!rest.empty()) { // the chosen residual terms' cube-maps, in a second submit
+        std::vector<gpu::Buffer> grids, cubes;
+        gpu::Sequence cubes_seq(*m_ctx, 2);
+        for (const Decomposition& d : rest) {
+            grids.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, rows, "factorization G grid"));
+            grids.back().upload(d.g);
+            grids.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, cols, "factorization H grid"));
+            grids.back().upload(d.h);
+            cubes.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, texels_g, "factorization G cube-map"));
+            cubes.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, texels_h, "factorization H cube-map"));
+            m_cubemaps.record(cubes_seq, grids[grids.size() - 2], cubes[cubes.size() - 2], r.grid_h, r.cube_g, "");
+            m_cubemaps.record(cubes_seq, grids.back(), cubes.back(), r.grid_d, r.cube_h, "");
+        }
+        cubes_seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
+        for (std::size_t k = 0; k < rest.size(); ++k)
+            f.extra.push_back(FactorTerm{.grids = std::move(rest[k]),
+                                         .cube_g = Cubemap{.res = r.cube_g, .texels = cubes[2 * k].download<glm::vec3>(texels_g)},
+                                         .cube_h = Cubemap{.res = r.cube_h, .texels = cubes[2 * k + 1].download<glm::vec3>(texels_h)}});
+    }
+    if (options.keep_matrix) f.matrix = std::move(m);
     f.timings.total_s = total.seconds();
     for (const auto& t : seq.timings()) {
         if (t.label == "brdf_matrix") f.timings.matrix_gpu_ns = t.ns;
@@ -103,6 +243,8 @@ Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOpti
         else if (t.label == "decomposition_h") f.timings.decomposition_h_gpu_ns = t.ns;
         else if (t.label == "cube_g") f.timings.cube_g_gpu_ns = t.ns;
         else if (t.label == "cube_h") f.timings.cube_h_gpu_ns = t.ns;
+        else if (t.label.starts_with("residual_term_") && t.ns)
+            f.timings.residual_gpu_ns = f.timings.residual_gpu_ns.value_or(0.0) + *t.ns;
     }
     return f;
 }
@@ -112,6 +254,32 @@ Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& op
     if (backend == FactorizationBackend::Cpu) return factorize_cpu(lobe, options);
     if (ctx == nullptr) throw Error("factorize: the Vulkan backend needs a gpu::Context");
     return FactorizeVk(*ctx).run(lobe, options);
+}
+
+double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* const> terms) {
+    if (terms.empty()) throw Error("matrix_relative_rms: no terms");
+    for (const Decomposition* d : terms)
+        if (d == nullptr || d->res_h != m.res_h || d->res_d != m.res_d || d->g.size() != m.rows() || d->h.size() != m.cols())
+            throw Error("matrix_relative_rms: resolutions differ");
+    const std::size_t rows = m.rows();
+    const std::size_t cols = m.cols();
+    double err = 0.0;
+    double ref = 0.0;
+    for (uint32_t c = 0; c < 3; ++c) {
+        const int ci = static_cast<int>(c);
+        for (std::size_t row = 0; row < rows; ++row) {
+            const float* f = &m.values[(c * rows + row) * cols];
+            for (std::size_t col = 0; col < cols; ++col) {
+                if (f[col] < 0.0f) continue;
+                double sum = 0.0;
+                for (const Decomposition* d : terms) sum += static_cast<double>(d->g[row][ci]) * d->h[col][ci];
+                const double e = std::max(sum, 0.0) - f[col];
+                err += e * e;
+                ref += static_cast<double>(f[col]) * f[col];
+            }
+        }
+    }
+    return ref > 0.0 ? std::sqrt(err / ref) : 0.0;
 }
 
 double matrix_relative_rms(const BrdfMatrix& m, const Decomposition& dec) {
@@ -165,6 +333,48 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& d
     out.pairs = pairs;
     out.grid = ref > 0.0 ? std::sqrt(err_grid / ref) : 0.0;
     out.cube = !cubes ? std::numeric_limits<double>::quiet_NaN() : ref > 0.0 ? std::sqrt(err_cube / ref) : 0.0;
+    return out;
+}
+
+DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& fac, uint32_t terms, uint32_t pairs,
+                                uint32_t seed) {
+    const uint32_t k_count = terms == 0 ? fac.term_count() : terms;
+    if (k_count > fac.term_count())
+        throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
+                    std::to_string(fac.term_count()));
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    const double two_pi = 6.283185307179586;
+    const auto hemisphere = [&] { // uniform in solid angle: z ~ U(0, 1), same draws as above
+        const double z = uni(rng);
+        const double phi = two_pi * uni(rng);
+        const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
+        return glm::dvec3(s * std::cos(phi), s * std::sin(phi), z);
+    };
+    double err_grid = 0.0, err_cube = 0.0, ref = 0.0;
+    for (uint32_t i = 0; i < pairs; ++i) {
+        const glm::dvec3 u = hemisphere();
+        const glm::dvec3 v = hemisphere();
+        const shared::f64::GshdCoords c = shared::f64::gshd_from_uv(u, v);
+        glm::dvec3 gg(0.0), gc(0.0);
+        for (uint32_t k = 0; k < k_count; ++k) {
+            const Decomposition& d = fac.grids(k);
+            gg += grid_sample(d.g, d.res_h, c.h) * grid_sample(d.h, d.res_d, c.d);
+            gc += cubemap_sample(fac.g_cube(k), c.h) * cubemap_sample(fac.h_cube(k), c.d);
+        }
+        gg = glm::max(gg, glm::dvec3(0.0));
+        gc = glm::max(gc, glm::dvec3(0.0));
+        for (int k = 0; k < 3; ++k) {
+            const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
+            ref += f * f;
+            err_grid += (gg[k] - f) * (gg[k] - f);
+            err_cube += (gc[k] - f) * (gc[k] - f);
+        }
+    }
+    DirectError out;
+    out.pairs = pairs;
+    out.grid = ref > 0.0 ? std::sqrt(err_grid / ref) : 0.0;
+    out.cube = ref > 0.0 ? std::sqrt(err_cube / ref) : 0.0;
     return out;
 }
 

@@ -8,17 +8,23 @@
 ///   auto f = factorize(lobe, {}, FactorizationBackend::Vulkan, &ctx);
 ///   f.cube_g.texels, f.cube_h.texels   // 6 x res x res rgb, Vulkan face order
 ///   f.resolution.reason                // why these resolutions
+///   f.terms.count, f.terms.reason      // K, and why (issue 5: sum of K separable terms)
+///   f.extra[k - 2].cube_g              // terms 2..K (residual_term.h)
 ///
-/// A renderer evaluates f_s(u, v) ~ G(h) H(d) with (h, d) = gshd_from_uv(u, v).
+/// A renderer evaluates f_s(u, v) ~ max(0, sum_k G_k(h) H_k(d)) with (h, d) = gshd_from_uv(u, v);
+/// K = 1 is the thesis's single term.
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
 #include "factorization/lobe.h"
 #include "factorization/normalized_decomposition.h"
+#include "factorization/residual_term.h"
 #include "factorization/resolution.h"
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
+#include <vector>
 
 namespace specula::factorization {
 
@@ -34,6 +40,12 @@ struct FactorizationOptions {
     float p = 2.0f;           ///< exponent of the normalized decomposition (normalized_decomposition.h)
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
     bool keep_matrix = false; ///< return F too (error measurement)
+    /// Number of separable terms K: 0 = automatic (the smallest K <= max_terms whose matrix
+    /// relative RMS is <= term_target, else the K of least error), 1 = the thesis, 2..kMaxTerms forced.
+    uint32_t terms = 0;
+    uint32_t max_terms = kMaxTerms;
+    double term_target = kDefaultTermTarget;
+    uint32_t iterations = kResidualIterations; ///< ALS iterations per residual term
 };
 
 /// Wall-clock seconds per step (host side, including the submit and wait on Vulkan) and,
@@ -42,22 +54,47 @@ struct FactorizationTimings {
     double matrix_s = 0.0;
     double decomposition_s = 0.0;
     double cubemaps_s = 0.0;
+    double residual_s = 0.0; ///< terms 2..K (CPU path; on Vulkan inside total_s)
     double total_s = 0.0;
     std::optional<double> matrix_gpu_ns;
     std::optional<double> decomposition_g_gpu_ns;
     std::optional<double> decomposition_h_gpu_ns;
     std::optional<double> cube_g_gpu_ns;
     std::optional<double> cube_h_gpu_ns;
+    std::optional<double> residual_gpu_ns; ///< all residual terms computed (nullopt for K_max = 1)
     [[nodiscard]] std::optional<double> gpu_total_ns() const;
+};
+
+/// Terms 2..K: grids and cube-maps (same resolutions as term 1).
+struct FactorTerm {
+    Decomposition grids;
+    Cubemap cube_g;
+    Cubemap cube_h;
+};
+
+/// How K was chosen. matrix_rms[k - 1]: matrix relative RMS of the first k terms (clamped sum),
+/// for every k computed (up to max_terms when automatic, K when forced).
+struct TermChoice {
+    uint32_t count = 1;
+    std::vector<double> matrix_rms;
+    double target = kDefaultTermTarget;
+    bool forced = false;
+    std::string reason;
 };
 
 struct Factorization {
     FactorizationResolution resolution;
+    TermChoice terms;
     float p = 2.0f;
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
-    Decomposition decomposition; // G on the h grid, H on the d grid
+    Decomposition decomposition; // term 1: G on the h grid, H on the d grid
     Cubemap cube_g;
     Cubemap cube_h;
+    std::vector<FactorTerm> extra; // terms 2..K (empty for K = 1)
+    [[nodiscard]] uint32_t term_count() const noexcept { return 1 + static_cast<uint32_t>(extra.size()); }
+    [[nodiscard]] const Decomposition& grids(uint32_t k) const { return k == 0 ? decomposition : extra.at(k - 1).grids; }
+    [[nodiscard]] const Cubemap& g_cube(uint32_t k) const { return k == 0 ? cube_g : extra.at(k - 1).cube_g; }
+    [[nodiscard]] const Cubemap& h_cube(uint32_t k) const { return k == 0 ? cube_h : extra.at(k - 1).cube_h; }
     std::optional<BrdfMatrix> matrix; // with keep_matrix
     FactorizationTimings timings;
 };
@@ -79,6 +116,7 @@ private:
     gpu::Context* m_ctx;
     BrdfMatrixVk m_matrix;
     NormalizedDecompositionVk m_decomposition;
+    ResidualTermsVk m_residual;
     CubemapsVk m_cubemaps;
 };
 
@@ -90,6 +128,8 @@ private:
 
 /// sqrt(sum (G H - F)^2 / sum F^2) over the valid entries of F, all channels (in double).
 [[nodiscard]] double matrix_relative_rms(const BrdfMatrix& matrix, const Decomposition& decomposition);
+/// The same for max(0, sum_k G_k H_k) over the given terms (all on F's grids).
+[[nodiscard]] double matrix_relative_rms(const BrdfMatrix& matrix, std::span<const Decomposition* const> terms);
 
 struct DirectError {
     double grid = 0.0; ///< G, H interpolated bilinearly from the grids
@@ -102,5 +142,8 @@ struct DirectError {
 [[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& decomposition,
                                               const Cubemap* cube_g, const Cubemap* cube_h, uint32_t pairs = 1u << 18,
                                               uint32_t seed = 1);
+/// The same for max(0, sum_k G_k H_k) over the first `terms` terms of f (0 = all of them).
+[[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f, uint32_t terms = 0,
+                                              uint32_t pairs = 1u << 18, uint32_t seed = 1);
 
 } // namespace specula::factorization

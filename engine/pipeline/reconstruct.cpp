@@ -554,9 +554,17 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             }
             set_factorization_cost(grid, seconds, what);
         }
-        const factorization::DirectError err =
-            factorization::direct_relative_rms(*lobe, cubes->decomposition, &cubes->cube_g, &cubes->cube_h, 1u << 16);
+        // Error of the first k terms for k = 1..K (the last one is what the bundle renders).
+        json per_term = json::array();
+        factorization::DirectError err;
+        for (uint32_t k = 1; k <= cubes->term_count(); ++k) {
+            err = factorization::direct_relative_rms(*lobe, *cubes, k, 1u << 16);
+            json t = {{"terms", k}, {"relative_rms_vs_lobe_grid", err.grid}, {"relative_rms_vs_lobe_cubemaps", err.cube}};
+            if (k <= cubes->terms.matrix_rms.size()) t["matrix_relative_rms"] = cubes->terms.matrix_rms[k - 1];
+            per_term.push_back(std::move(t));
+        }
         grid.detail["relative_rms_vs_lobe_cubemaps"] = std::isfinite(err.cube) ? json(err.cube) : json(nullptr);
+        grid.detail["terms"] = cubes->term_count();
         factorization_report = {{"grid_h", cubes->resolution.grid_h},
                                 {"grid_d", cubes->resolution.grid_d},
                                 {"cube_g", cubes->resolution.cube_g},
@@ -564,6 +572,10 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                 {"resolution_reason", grid.reason},
                                 {"relative_rms_vs_lobe_grid", err.grid},
                                 {"relative_rms_vs_lobe_cubemaps", err.cube},
+                                {"terms", cubes->term_count()},
+                                {"terms_reason", cubes->terms.reason},
+                                {"terms_target", cubes->terms.target},
+                                {"per_term", std::move(per_term)},
                                 {"seconds", cubes->timings.total_s}};
         if (const auto ns = cubes->timings.gpu_total_ns()) factorization_report["gpu_ms"] = *ns * 1e-6;
         const auto add_gpu = [&](const char* label, const std::optional<double>& ns) {
@@ -574,6 +586,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         add_gpu("decomposition H", cubes->timings.decomposition_h_gpu_ns);
         add_gpu("cube-map G", cubes->timings.cube_g_gpu_ns);
         add_gpu("cube-map H", cubes->timings.cube_h_gpu_ns);
+        add_gpu("residual terms", cubes->timings.residual_gpu_ns);
     } else {
         plan.add(PlanDecision{.name = "factorization_grid",
                               .value = "none",
@@ -599,6 +612,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             };
             b.cube_g = to_cube(cubes->cube_g);
             b.cube_h = to_cube(cubes->cube_h);
+            for (const factorization::FactorTerm& t : cubes->extra)
+                b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
         }
         b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(config.out_dir / "object.glb", b);

@@ -22,15 +22,19 @@ namespace {
 
 // Set 0 of every raster pipeline: the per-frame parameters, the vertices, then the
 // textures the pass samples (shaders/render/*.{vert,frag}).
-constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingCubeG = 3, kBindingCubeH = 4;
+// Factorized passes: term k's G at kBindingCubeG + k, its H at kBindingCubeH + k
+// (shaders/render/factor_terms.glsl); unused bindings hold term 1's cube-maps.
+constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingCubeG = 3,
+                   kBindingCubeH = kBindingCubeG + kMaxFactorTerms;
+constexpr uint32_t kFactorizedBindings = kBindingCubeH + kMaxFactorTerms;
 
 std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count) {
     const gpu::DescriptorBinding params{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT};
     const gpu::DescriptorBinding vertices{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT};
     const gpu::DescriptorBinding texture{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_SHADER_STAGE_FRAGMENT_BIT};
-    std::vector<gpu::DescriptorBinding> all{params, vertices, texture, texture, texture};
-    all.resize(count);
+    std::vector<gpu::DescriptorBinding> all{params, vertices};
+    all.resize(count, texture);
     return all;
 }
 
@@ -120,7 +124,7 @@ struct Renderer::Impl {
     gpu::Buffer params;
     gpu::Buffer vertices;
     gpu::Image albedo;
-    std::optional<gpu::Image> cube_g, cube_h;
+    std::vector<gpu::Image> cubes_g, cubes_h; // one per term (empty before set_factorization)
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
@@ -151,9 +155,9 @@ struct Renderer::Impl {
           target(std::make_unique<gpu::RenderTarget>(c, 1, 1, "render target")),
           diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, 3, false)),
           specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, 3, true)),
-          specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, 5, true)),
+          specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, kFactorizedBindings, true)),
           both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, 3, false)),
-          both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, 5, false)),
+          both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, kFactorizedBindings, false)),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
           both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized),
           sequence(c, 8) {
@@ -229,7 +233,7 @@ struct Renderer::Impl {
             info.specular_note = "mode diffuse";
         } else if (lobe.is_zero()) {
             info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
-        } else if (settings.specular == SpecularModel::Factorized && !cube_g) {
+        } else if (settings.specular == SpecularModel::Factorized && cubes_g.empty()) {
             throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
         } else {
             info.specular_pass = true;
@@ -245,7 +249,7 @@ struct Renderer::Impl {
         p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
         p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
         p.lobe_n = glm::vec4(lobe.n, 0.0f);
-        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, 0u, 0u);
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), 0u, 0u);
         params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
         return info;
     }
@@ -288,19 +292,34 @@ const Lobe& Renderer::lobe() const noexcept { return m_impl->lobe; }
 std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
 bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
 VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
-bool Renderer::has_factorization() const noexcept { return m_impl->cube_g.has_value(); }
+bool Renderer::has_factorization() const noexcept { return !m_impl->cubes_g.empty(); }
+uint32_t Renderer::factorization_terms() const noexcept { return static_cast<uint32_t>(m_impl->cubes_g.size()); }
 
 void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
+    const FactorTermCubes one{g, h};
+    set_factorization(std::span<const FactorTermCubes>(&one, 1));
+}
+
+void Renderer::set_factorization(std::span<const FactorTermCubes> terms) {
+    if (terms.empty() || terms.size() > kMaxFactorTerms)
+        throw Error("renderer: the factorized model takes 1 to " + std::to_string(kMaxFactorTerms) + " terms (got " +
+                    std::to_string(terms.size()) + ")");
     Impl& m = *m_impl;
-    // Nothing is in flight between frames (render() waits), so the set can be rewritten.
-    m.cube_g.reset();
-    m.cube_h.reset();
-    m.cube_g.emplace(upload_cube(*m.ctx, g, "G cube-map"));
-    m.cube_h.emplace(upload_cube(*m.ctx, h, "H cube-map"));
-    m.factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
-    m.factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
-    m.both_factorized_set.write_image(kBindingCubeG, *m.cube_g, m.sampler.get());
-    m.both_factorized_set.write_image(kBindingCubeH, *m.cube_h, m.sampler.get());
+    std::vector<gpu::Image> g, h; // all uploaded before anything is replaced
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+        const std::string suffix = " cube-map (term " + std::to_string(k + 1) + ")";
+        g.push_back(upload_cube(*m.ctx, terms[k].g, ("G" + suffix).c_str()));
+        h.push_back(upload_cube(*m.ctx, terms[k].h, ("H" + suffix).c_str()));
+    }
+    // Nothing is in flight between frames (render() waits), so the sets can be rewritten.
+    m.cubes_g = std::move(g);
+    m.cubes_h = std::move(h);
+    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set})
+        for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
+            const std::size_t t = k < m.cubes_g.size() ? k : 0;
+            set->write_image(kBindingCubeG + k, m.cubes_g[t], m.sampler.get());
+            set->write_image(kBindingCubeH + k, m.cubes_h[t], m.sampler.get());
+        }
 }
 
 FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,

@@ -5,8 +5,9 @@
 ///
 ///   pass 1, diffuse:   (rho / pi) I max(0, n.u) / d^2, rho from the albedo atlas
 ///   pass 2, specular:  f_s(u, v) I max(0, n.u) / d^2, blended additively, with f_s
-///                      the Lafortune lobe (`analytic`) or G(h) H(d) from two
-///                      cube-maps (`factorized`, Kautz-McCool, shared/gshd.h)
+///                      the Lafortune lobe (`analytic`) or max(0, sum_k G_k(h) H_k(d))
+///                      from K pairs of cube-maps (`factorized`, Kautz-McCool, shared/gshd.h;
+///                      K = 1 is the thesis, up to kMaxFactorTerms)
 ///
 /// The formulas live once in shaders/shared/render.h (with lafortune.h,
 /// tangent_frame.h, gshd.h); the synth renderer (engine/synth) evaluates the same
@@ -19,6 +20,7 @@
 /// Usage:
 ///   render::Renderer r(ctx, {.mesh = &mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image, .lobe = lobe});
 ///   r.set_factorization(g, h);                                 // optional: enables `factorized`
+///   r.set_factorization({{g1, h1}, {g2, h2}});                 // or K terms
 ///   render::Frame f = r.render(camera, light, {.mode = render::Mode::Both});
 ///   f.color (linear RGB, w x h, row 0 at the top), f.mask (255 = covered), f.info (passes, timings)
 #include "core/lafortune.h"
@@ -56,6 +58,16 @@ struct CubeMapRgb {
     uint32_t resolution = 0;
     std::vector<float> rgb; // 6 * resolution^2 * 3
 };
+
+/// One separable term G_k(h) H_k(d) of the factorized specular model.
+struct FactorTermCubes {
+    CubeMapRgb g;
+    CubeMapRgb h;
+};
+
+/// Most terms the factorized pass sums (fixed sampler bindings: lavapipe has no descriptor
+/// indexing). Equals factorization::kMaxTerms.
+inline constexpr uint32_t kMaxFactorTerms = 4;
 
 /// What the renderer draws. Pointers and spans are read during construction only.
 struct Scene {
@@ -142,9 +154,13 @@ public:
     [[nodiscard]] const Lobe& lobe() const noexcept;
 
     /// Uploads the two factorization cube-maps (G looked up by h, H by d; both may have
-    /// their own resolution). Enables SpecularModel::Factorized.
+    /// their own resolution). Enables SpecularModel::Factorized with one term (the thesis).
     void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h);
+    /// K = terms.size() terms (1..kMaxFactorTerms), summed and clamped at 0 per channel.
+    /// Each cube-map may have its own resolution.
+    void set_factorization(std::span<const FactorTermCubes> terms);
     [[nodiscard]] bool has_factorization() const noexcept;
+    [[nodiscard]] uint32_t factorization_terms() const noexcept; ///< 0 before set_factorization
 
     /// Renders one frame and reads it back. Throws Error when `settings` asks for the
     /// factorized model before set_factorization().

@@ -244,7 +244,11 @@ std::string lobe_section(const json& r) {
                num(f.value("grid_d", json()), "%g") + ", cube faces " + num(f.value("cube_g", json()), "%g") + " / " +
                num(f.value("cube_h", json()), "%g") + "; relative RMS against the lobe " +
                num(f.value("relative_rms_vs_lobe_grid", json()), "%.3g") + " (grids), " +
-               num(f.value("relative_rms_vs_lobe_cubemaps", json()), "%.3g") + " (cube-maps).</p>\n";
+               num(f.value("relative_rms_vs_lobe_cubemaps", json()), "%.3g") + " (cube-maps)" +
+               (f.contains("terms") ? "; " + num(f.value("terms", json()), "%g") + " separable term(s): " +
+                                          str(f.value("terms_reason", json()))
+                                    : std::string()) +
+               ".</p>\n";
     return out;
 }
 

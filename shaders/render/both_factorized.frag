@@ -5,8 +5,7 @@
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
 layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
-layout(set = 0, binding = 3) uniform samplerCube cube_g;
-layout(set = 0, binding = 4) uniform samplerCube cube_h;
+SPECULA_FACTOR_SAMPLERS
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec3 in_normal;
@@ -16,6 +15,6 @@ layout(location = 0) out vec4 out_color;
 void main() {
     vec3 n = normalize(in_normal);
     out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv) +
-                         specular_factorized_term(params, cube_g, cube_h, in_world, n),
+                         specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, n),
                      1.0);
 }

@@ -1,14 +1,13 @@
 #version 450
 // Pass 2, specular, factorized mode (pipeline.md section 6; thesis appendix A; Kautz and
-// McCool 1999): f_s(u, v) ~ G(h) H(d), two cube-map lookups by the Gram-Schmidt
+// McCool 1999): f_s(u, v) ~ max(0, sum_k G_k(h) H_k(d)), K pairs of cube-map lookups by the Gram-Schmidt
 // half/difference directions of (u, v) in the tangent frame (render/terms.glsl),
 // times I max(0, n.u) / d^2; blended additively onto pass 1.
 #extension GL_GOOGLE_include_directive : require
 #include "render/terms.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
-layout(set = 0, binding = 3) uniform samplerCube cube_g;
-layout(set = 0, binding = 4) uniform samplerCube cube_h;
+SPECULA_FACTOR_SAMPLERS
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec3 in_normal;
@@ -16,5 +15,5 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 0) out vec4 out_color;
 
 void main() {
-    out_color = vec4(specular_factorized_term(params, cube_g, cube_h, in_world, normalize(in_normal)), 0.0);
+    out_color = vec4(specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, normalize(in_normal)), 0.0);
 }

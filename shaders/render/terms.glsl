@@ -33,17 +33,38 @@ vec3 specular_analytic_term(RenderParams p, vec3 world, vec3 n) {
     return color;
 }
 
-// G(h) H(d) from the Kautz-McCool cube-maps (shared/gshd.h), times I max(0, n.u) / d^2.
-vec3 specular_factorized_term(RenderParams p, samplerCube g, samplerCube h, vec3 world, vec3 n) {
+// max(0, sum_k G_k(h) H_k(d)) over the first p.flags.y (1..4) terms of the Kautz-McCool
+// factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)), times I max(0, n.u) / d^2.
+// Four fixed sampler pairs (no descriptor indexing on lavapipe): the pass shaders declare
+// them at bindings 3..6 (G) and 7..10 (H) and pass them in.
+vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, samplerCube g2, samplerCube g3,
+                              samplerCube h0, samplerCube h1, samplerCube h2, samplerCube h3, vec3 world, vec3 n) {
     vec3 irradiance = point_light_irradiance(n, world, p.light_position.xyz, p.light_intensity.rgb);
     vec3 color = vec3(0.0);
     if (irradiance != vec3(0.0)) {
         vec3 u = to_tangent_frame(n, direction_to(world, p.light_position.xyz));
         vec3 v = to_tangent_frame(n, direction_to(world, p.eye.xyz));
         GshdCoords c = gshd_from_uv(u, v);
-        color = texture(g, c.h).rgb * texture(h, c.d).rgb * irradiance;
+        uint terms = p.flags.y;
+        vec3 f = texture(g0, c.h).rgb * texture(h0, c.d).rgb;
+        if (terms > 1u) f += texture(g1, c.h).rgb * texture(h1, c.d).rgb;
+        if (terms > 2u) f += texture(g2, c.h).rgb * texture(h2, c.d).rgb;
+        if (terms > 3u) f += texture(g3, c.h).rgb * texture(h3, c.d).rgb;
+        color = max(f, vec3(0.0)) * irradiance;
     }
     return color;
 }
+
+// The pass shaders' declarations of the factorization's samplers (set 0, bindings 3..10).
+#define SPECULA_FACTOR_SAMPLERS                                   \
+    layout(set = 0, binding = 3) uniform samplerCube cube_g0;     \
+    layout(set = 0, binding = 4) uniform samplerCube cube_g1;     \
+    layout(set = 0, binding = 5) uniform samplerCube cube_g2;     \
+    layout(set = 0, binding = 6) uniform samplerCube cube_g3;     \
+    layout(set = 0, binding = 7) uniform samplerCube cube_h0;     \
+    layout(set = 0, binding = 8) uniform samplerCube cube_h1;     \
+    layout(set = 0, binding = 9) uniform samplerCube cube_h2;     \
+    layout(set = 0, binding = 10) uniform samplerCube cube_h3;
+#define SPECULA_FACTOR_SAMPLER_ARGS cube_g0, cube_g1, cube_g2, cube_g3, cube_h0, cube_h1, cube_h2, cube_h3
 
 #endif

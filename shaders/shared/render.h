@@ -25,7 +25,8 @@ struct RenderParams {
     vec4 lobe_cx;         // rgb: Lafortune Cx per channel
     vec4 lobe_cz;         // rgb: Lafortune Cz
     vec4 lobe_n;          // rgb: Lafortune N
-    uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only
+    uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
+                          // y: factorized terms K (1..4, render/terms.glsl)
 };
 
 // One vertex of the non-indexed triangle list (set 0 binding 1), pulled by gl_VertexIndex.

@@ -102,9 +102,43 @@ TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
     EXPECT_TRUE(same_bits(r.cube_g->rgb, b.cube_g->rgb));
     EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
     EXPECT_EQ(r.info, b.info);
+    EXPECT_TRUE(r.extra_terms.empty());
+    EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"]["version"], 1)
+        << "a one-term bundle stays version 1 (older readers load it)";
     // Writing what was read gives the same file, byte for byte.
     write_bundle(dir / "again.glb", r);
     EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
+}
+
+TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
+    const test::BundlePieces p = test::make_pieces();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    b.cube_g = test::random_cube(8, 1);
+    b.cube_h = test::random_cube(16, 2);
+    b.extra_terms = {{test::random_cube(8, 3), test::random_cube(16, 4)}, {test::random_cube(8, 5), test::random_cube(16, 6)}};
+    b.extra_terms[1].g.rgb[3] = -0.25f; // residual terms take either sign
+    TempDir dir("bundle");
+    const auto file = dir / "terms.glb";
+    write_bundle(file, b);
+    EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"]["version"], 2);
+    const Bundle r = read_bundle(file);
+    ASSERT_EQ(r.extra_terms.size(), 2u);
+    for (std::size_t k = 0; k < 2; ++k) {
+        EXPECT_EQ(r.extra_terms[k].g.resolution, 8u);
+        EXPECT_EQ(r.extra_terms[k].h.resolution, 16u);
+        EXPECT_TRUE(same_bits(r.extra_terms[k].g.rgb, b.extra_terms[k].g.rgb));
+        EXPECT_TRUE(same_bits(r.extra_terms[k].h.rgb, b.extra_terms[k].h.rgb));
+    }
+    write_bundle(dir / "again.glb", r);
+    EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
+    // Inconsistent further terms are refused on writing.
+    Bundle bad = b;
+    bad.extra_terms[0].h.rgb.pop_back();
+    EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
+    bad = b;
+    bad.cube_g.reset();
+    bad.cube_h.reset();
+    EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
 }
 
 TEST(Bundle, MaterialCarriesTheViewerApproximationAndAnOptionalExtension) {
@@ -231,8 +265,18 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeG");
     expect_field(d, ext + ".cubeG");
     d = good;
-    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 2;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 3;
     expect_field(d, ext + ".version");
+    // Further factorization terms: only in version 2, each with both cube-maps.
+    d = good;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["cubeTerms"] =
+        json::array({d["materials"][0]["extensions"]["SPECULA_lafortune"]["cubeG"]});
+    expect_field(d, ext + ".cubeTerms");
+    d = good;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 2;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["cubeTerms"] =
+        json::array({{{"cubeG", d["materials"][0]["extensions"]["SPECULA_lafortune"]["cubeG"]}}});
+    expect_field(d, ext + ".cubeTerms[0].cubeH");
     d = good;
     d["accessors"][3]["count"] = 1u << 30;
     expect_field(d, "meshes[0].primitives[0].indices");
@@ -267,6 +311,7 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     b.lobe_status = {"converged", "converged", "converged"};
     b.cube_g = test::random_cube(8, 1);
     b.cube_h = test::random_cube(8, 2);
+    b.extra_terms = {{test::random_cube(8, 3), test::random_cube(8, 4)}}; // version 2, cubeTerms
     TempDir dir("bundle");
     for (const bool with_lobe : {true, false}) {
         if (!with_lobe) b.lobe.reset();

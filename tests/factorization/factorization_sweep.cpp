@@ -37,9 +37,17 @@ std::string ms(std::optional<double> ns) {
 
 int main(int argc, char** argv) try {
     bool quick = false;
+    bool terms_only = false;
+    bool cpu_only = false;
+    uint32_t iterations = kResidualIterations;
+    uint32_t grid = 0; // 0: default resolutions
     uint32_t pairs = 1u << 20;
     for (int i = 1; i < argc; ++i) {
         if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+        else if (std::strcmp(argv[i], "--terms") == 0) terms_only = true;
+        else if (std::strcmp(argv[i], "--iterations") == 0 && i + 1 < argc) iterations = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--grid") == 0 && i + 1 < argc) grid = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--cpu") == 0) cpu_only = true;
         else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
     }
     const std::vector<NamedLobe> lobes = {
@@ -48,16 +56,41 @@ int main(int argc, char** argv) try {
         {"vase", gray(-1.2127f, 0.5653f, 20.36f)},
         {"woodenpot", gray(-1.4299f, -0.7763f, 9.74f)},
         {"mirror", gray(-1.0f, 1.0f, 1000.0f)},
+        {"mirror300", gray(-1.0f, 1.0f, 300.0f)},
     };
     gpu::Context* ctx = test::vulkan_context();
     std::optional<FactorizeVk> vk;
-    if (ctx) {
+    if (ctx && !cpu_only) {
         vk.emplace(*ctx);
         std::printf("Vulkan device: %s (validation %s)\n", ctx->info().name.c_str(), ctx->validation_enabled() ? "on" : "off");
     } else {
         std::printf("no Vulkan device: %s\n", test::vulkan_unavailable_reason().c_str());
     }
     std::printf("direct error over %u random (u, v) pairs\n\n", pairs);
+
+    // Issue 5: error against the number of separable terms K, default resolutions.
+    std::printf("## Error against the number of terms K (grid %u, 0 = default resolutions; %u iterations)\n\n", grid, iterations);
+    std::printf("| lobe | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    for (const auto& l : lobes) {
+        for (uint32_t k = 1; k <= kMaxTerms; ++k) {
+            const FactorizationOptions o{.grid_h = grid, .grid_d = grid, .keep_matrix = true, .terms = k, .iterations = iterations};
+            const Factorization c = factorize_cpu(l.lobe, o);
+            const DirectError ed = direct_relative_rms(l.lobe, c, 0, pairs);
+            std::string vk_ms = "n/a", vk_gpu = "n/a";
+            if (vk) {
+                const Factorization g = vk->run(l.lobe, o);
+                vk_ms = ms(g.timings.total_s * 1e9);
+                vk_gpu = ms(g.timings.residual_gpu_ns);
+            }
+            std::printf("| %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, c.resolution.grid_h,
+                        c.resolution.grid_d, k, c.terms.matrix_rms.back(), ed.grid, ed.cube, c.timings.total_s * 1e3,
+                        vk_ms.c_str(), vk_gpu.c_str());
+            std::fflush(stdout);
+        }
+        std::printf("| %s | | | auto: %s | | | | | | |\n", l.name, factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid, .iterations = iterations}).terms.reason.c_str());
+    }
+    if (terms_only) return 0;
 
     const std::vector<uint32_t> grids = quick ? std::vector<uint32_t>{8, 16, 32} : std::vector<uint32_t>{8, 16, 24, 32, 48};
     std::printf("## Error and time against grid resolution (R_h = R_d = R, cube faces from the rule), p = 2\n\n");

@@ -31,6 +31,7 @@ struct EvaluateArgs {
     std::size_t frames = 0;
     std::string mode = "both";
     std::string specular = "analytic";
+    unsigned factor_terms = 0;
     std::string metrics = "vulkan";
     bool no_hausdorff = false;
     int threads = 2;
@@ -48,8 +49,14 @@ void run_evaluate(const EvaluateArgs& a) {
     o.sheet_frames = a.sheet_frames;
     o.bundle_name = a.bundle;
 
-    const Bundle bundle = read_bundle(a.bundle);
+    Bundle bundle = read_bundle(a.bundle);
     evaluate::require_specular_model(bundle, o.render.specular, a.bundle);
+    if (a.factor_terms != 0) { // the first K terms of the bundle's factorization
+        if (a.factor_terms > 1 + bundle.extra_terms.size())
+            throw UsageError("--factor-terms " + std::to_string(a.factor_terms) + ": " + a.bundle + " holds " +
+                             std::to_string(1 + bundle.extra_terms.size()) + " factorization term(s)");
+        bundle.extra_terms.resize(a.factor_terms - 1);
+    }
     const Capture capture = load_capture(a.capture, {.load_mesh = false, .load_images = true, .threads = a.threads});
     for (const std::string& w : capture.warnings) log::warn(w);
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
@@ -88,6 +95,9 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_option("--specular", a->specular, "Specular model: analytic (the lobe) or factorized (the bundle's G/H cube-maps)")
         ->check(CLI::IsMember({"analytic", "factorized"}))
         ->capture_default_str();
+    cmd->add_option("--factor-terms", a->factor_terms,
+                    "With --specular factorized: render the first K terms of the bundle's factorization (default: all)")
+        ->check(CLI::Range(1, 4));
     cmd->add_option("--metrics", a->metrics, "Where the measures are computed: vulkan or cpu (the reference)")
         ->check(CLI::IsMember({"vulkan", "cpu"}))
         ->capture_default_str();
