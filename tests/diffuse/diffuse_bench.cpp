@@ -1,5 +1,6 @@
 // Measurements for the diffuse stage notes (run by hand, not a test):
 //   diffuse_bench [size=512] [views=20] [lights=6] [presets=can,cologne,vase,woodenpot,knot] [format=exr|png8|png16] [exposure=1] [lambertian=0|1]
+//   SPECULA_BENCH_LIGHT_ANGLES=a,b,... sets the rig's train light angles (synth/rig.h; "14": a thesis-like ring)
 // Prints per preset and mode: particles, solve time on cpu and vulkan (GPU time from the
 // timestamps), and the albedo RMSE against the truth over seen particles and over particles
 // whose truth is flat around them.
@@ -42,6 +43,11 @@ int main(int argc, char** argv) try {
         so.format = synth::parse_image_format(format);
         so.exposure = exposure;
         so.lambertian = lambertian;
+        if (const char* a = std::getenv("SPECULA_BENCH_LIGHT_ANGLES")) { // e.g. "14": the thesis-like ring
+            std::stringstream ss(a);
+            std::string item;
+            while (std::getline(ss, item, ',')) so.light_angles_deg.push_back(std::atof(item.c_str()));
+        }
         const test::DiffuseScene scene = test::make_scene(so);
         const LambertInputs in = scene.inputs();
         std::printf("\n== %s %dx%d, %d views x %d lights, %s, exposure %.2f, %s: %zu particles, %zu clipped pixels (scene %.1f s)\n",
