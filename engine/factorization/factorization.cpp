@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <utility>
 #include <random>
 
 namespace specula::factorization {
@@ -302,8 +303,13 @@ double matrix_relative_rms(const BrdfMatrix& m, const Decomposition& dec) {
     return ref > 0.0 ? std::sqrt(err / ref) : 0.0;
 }
 
-DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const Cubemap* cube_g,
-                                const Cubemap* cube_h, uint32_t pairs, uint32_t seed) {
+namespace {
+
+/// Relative RMS against the lobe over `pairs` random (u, v) pairs, both uniform in solid
+/// angle on the upper hemisphere; `model(c)` gives the (grid, cube-map) approximations at the
+/// GSHD coordinates c of a pair.
+template <class Model>
+DirectError sample_direct_error(const LafortuneRgb& lobe, uint32_t pairs, uint32_t seed, Model&& model) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     const double two_pi = 6.283185307179586;
@@ -313,57 +319,11 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& d
         const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
         return glm::dvec3(s * std::cos(phi), s * std::sin(phi), z);
     };
-    const bool cubes = cube_g != nullptr && cube_h != nullptr;
     double err_grid = 0.0, err_cube = 0.0, ref = 0.0;
     for (uint32_t i = 0; i < pairs; ++i) {
         const glm::dvec3 u = hemisphere();
         const glm::dvec3 v = hemisphere();
-        const shared::f64::GshdCoords c = shared::f64::gshd_from_uv(u, v);
-        const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
-        glm::dvec3 gc(0.0);
-        if (cubes) gc = cubemap_sample(*cube_g, c.h) * cubemap_sample(*cube_h, c.d);
-        for (int k = 0; k < 3; ++k) {
-            const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
-            ref += f * f;
-            err_grid += (gg[k] - f) * (gg[k] - f);
-            err_cube += (gc[k] - f) * (gc[k] - f);
-        }
-    }
-    DirectError out;
-    out.pairs = pairs;
-    out.grid = ref > 0.0 ? std::sqrt(err_grid / ref) : 0.0;
-    out.cube = !cubes ? std::numeric_limits<double>::quiet_NaN() : ref > 0.0 ? std::sqrt(err_cube / ref) : 0.0;
-    return out;
-}
-
-DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& fac, uint32_t terms, uint32_t pairs,
-                                uint32_t seed) {
-    const uint32_t k_count = terms == 0 ? fac.term_count() : terms;
-    if (k_count > fac.term_count())
-        throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
-                    std::to_string(fac.term_count()));
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> uni(0.0, 1.0);
-    const double two_pi = 6.283185307179586;
-    const auto hemisphere = [&] { // uniform in solid angle: z ~ U(0, 1), same draws as above
-        const double z = uni(rng);
-        const double phi = two_pi * uni(rng);
-        const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
-        return glm::dvec3(s * std::cos(phi), s * std::sin(phi), z);
-    };
-    double err_grid = 0.0, err_cube = 0.0, ref = 0.0;
-    for (uint32_t i = 0; i < pairs; ++i) {
-        const glm::dvec3 u = hemisphere();
-        const glm::dvec3 v = hemisphere();
-        const shared::f64::GshdCoords c = shared::f64::gshd_from_uv(u, v);
-        glm::dvec3 gg(0.0), gc(0.0);
-        for (uint32_t k = 0; k < k_count; ++k) {
-            const Decomposition& d = fac.grids(k);
-            gg += grid_sample(d.g, d.res_h, c.h) * grid_sample(d.h, d.res_d, c.d);
-            gc += cubemap_sample(fac.g_cube(k), c.h) * cubemap_sample(fac.h_cube(k), c.d);
-        }
-        gg = glm::max(gg, glm::dvec3(0.0));
-        gc = glm::max(gc, glm::dvec3(0.0));
+        const auto [gg, gc] = model(shared::f64::gshd_from_uv(u, v));
         for (int k = 0; k < 3; ++k) {
             const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
             ref += f * f;
@@ -376,6 +336,38 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f
     out.grid = ref > 0.0 ? std::sqrt(err_grid / ref) : 0.0;
     out.cube = ref > 0.0 ? std::sqrt(err_cube / ref) : 0.0;
     return out;
+}
+
+} // namespace
+
+DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const Cubemap* cube_g,
+                                const Cubemap* cube_h, uint32_t pairs, uint32_t seed) {
+    const bool cubes = cube_g != nullptr && cube_h != nullptr;
+    DirectError out = sample_direct_error(lobe, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+        const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
+        const glm::dvec3 gc = cubes ? cubemap_sample(*cube_g, c.h) * cubemap_sample(*cube_h, c.d) : glm::dvec3(0.0);
+        return std::pair{gg, gc};
+    });
+    if (!cubes) out.cube = std::numeric_limits<double>::quiet_NaN();
+    return out;
+}
+
+DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& fac, uint32_t terms, uint32_t pairs,
+                                uint32_t seed) {
+    const uint32_t k_count = terms == 0 ? fac.term_count() : terms;
+    if (k_count > fac.term_count())
+        throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
+                    std::to_string(fac.term_count()));
+    // The same draws as the one-term overload; the sum of the terms is clamped at 0 as the renderer does.
+    return sample_direct_error(lobe, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+        glm::dvec3 gg(0.0), gc(0.0);
+        for (uint32_t k = 0; k < k_count; ++k) {
+            const Decomposition& d = fac.grids(k);
+            gg += grid_sample(d.g, d.res_h, c.h) * grid_sample(d.h, d.res_d, c.d);
+            gc += cubemap_sample(fac.g_cube(k), c.h) * cubemap_sample(fac.h_cube(k), c.d);
+        }
+        return std::pair{glm::max(gg, glm::dvec3(0.0)), glm::max(gc, glm::dvec3(0.0))};
+    });
 }
 
 } // namespace specula::factorization
