@@ -24,6 +24,7 @@ float display(float linear) { return linear_to_srgb(std::clamp(linear, 0.0f, 1.0
 nlohmann::json settings_json(const EvaluationResult& r) {
     return {{"mode", render::mode_name(r.render.mode)},
             {"specular", render::specular_model_name(r.render.specular)},
+            {"shadows", r.render.shadows}, // cast shadows drawn (false: the thesis's unshadowed render)
             {"metrics_backend", to_string(r.metrics_backend)},
             {"masked_pixels", "the capture's mask (render coverage where a frame has no mask); missing pixels left out"},
             {"rendered_clipped_at_saturation", true},
@@ -130,6 +131,11 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         render::Frame frame = renderer.render(fd.camera(), fd.light, options.render);
         fe.render_ms = 1000.0 * render_time.seconds();
         fe.covered_pixels = frame.info.covered_pixels;
+        fe.shadowed = frame.info.shadow_pass;
+        if (options.render.shadows && !frame.info.shadow_pass) {
+            fe.shadow_note = frame.info.shadow_note;
+            log::warn(desc.dir.string() + ": frames[" + std::to_string(fi) + "] rendered without shadows: " + fe.shadow_note);
+        }
         const Image& cap = captured.color;
         Image& ren = frame.color;
         if (cap.width != ren.width || cap.height != ren.height)
@@ -224,6 +230,7 @@ nlohmann::json to_json(const EvaluationResult& r) {
                           {"view_index", f.view_index},
                           {"mask_source", f.mask_source},
                           {"covered_pixels", f.covered_pixels},
+                          {"shadowed", f.shadowed},
                           {"masked", metrics::to_json(f.masked)},
                           {"full", metrics::to_json(f.full)},
                           {"render_ms", finite_or_zero(f.render_ms)},
@@ -263,8 +270,9 @@ std::string format_summary(const EvaluationResult& r) {
     row("test full", r.test_frames, r.metrics.test_full);
     const std::size_t n = r.frames.size();
     std::snprintf(line, sizeof line,
-                  "render %s/%s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
-                  render::mode_name(r.render.mode), render::specular_model_name(r.render.specular), to_string(r.metrics_backend),
+                  "render %s/%s, %s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
+                  render::mode_name(r.render.mode), render::specular_model_name(r.render.specular),
+                  r.render.shadows ? "shadows" : "no shadows", to_string(r.metrics_backend),
                   n, r.timings.per_frame_ms(n), n ? 1000.0 * r.timings.render_s / n : 0.0,
                   n ? 1000.0 * r.timings.metrics_s / n : 0.0, r.timings.setup_s, r.timings.total_s);
     out << line;

@@ -18,7 +18,8 @@
 /// (sRGB-encoded) values, 0.5 + kSheetAmplification * (rendered - captured): mid-gray
 /// where they agree, brighter where the render is brighter.
 ///
-/// The renderer has no shadows: pixels a capture shows in shadow differ from a render.
+/// The renderer draws cast shadows (a shadow map) unless render.shadows is false, the
+/// thesis's unshadowed render, where pixels a capture shows in shadow differ from a render.
 ///
 ///   Capture cap = load_capture(dir);
 ///   EvaluationResult r = evaluate(ctx, read_bundle(path), cap, {.sheet_dir = "sheets"});
@@ -71,6 +72,8 @@ struct FrameEvaluation {
     metrics::FrameMetrics masked;   ///< over the object's pixels (primary)
     metrics::FrameMetrics full;     ///< over the full frame
     std::size_t covered_pixels = 0; ///< pixels the render covers
+    bool shadowed = false;          ///< the render drew cast shadows (render::FrameInfo::shadow_pass)
+    std::string shadow_note;        ///< why not, when render.shadows asked for them (light too close)
     double render_ms = 0.0;         ///< wall time of the render (incl. readback)
     double metrics_ms = 0.0;        ///< wall time of both metric runs
 };

@@ -32,7 +32,9 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
 
     // The modules are only needed until the pipeline exists.
     const UniqueShaderModule vert = detail::make_shader_module(dev, desc.vertex_spirv, what + ": vertex shader module");
-    const UniqueShaderModule frag = detail::make_shader_module(dev, desc.fragment_spirv, what + ": fragment shader module");
+    const bool depth_only = desc.fragment_spirv.empty();
+    const UniqueShaderModule frag =
+        depth_only ? UniqueShaderModule{} : detail::make_shader_module(dev, desc.fragment_spirv, what + ": fragment shader module");
     const std::array stages{
         VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
                                         .stage = VK_SHADER_STAGE_VERTEX_BIT,
@@ -58,7 +60,10 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
         .polygonMode = VK_POLYGON_MODE_FILL,
         .cullMode = desc.cull_mode,
         .frontFace = desc.front_face,
-        .depthBiasEnable = VK_FALSE,
+        .depthBiasEnable = (desc.depth_bias_constant != 0.0f || desc.depth_bias_slope != 0.0f) ? VK_TRUE : VK_FALSE,
+        .depthBiasConstantFactor = desc.depth_bias_constant,
+        .depthBiasClamp = 0.0f,
+        .depthBiasSlopeFactor = desc.depth_bias_slope,
         .lineWidth = 1.0f};
     const VkPipelineMultisampleStateCreateInfo multisample{
         .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
@@ -86,14 +91,14 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                       .colorWriteMask = rgba};
     const VkPipelineColorBlendStateCreateInfo blend{.sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
                                                     .logicOpEnable = VK_FALSE,
-                                                    .attachmentCount = 1,
+                                                    .attachmentCount = depth_only ? 0u : 1u,
                                                     .pAttachments = &attachment};
     const std::array dynamic_states{VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
     const VkPipelineDynamicStateCreateInfo dynamic{.sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
                                                    .dynamicStateCount = static_cast<uint32_t>(dynamic_states.size()),
                                                    .pDynamicStates = dynamic_states.data()};
     const VkGraphicsPipelineCreateInfo info{.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                            .stageCount = static_cast<uint32_t>(stages.size()),
+                                            .stageCount = depth_only ? 1u : static_cast<uint32_t>(stages.size()),
                                             .pStages = stages.data(),
                                             .pVertexInputState = &vertex_input,
                                             .pInputAssemblyState = &assembly,

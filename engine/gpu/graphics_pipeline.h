@@ -34,7 +34,7 @@ enum class BlendMode {
 struct GraphicsPipelineDesc {
     std::string name;
     std::span<const uint32_t> vertex_spirv;
-    std::span<const uint32_t> fragment_spirv;
+    std::span<const uint32_t> fragment_spirv; // empty: depth only (a render pass with no colour attachment)
     std::vector<DescriptorBinding> bindings; // set 0, binding i = bindings[i]
     uint32_t push_constant_bytes = 0;        // vertex + fragment stages, offset 0, <= 128
     VkRenderPass render_pass = VK_NULL_HANDLE;
@@ -44,6 +44,8 @@ struct GraphicsPipelineDesc {
     BlendMode blend = BlendMode::None;
     VkCullModeFlags cull_mode = VK_CULL_MODE_NONE;
     VkFrontFace front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+    float depth_bias_constant = 0.0f; // rasterizer depth bias (both zero: disabled)
+    float depth_bias_slope = 0.0f;
 };
 
 class GraphicsPipeline {

@@ -43,6 +43,7 @@ const char* kind_name(ImageKind kind) {
     case ImageKind::CubeMap: return "cube-map";
     case ImageKind::ColorTarget: return "colour target";
     case ImageKind::DepthTarget: return "depth target";
+    case ImageKind::ShadowMap: return "shadow map";
     }
     return "image";
 }
@@ -122,9 +123,14 @@ Image::Image(Context& ctx, const ImageDesc& desc)
         needed = VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT;
         [[fallthrough]];
     case ImageKind::DepthTarget:
-        if (m_kind == ImageKind::DepthTarget) {
+    case ImageKind::ShadowMap:
+        if (m_kind != ImageKind::ColorTarget) {
             usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
             needed = VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT;
+            if (m_kind == ImageKind::ShadowMap) {
+                usage |= VK_IMAGE_USAGE_SAMPLED_BIT;
+                needed |= VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT;
+            }
             if (!is_depth(m_format)) throw DeviceError(what + ": not a depth format");
             m_aspect = VK_IMAGE_ASPECT_DEPTH_BIT;
         }
@@ -328,6 +334,35 @@ std::vector<glm::vec4> unpack_rgba(std::span<const std::byte> texels, VkFormat f
         throw Error("unpack_rgba: format must be RGBA32F or RGBA16F");
     }
     return out;
+}
+
+VkFormat choose_shadow_map_format(const Context& ctx) {
+    const VkFormatFeatureFlags want = VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT |
+                                      VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT;
+    if ((optimal_features(ctx, VK_FORMAT_D32_SFLOAT) & want) == want) return VK_FORMAT_D32_SFLOAT;
+    return VK_FORMAT_D16_UNORM; // a sampled depth attachment on every Vulkan device
+}
+
+bool depth_filters_linearly(const Context& ctx, VkFormat format) {
+    return (optimal_features(ctx, format) & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT) != 0;
+}
+
+UniqueSampler make_shadow_compare_sampler(Context& ctx, bool linear, const std::string& name) {
+    const VkFilter filter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
+    const VkSamplerCreateInfo info{.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+                                   .magFilter = filter,
+                                   .minFilter = filter,
+                                   .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+                                   .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                                   .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                                   .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                                   .compareEnable = VK_TRUE,
+                                   .compareOp = VK_COMPARE_OP_LESS_OR_EQUAL,
+                                   .maxLod = 0.0f,
+                                   .borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE};
+    VkSampler sampler = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateSampler(ctx.device(), &info, nullptr, &sampler), "creating sampler '" + name + "'");
+    return UniqueSampler(ctx.device(), sampler);
 }
 
 UniqueSampler make_linear_clamp_sampler(Context& ctx, const std::string& name) {

@@ -51,6 +51,7 @@ enum class ImageKind {
     CubeMap,     // sampled, six square layers, viewed as a cube
     ColorTarget, // colour attachment, copied out with a transfer
     DepthTarget, // depth attachment
+    ShadowMap,   // depth attachment that later passes sample (with a depth-compare sampler)
 };
 
 struct ImageDesc {
@@ -122,6 +123,12 @@ void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_la
 [[nodiscard]] VkFormat choose_color_target_format(const Context& ctx);
 /// D32_SFLOAT, else D24 / D16 (whatever the device offers as a depth attachment).
 [[nodiscard]] VkFormat choose_depth_format(const Context& ctx);
+/// A shadow map's format: D32_SFLOAT where it is a depth attachment that can be sampled with
+/// linear filtering (the compare sampler's 2x2 PCF), else D16_UNORM (attachment and sampled
+/// on every Vulkan device). Float depth keeps the light-space depth step far below the bias.
+[[nodiscard]] VkFormat choose_shadow_map_format(const Context& ctx);
+/// Whether `format` (a depth format) can be sampled with linear filtering.
+[[nodiscard]] bool depth_filters_linearly(const Context& ctx, VkFormat format);
 
 /// Packs `count` texels of `channels` (1..4) floats each into RGBA32F or RGBA16F
 /// texels (missing channels: 0, alpha 1).
@@ -132,5 +139,9 @@ void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_la
 
 /// Bilinear filtering, clamp to edge on every axis, no mipmaps (textures here have one level).
 [[nodiscard]] UniqueSampler make_linear_clamp_sampler(Context& ctx, const std::string& name);
+/// Depth-compare sampler for sampler2DShadow: result = (reference <= stored) ? 1 : 0 per texel,
+/// bilinearly weighted over the 2x2 nearest texels when `linear` (percentage-closer filtering);
+/// clamp to an opaque white border (depth 1: outside the map is lit).
+[[nodiscard]] UniqueSampler make_shadow_compare_sampler(Context& ctx, bool linear, const std::string& name);
 
 } // namespace specula::gpu

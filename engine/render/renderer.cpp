@@ -8,8 +8,11 @@
 #include "render/both_factorized.frag.h"
 #include "render/diffuse.frag.h"
 #include "render/raster.vert.h"
+#include "render/shadow.vert.h"
 #include "render/specular_analytic.frag.h"
 #include "render/specular_factorized.frag.h"
+
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <cmath>
 #include <cstring>
@@ -21,12 +24,55 @@ namespace specula::render {
 namespace {
 
 // Set 0 of every raster pipeline: the per-frame parameters, the vertices, then the
-// textures the pass samples (shaders/render/*.{vert,frag}).
-// Factorized passes: term k's G at kBindingCubeG + k, its H at kBindingCubeH + k
-// (shaders/render/factor_terms.glsl); unused bindings hold term 1's cube-maps.
-constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingCubeG = 3,
-                   kBindingCubeH = kBindingCubeG + kMaxFactorTerms;
+// textures the pass samples (shaders/render/*.{vert,frag}): the albedo atlas, the shadow
+// map (render/terms.glsl SPECULA_SHADOW_SAMPLER), and for the factorized passes term k's G
+// at kBindingCubeG + k, its H at kBindingCubeH + k (render/terms.glsl SPECULA_FACTOR_SAMPLERS);
+// unused bindings hold term 1's cube-maps. The shadow map's depth pass uses the first two.
+constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingShadow = 3,
+                   kBindingCubeG = 4, kBindingCubeH = kBindingCubeG + kMaxFactorTerms;
+constexpr uint32_t kLitBindings = kBindingShadow + 1;
 constexpr uint32_t kFactorizedBindings = kBindingCubeH + kMaxFactorTerms;
+constexpr uint32_t kShadowPassBindings = 2;
+
+// The shadow map's frustum: a light at least this many bounding radii from the centre
+// (half-angle asin(1 / 1.1) = 65 degrees); a closer light gets no shadow pass.
+constexpr double kMinLightDistanceRadii = 1.1;
+// Field-of-view margin over the bounding sphere's silhouette, and near/far margins.
+constexpr double kFovMargin = 1.02, kDepthMargin = 0.02;
+// Bias (shared/render.h shadow_lookup_point; the depth pass's rasterizer bias): a normal
+// offset of (kNormalOffsetConstant + kNormalOffsetGrazing sin(theta)) texels, and a
+// slope-scaled depth bias of kDepthBiasSlope times the depth's slope per texel.
+constexpr float kNormalOffsetConstant = 1.0f, kNormalOffsetGrazing = 1.0f, kDepthBiasSlope = 2.0f;
+
+struct LightFrustum {
+    glm::dmat4 to_clip{1.0};
+    double texel_per_distance = 0.0; // world size of one map texel per unit of distance from the light
+};
+
+/// The perspective frustum from the light aimed at the bounding sphere (centre c, radius r)
+/// that just covers it; nullopt, with `note` saying why, when the light is too close.
+std::optional<LightFrustum> light_frustum(const glm::dvec3& light, const glm::dvec3& c, double r, uint32_t size,
+                                          std::string& note) {
+    const double d = glm::length(light - c);
+    if (!(r > 0.0) || !std::isfinite(d)) {
+        note = "degenerate mesh bounds: no shadow map";
+        return std::nullopt;
+    }
+    if (d < kMinLightDistanceRadii * r) {
+        note = "light " + std::to_string(d) + " from the bounds' centre, inside or within " +
+               std::to_string(static_cast<int>(std::lround((kMinLightDistanceRadii - 1.0) * 100))) +
+               "% of the bounding sphere (radius " + std::to_string(r) + "): no shadow map, drawn unshadowed";
+        return std::nullopt;
+    }
+    const double half = std::asin(r / d) * kFovMargin;
+    const double near = (d - r) * (1.0 - kDepthMargin), far = (d + r) * (1.0 + kDepthMargin);
+    const glm::dvec3 forward = (c - light) / d;
+    const glm::dvec3 up = std::abs(forward.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+    LightFrustum f;
+    f.to_clip = glm::perspectiveRH_ZO(2.0 * half, 1.0, near, far) * glm::lookAtRH(light, c, up);
+    f.texel_per_distance = 2.0 * std::tan(half) / size;
+    return f;
+}
 
 std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count) {
     const gpu::DescriptorBinding params{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
@@ -128,6 +174,9 @@ struct Renderer::Impl {
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
+    gpu::ShadowMap shadow_map;
+    gpu::GraphicsPipeline shadow_pass;
+    gpu::DescriptorSet shadow_set;
     gpu::GraphicsPipeline diffuse;
     gpu::GraphicsPipeline specular_analytic;
     gpu::GraphicsPipeline specular_factorized;
@@ -153,10 +202,13 @@ struct Renderer::Impl {
           // Pipelines are built against a 1x1 target's render pass; every target has the
           // same formats, so its passes are compatible with them.
           target(std::make_unique<gpu::RenderTarget>(c, 1, 1, "render target")),
-          diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, 3, false)),
-          specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, 3, true)),
+          shadow_map(c, opts.shadow_map_size, "shadow map"),
+          shadow_pass(c, shadow_pass_desc()),
+          shadow_set(c, shadow_pass),
+          diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, kLitBindings, false)),
+          specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, kLitBindings, true)),
           specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, kFactorizedBindings, true)),
-          both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, 3, false)),
+          both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, kLitBindings, false)),
           both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, kFactorizedBindings, false)),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
           both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized),
@@ -166,7 +218,22 @@ struct Renderer::Impl {
             set->write_buffer(kBindingParams, params);
             set->write_buffer(kBindingVertices, vertices);
             set->write_image(kBindingAlbedo, albedo, sampler.get());
+            set->write_image(kBindingShadow, shadow_map.depth(), shadow_map.compare_sampler());
         }
+        shadow_set.write_buffer(kBindingParams, params);
+        shadow_set.write_buffer(kBindingVertices, vertices);
+    }
+
+    gpu::GraphicsPipelineDesc shadow_pass_desc() const {
+        gpu::GraphicsPipelineDesc d;
+        d.name = "shadow map depth pass";
+        d.vertex_spirv = render_shadow_vert; // no fragment shader: depth only
+        d.bindings = bindings_for(kShadowPassBindings);
+        d.render_pass = shadow_map.render_pass();
+        d.depth_compare = VK_COMPARE_OP_LESS; // standard depth (gpu/shadow_map.h)
+        d.cull_mode = VK_CULL_MODE_NONE;      // both sides cast shadows (open meshes)
+        d.depth_bias_slope = kDepthBiasSlope;
+        return d;
     }
 
     static const Mesh* checked_mesh(const Scene& scene) {
@@ -240,6 +307,14 @@ struct Renderer::Impl {
             info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
 
+        std::optional<LightFrustum> frustum;
+        if (!settings.shadows)
+            info.shadow_note = "shadows off";
+        else
+            frustum = light_frustum(light.position, glm::dvec3(bounds.center()), bounds.radius(), shadow_map.size(),
+                                    info.shadow_note);
+        info.shadow_pass = frustum.has_value();
+
         const double near = settings.near.value_or(near_plane_for(camera, bounds));
         shared::RenderParams p{};
         p.world_to_clip = glm::mat4(world_to_clip(camera, near));
@@ -250,8 +325,26 @@ struct Renderer::Impl {
         p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
         p.lobe_n = glm::vec4(lobe.n, 0.0f);
         p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), 0u, 0u);
+        if (frustum) {
+            p.light_to_clip = glm::mat4(frustum->to_clip);
+            p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
+                                 kNormalOffsetConstant);
+        } else {
+            p.light_to_clip = glm::mat4(1.0f);
+            p.shadow = glm::vec4(0.0f);
+        }
         params.upload(std::span<const shared::RenderParams>(&p, 1)); // made visible by the submit
         return info;
+    }
+
+    // Before the lit passes when FrameInfo::shadow_pass: the mesh's depth seen from the light.
+    void draw_shadow_map(VkCommandBuffer cmd) const {
+        shadow_map.begin(cmd);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.pipeline());
+        const VkDescriptorSet s = shadow_set.get();
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.layout(), 0, 1, &s, 0, nullptr);
+        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        shadow_map.end(cmd);
     }
 
     // Pass 1 always runs: it resolves visibility (depth) and coverage (alpha) for pass 2.
@@ -330,6 +423,7 @@ FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target,
         throw Error("renderer: the target is " + std::to_string(target.width()) + "x" + std::to_string(target.height()) +
                     " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
     FrameInfo info = m.prepare(camera, light, settings);
+    if (info.shadow_pass) m.draw_shadow_map(cmd);
     if (info.fused) {
         m.draw_fused(cmd, target, settings.specular);
         return info;
@@ -352,6 +446,8 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
 
     gpu::Sequence& seq = m.sequence;
     seq.reset();
+    if (info.shadow_pass)
+        seq.time_begin("shadow pass").record([&](VkCommandBuffer cmd) { m.draw_shadow_map(cmd); }).time_end();
     if (info.fused)
         seq.time_begin("diffuse pass")
             .record([&](VkCommandBuffer cmd) { m.draw_fused(cmd, *m.target, settings.specular); })
@@ -366,6 +462,7 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
     seq.submit_and_wait();
     for (const gpu::GpuTiming& t : seq.timings()) {
         if (!t.ns) continue;
+        if (t.label == "shadow pass") info.shadow_gpu_ms = to_ms(t.ns);
         if (t.label == "diffuse pass") info.diffuse_gpu_ms = to_ms(t.ns);
         if (t.label == "specular pass") info.specular_gpu_ms = to_ms(t.ns);
         if (t.label == "readback") info.readback_gpu_ms = to_ms(t.ns);

@@ -13,9 +13,17 @@
 /// tangent_frame.h, gshd.h); the synth renderer (engine/synth) evaluates the same
 /// definitions by ray casting and is the reference of the analytic mode.
 ///
-/// No shadows: the reconstruction renders unshadowed, like the thesis. Pixels that
-/// a capture shows in shadow (or lit only by a light behind the geometric surface)
-/// will differ from a render.
+/// Cast shadows, on by default (Settings::shadows): before the lit passes a depth-only
+/// pass renders the mesh from the point light into a square shadow map (Options::
+/// shadow_map_size, D32_SFLOAT where it can be sampled with linear filtering, else D16)
+/// through a perspective frustum aimed at the mesh bounds' centre that just covers the
+/// bounding sphere (half-angle asin(r / d) plus 2%, near/far from the sphere). Every lit
+/// pass multiplies both terms by the light's visibility (render/terms.glsl
+/// light_visibility: a depth-compare sampler, 2x2 PCF, normal-offset plus slope-scaled
+/// bias), so the captures' ray-traced cast shadows are reproduced. A light inside or
+/// within 10% of the bounding sphere gets no shadow pass; FrameInfo::shadow_note says so.
+/// `shadows = false` is the thesis's render: no shadows, so pixels that a capture shows
+/// in shadow (or lit only by a light behind the geometric surface) differ from it.
 ///
 /// Usage:
 ///   render::Renderer r(ctx, {.mesh = &mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image, .lobe = lobe});
@@ -32,6 +40,7 @@
 #include "gpu/graphics_pipeline.h"
 #include "gpu/image.h"
 #include "gpu/render_target.h"
+#include "gpu/shadow_map.h"
 #include "gpu/sequence.h"
 #include "shared/render.h"
 
@@ -102,6 +111,8 @@ struct Settings {
     SpecularModel specular = SpecularModel::Analytic;
     Passes passes = Passes::Separate; ///< only Mode::Both with a specular term has a choice
     std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
+    /// Cast shadows from a shadow map (on by default); false: the thesis's unshadowed render.
+    bool shadows = true;
 };
 
 enum class Culling {
@@ -114,6 +125,9 @@ struct Options {
     /// Culling halves the raster work of a closed mesh (the back half is never visible
     /// from outside it) and changes no pixel; open meshes need both sides.
     Culling culling = Culling::Auto;
+    /// Side of the square shadow map in texels (2048: a texel is about 1/1000 of the
+    /// bounding sphere's diameter, below a 256-1024 px capture's pixel on the object).
+    uint32_t shadow_map_size = 2048;
 };
 
 /// What a frame drew and what it cost.
@@ -122,6 +136,9 @@ struct FrameInfo {
     bool specular_pass = false;       ///< pass 2 ran (or, fused, the specular term was drawn)
     bool fused = false;               ///< both terms in one pass (Passes::Fused); timed as diffuse_gpu_ms
     std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
+    bool shadow_pass = false;         ///< the shadow map was drawn and the lit passes are shadowed
+    std::string shadow_note;          ///< why not ("shadows off", light too close to the mesh), else empty
+    std::optional<double> shadow_gpu_ms;   ///< GPU time of the shadow map's depth pass
     std::optional<double> diffuse_gpu_ms;  ///< GPU time of pass 1 (timestamps); nullopt without timestamps
     std::optional<double> specular_gpu_ms; ///< GPU time of pass 2
     std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer

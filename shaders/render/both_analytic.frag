@@ -6,6 +6,7 @@
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
 layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
+SPECULA_SHADOW_SAMPLER
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec3 in_normal;
@@ -14,5 +15,6 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     vec3 n = normalize(in_normal);
-    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv) + specular_analytic_term(params, in_world, n), 1.0);
+    float v = light_visibility(params, shadow_map, in_world, n);
+    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv, v) + specular_analytic_term(params, in_world, n, v), 1.0);
 }

@@ -5,6 +5,7 @@
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
 layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
+SPECULA_SHADOW_SAMPLER
 SPECULA_FACTOR_SAMPLERS
 
 layout(location = 0) in vec3 in_world;
@@ -14,7 +15,8 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     vec3 n = normalize(in_normal);
-    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv) +
-                         specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, n),
+    float v = light_visibility(params, shadow_map, in_world, n);
+    out_color = vec4(diffuse_term(params, albedo_atlas, in_world, n, in_uv, v) +
+                         specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, n, v),
                      1.0);
 }

@@ -8,6 +8,7 @@
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
 layout(set = 0, binding = 2) uniform sampler2D albedo_atlas;
+SPECULA_SHADOW_SAMPLER
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec3 in_normal;
@@ -16,6 +17,9 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     vec3 color = vec3(0.0);
-    if (params.flags.x != 0u) color = diffuse_term(params, albedo_atlas, in_world, normalize(in_normal), in_uv);
+    if (params.flags.x != 0u) {
+        vec3 n = normalize(in_normal);
+        color = diffuse_term(params, albedo_atlas, in_world, n, in_uv, light_visibility(params, shadow_map, in_world, n));
+    }
     out_color = vec4(color, 1.0);
 }

@@ -7,6 +7,7 @@
 #include "render/terms.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
+SPECULA_SHADOW_SAMPLER
 
 layout(location = 0) in vec3 in_world;
 layout(location = 1) in vec3 in_normal;
@@ -14,5 +15,6 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 0) out vec4 out_color;
 
 void main() {
-    out_color = vec4(specular_analytic_term(params, in_world, normalize(in_normal)), 0.0);
+    vec3 n = normalize(in_normal);
+    out_color = vec4(specular_analytic_term(params, in_world, n, light_visibility(params, shadow_map, in_world, n)), 0.0);
 }

@@ -7,6 +7,7 @@
 #include "render/terms.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
+SPECULA_SHADOW_SAMPLER
 SPECULA_FACTOR_SAMPLERS
 
 layout(location = 0) in vec3 in_world;
@@ -15,5 +16,8 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 0) out vec4 out_color;
 
 void main() {
-    out_color = vec4(specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, normalize(in_normal)), 0.0);
+    vec3 n = normalize(in_normal);
+    out_color = vec4(specular_factorized_term(params, SPECULA_FACTOR_SAMPLER_ARGS, in_world, n,
+                                              light_visibility(params, shadow_map, in_world, n)),
+                     0.0);
 }

@@ -8,8 +8,9 @@
 //     pass 2 (specular):  f_s(u, v)  * I max(0, n.u) / d^2      added by blending
 // with f_s the Lafortune lobe in the appendix-B tangent frame (analytic mode) or
 // G(h) H(d) from the two Kautz-McCool cube-maps (factorized mode, shared/gshd.h).
-// No shadows: the reconstruction renders unshadowed, as the thesis does, so
-// pixels that a capture shows in shadow will differ.
+// Both terms are multiplied by the light's visibility V in [0, 1] (cast shadows,
+// render/terms.glsl light_visibility: a shadow map with 2x2 PCF); V = 1 everywhere
+// when shadows are off (shadow.x == 0), the thesis's unshadowed render.
 #ifndef SPECULA_SHARED_RENDER_H
 #define SPECULA_SHARED_RENDER_H
 #include "shared/prelude.h"
@@ -27,6 +28,10 @@ struct RenderParams {
     vec4 lobe_n;          // rgb: Lafortune N
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
                           // y: factorized terms K (1..4, render/terms.glsl)
+    mat4 light_to_clip;   // the shadow map's projection * view (light at light_position)
+    vec4 shadow;          // x: 1 = sample the shadow map, 0 = no shadows (V = 1);
+                          // y: world size of one map texel per unit of distance from the light;
+                          // z: normal offset in texels at grazing light; w: constant normal offset in texels
 };
 
 // One vertex of the non-indexed triangle list (set 0 binding 1), pulled by gl_VertexIndex.
@@ -43,6 +48,20 @@ SHARED_FN vec3 point_light_irradiance(vec3 n, vec3 p, vec3 light_position, vec3 
     return intensity * (max(cos_theta, 0.0f) / d2);
 }
 
+// Where a normal-offset shadow lookup samples from: p moved along n by
+// texel (w + z sin(theta)) world units, texel = y d the map's texel footprint at the
+// distance d from the light. Moving along the normal (rather than biasing depth alone)
+// keeps a lit surface out of its own depth samples at grazing angles (Holbert 2011,
+// "Normal offset shadows"). n unit.
+SHARED_FN vec3 shadow_lookup_point(vec3 n, vec3 p, vec3 light_position, vec4 shadow) {
+    vec3 to_light = light_position - p;
+    float d = length(to_light);
+    float cos_theta = clamp(dot(n, to_light) / d, 0.0f, 1.0f);
+    float sin_theta = sqrt(1.0f - cos_theta * cos_theta);
+    float texel = shadow.y * d;
+    return p + n * (texel * (shadow.w + shadow.z * sin_theta));
+}
+
 // Unit direction from p toward a point q.
 SHARED_FN vec3 direction_to(vec3 p, vec3 q) {
     return normalize(q - p);
@@ -51,7 +70,7 @@ SHARED_FN vec3 direction_to(vec3 p, vec3 q) {
 SPECULA_SHARED_END
 
 #ifdef __cplusplus
-static_assert(sizeof(specula::shared::RenderParams) == 176, "std430 size of RenderParams");
+static_assert(sizeof(specula::shared::RenderParams) == 256, "std430 size of RenderParams");
 static_assert(sizeof(specula::shared::RenderVertex) == 32, "std430 stride of RenderVertex");
 #endif
 

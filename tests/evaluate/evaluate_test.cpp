@@ -1,8 +1,9 @@
 // Evaluation (engine/evaluate) on a synthetic capture of the convex `sphere` preset
 // (96 px, 4 views x 3 lights + 1 test view x 2 lights, EXR: no quantization) against a
 // bundle built in memory from the truth: the preset's own mesh and texture coordinates,
-// its albedo texture as the atlas, its lobe. The renderer has no shadows; the sphere is
-// convex, so only pixels lit from behind the geometric (flat) facet can differ.
+// its albedo texture as the atlas, its lobe. The sphere is convex (nothing casts a shadow,
+// with or without the renderer's shadow map), so only pixels lit from behind the geometric
+// (flat) facet can differ.
 // Every test runs on lavapipe with the validation layer (VulkanTest).
 #include "capture/capture.h"
 #include "core/file_util.h"

@@ -294,7 +294,7 @@ TEST_F(ViewTest, XvfbIdleWindowDrawsOnceAndStopsCleanly) {
 
 #ifdef SPECULA_XDOTOOL
 /// Input under Xvfb, driven by xdotool (validation on): orbit, pan, wheel and light drags,
-/// the mode keys (the title follows), the photograph (C), a resize by the window system
+/// the mode keys (the title follows), shadows off (S), the photograph (C), a resize by the window system
 /// (the swapchain is recreated; the title shows the new size), and Q ends it with exit 0.
 TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
     const Fixture& f = fixture();
@@ -310,7 +310,8 @@ TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
                      x + " click --window $w 4\n" +
                      x + " keydown --window $w shift mousedown 1 mousemove --window $w 80 70 mouseup 1 keyup shift\n";
     for (const char* k : {"1", "2", "3", "p", "Left", "r", "c"}) sh += x + " key --window $w " + k + "; t " + k + "\n";
-    sh += x + " windowsize $w 150 110; t resize\n" + x + " key --window $w c; t c2\n" + x + " key --window $w q\nwait $p\n";
+    sh += x + " windowsize $w 150 110; t resize\n" + x + " key --window $w c; t c2\n" + x + " key --window $w s; t s\n" + x +
+          " key --window $w q\nwait $p\n";
     write_text_file(out / "input.sh", sh);
     const RunResult v =
         run(std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 640x480x24\" sh " + (out / "input.sh").string(), out / "xvfb.txt");
@@ -321,7 +322,8 @@ TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
     for (const char* want : {"1: specula-view | truth.glb | diffuse/analytic |", "2: specula-view | truth.glb | specular/analytic |",
                              "3: specula-view | truth.glb | both/analytic, 1 pass |", "p: specula-view | truth.glb | both/analytic, 2 passes |",
                              "c: specula-view | truth.glb | captured photograph of frame", "resize: ", "| 150x110",
-                             "c2: specula-view | truth.glb | both/analytic, 2 passes |"})
+                             "c2: specula-view | truth.glb | both/analytic, 2 passes |",
+                             "s: specula-view | truth.glb | both/analytic, 2 passes, no shadows |"})
         EXPECT_NE(t.find(want), std::string::npos) << want << "\n" << t;
 }
 #endif

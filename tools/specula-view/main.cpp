@@ -24,7 +24,7 @@ int main(int argc, char** argv) {
     CLI::App app{"specula-view: show a Specula bundle (.glb) under a point light in a window, with the same raster passes\n"
                  "as `specula render`. Mouse: left drag orbits, right/middle drag pans, wheel zooms, shift + left drag\n"
                  "(or the arrow keys) moves the light. Keys: 1 diffuse, 2 specular, 3 both, F factorized/analytic,\n"
-                 "P fused/separate passes, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
+                 "P fused/separate passes, S shadows on/off, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
                  "The title shows mode and frame time.\n"
                  "Draws only when something changes (unless --continuous). Without a display, --frames and --bench\n"
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
                                          "or separate (the thesis's two passes, as `specula render` draws them); same image")
         ->check(CLI::IsMember({"fused", "separate"}))
         ->capture_default_str();
+    app.add_flag("--no-shadows", c.no_shadows, "Start without cast shadows (the thesis's unshadowed render; key S toggles)");
     app.add_option("-d,--device", c.device, "Vulkan device: index or name substring (see `specula devices`)");
     app.add_option("--frames", c.frames, "Headless: draw N frames of the start view, then exit (offscreen when there is no display)");
     app.add_option("--screenshot", c.screenshot, "With --frames: save the last frame (.png: what the window shows, sRGB 8-bit; .exr: linear float)");

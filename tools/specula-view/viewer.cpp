@@ -143,12 +143,14 @@ render::Settings settings_of(const ViewerConfig& c) {
     if (c.passes != "fused" && c.passes != "separate") throw UsageError("--passes: '" + c.passes + "' is not fused or separate");
     return {.mode = c.mode == "diffuse" ? render::Mode::Diffuse : c.mode == "specular" ? render::Mode::Specular : render::Mode::Both,
             .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic,
-            .passes = c.passes == "separate" ? render::Passes::Separate : render::Passes::Fused};
+            .passes = c.passes == "separate" ? render::Passes::Separate : render::Passes::Fused,
+            .shadows = !c.no_shadows};
 }
 
 std::string settings_name(const render::Settings& s) {
     std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_model_name(s.specular);
     if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
+    if (!s.shadows) name += ", no shadows"; // shadows are the default (render::Settings::shadows)
     return name;
 }
 
@@ -316,6 +318,7 @@ constexpr const char* kHelp =
     "  1 / 2 / 3           diffuse only / specular only / both\n"
     "  F                   factorized <-> analytic specular (bundles with cube-maps)\n"
     "  P                   both terms in one fused pass <-> the two separate passes\n"
+    "  S                   cast shadows (shadow map) on <-> off (the thesis's unshadowed render)\n"
     "  C                   captured photograph of the frame <-> render (with --capture)\n"
     "  R                   reset camera and light\n"
     "  H                   this help\n"
@@ -342,6 +345,7 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
     case GLFW_KEY_P:
         in.settings->passes = in.settings->passes == render::Passes::Fused ? render::Passes::Separate : render::Passes::Fused;
         break;
+    case GLFW_KEY_S: in.settings->shadows = !in.settings->shadows; break;
     case GLFW_KEY_C:
         if (!in.has_photo) {
             std::fprintf(stderr, "no captured photograph: start with --capture DIR --frame INDEX\n");

@@ -18,6 +18,7 @@ struct ViewerConfig {
     std::string mode = "both";          ///< both, diffuse, specular
     std::string specular = "analytic";  ///< analytic, factorized
     std::string passes = "fused";       ///< fused (one pass for both terms) or separate (the thesis's two)
+    bool no_shadows = false;            ///< start without cast shadows (key S toggles)
     std::string device;                 ///< Vulkan device selector
     std::optional<int> frames;          ///< headless: render this many frames, then exit
     std::string screenshot;             ///< save the last frame (.png sRGB 8-bit, .exr linear)

@@ -31,6 +31,7 @@ struct EvaluateArgs {
     std::size_t frames = 0;
     std::string mode = "both";
     std::string specular = "analytic";
+    bool no_shadows = false;
     unsigned factor_terms = 0;
     std::string metrics = "vulkan";
     bool no_hausdorff = false;
@@ -42,6 +43,7 @@ void run_evaluate(const EvaluateArgs& a) {
     evaluate::EvaluateOptions o;
     o.render.mode = a.mode == "diffuse" ? render::Mode::Diffuse : a.mode == "specular" ? render::Mode::Specular : render::Mode::Both;
     o.render.specular = a.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic;
+    o.render.shadows = !a.no_shadows;
     o.metrics_backend = a.metrics == "cpu" ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
@@ -95,6 +97,8 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_option("--specular", a->specular, "Specular model: analytic (the lobe) or factorized (the bundle's G/H cube-maps)")
         ->check(CLI::IsMember({"analytic", "factorized"}))
         ->capture_default_str();
+    cmd->add_flag("--no-shadows", a->no_shadows,
+                  "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped, like the captures)");
     cmd->add_option("--factor-terms", a->factor_terms,
                     "With --specular factorized: render the first K terms of the bundle's factorization (default: all)")
         ->check(CLI::Range(1, 4));

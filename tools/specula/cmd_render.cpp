@@ -28,6 +28,7 @@ struct RenderArgs {
     std::string out;
     std::string mode = "both";
     std::string specular = "analytic";
+    bool no_shadows = false;
     std::string camera; // eye,target,up
     std::string light;  // x,y,z,intensity or x,y,z,r,g,b
     std::string size = "512";
@@ -47,7 +48,8 @@ void run_render(const RenderArgs& a) {
     if (!from_capture && !free_pose) throw UsageError("give --capture DIR --frame INDEX, or --camera EYE,TARGET,UP --light X,Y,Z,I");
     const render::Settings settings{.mode = parse_mode(a.mode),
                                     .specular = a.specular == "factorized" ? render::SpecularModel::Factorized
-                                                                           : render::SpecularModel::Analytic};
+                                                                           : render::SpecularModel::Analytic,
+                                    .shadows = !a.no_shadows};
     Camera camera;
     PointLight light;
     std::string what;
@@ -86,6 +88,8 @@ void run_render(const RenderArgs& a) {
     const render::Frame frame = renderer.render(camera, light, settings);
     evaluate::write_rendered_image(a.out, frame.color);
     std::string note = frame.info.specular_note.empty() ? "" : " (" + frame.info.specular_note + ")";
+    note += frame.info.shadow_pass ? ", shadows" : ", no shadows (" + frame.info.shadow_note + ")";
+    if (settings.shadows && !frame.info.shadow_pass) log::warn("rendered without shadows: " + frame.info.shadow_note);
     log::info("wrote " + a.out + ": " + what + ", " + std::to_string(frame.color.width) + "x" +
               std::to_string(frame.color.height) + ", " + render::mode_name(settings.mode) + "/" +
               render::specular_model_name(settings.specular) + note + ", " + std::to_string(frame.info.wall_ms) + " ms");
@@ -114,6 +118,8 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--specular", a->specular, "Specular model: analytic (the lobe) or factorized (the bundle's G/H cube-maps)")
         ->check(CLI::IsMember({"analytic", "factorized"}))
         ->capture_default_str();
+    cmd->add_flag("--no-shadows", a->no_shadows,
+                  "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped)");
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_render(*a); });
 }
