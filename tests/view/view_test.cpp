@@ -208,7 +208,8 @@ TEST_F(ViewTest, XvfbScreenshotMatchesSpeculaRender) {
     const RunResult v = run(xvfb + viewer() + frame_args(f) + " --frames 3 --screenshot " + (out / "view.png").string(), out / "v.txt");
     ASSERT_EQ(v.code, 0) << v.err;
     EXPECT_EQ(v.err.find("validation"), std::string::npos) << v.err;
-    const RunResult r = run(std::string(SPECULA_BINARY) + " -q render " + frame_args(f) + " -o " + (out / "render.png").string(),
+    // The viewer draws no shadows by default (viewer.h); render the same.
+    const RunResult r = run(std::string(SPECULA_BINARY) + " -q render --no-shadows " + frame_args(f) + " -o " + (out / "render.png").string(),
                       out / "r.txt");
     ASSERT_EQ(r.code, 0) << r.err;
 
@@ -294,7 +295,7 @@ TEST_F(ViewTest, XvfbIdleWindowDrawsOnceAndStopsCleanly) {
 
 #ifdef SPECULA_XDOTOOL
 /// Input under Xvfb, driven by xdotool (validation on): orbit, pan, wheel and light drags,
-/// the mode keys (the title follows), shadows off (S), the photograph (C), a resize by the window system
+/// the mode keys (the title follows), shadows on (S), the photograph (C), a resize by the window system
 /// (the swapchain is recreated; the title shows the new size), and Q ends it with exit 0.
 TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
     const Fixture& f = fixture();
@@ -323,7 +324,7 @@ TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
                              "3: specula-view | truth.glb | both/analytic, 1 pass |", "p: specula-view | truth.glb | both/analytic, 2 passes |",
                              "c: specula-view | truth.glb | captured photograph of frame", "resize: ", "| 150x110",
                              "c2: specula-view | truth.glb | both/analytic, 2 passes |",
-                             "s: specula-view | truth.glb | both/analytic, 2 passes, no shadows |"})
+                             "s: specula-view | truth.glb | both/analytic, 2 passes, shadows |"})
         EXPECT_NE(t.find(want), std::string::npos) << want << "\n" << t;
 }
 #endif

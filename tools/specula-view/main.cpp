@@ -52,7 +52,9 @@ int main(int argc, char** argv) {
                                          "or separate (the thesis's two passes, as `specula render` draws them); same image")
         ->check(CLI::IsMember({"fused", "separate"}))
         ->capture_default_str();
-    app.add_flag("--no-shadows", c.no_shadows, "Start without cast shadows (the thesis's unshadowed render; key S toggles)");
+    app.add_flag("--shadows,!--no-shadows", c.shadows,
+                 "Start with cast shadows (a shadow map; off by default here: it costs a second pass over every triangle "
+                 "whenever the light moves; key S toggles). --no-shadows: the thesis's unshadowed render (the default)");
     app.add_option("-d,--device", c.device, "Vulkan device: index or name substring (see `specula devices`)");
     app.add_option("--frames", c.frames, "Headless: draw N frames of the start view, then exit (offscreen when there is no display)");
     app.add_option("--screenshot", c.screenshot, "With --frames: save the last frame (.png: what the window shows, sRGB 8-bit; .exr: linear float)");

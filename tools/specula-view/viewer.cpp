@@ -144,13 +144,13 @@ render::Settings settings_of(const ViewerConfig& c) {
     return {.mode = c.mode == "diffuse" ? render::Mode::Diffuse : c.mode == "specular" ? render::Mode::Specular : render::Mode::Both,
             .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic,
             .passes = c.passes == "separate" ? render::Passes::Separate : render::Passes::Fused,
-            .shadows = !c.no_shadows};
+            .shadows = c.shadows};
 }
 
 std::string settings_name(const render::Settings& s) {
     std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_model_name(s.specular);
     if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
-    if (!s.shadows) name += ", no shadows"; // shadows are the default (render::Settings::shadows)
+    if (s.shadows) name += ", shadows"; // off by default in the viewer (ViewerConfig::shadows)
     return name;
 }
 

@@ -18,7 +18,10 @@ struct ViewerConfig {
     std::string mode = "both";          ///< both, diffuse, specular
     std::string specular = "analytic";  ///< analytic, factorized
     std::string passes = "fused";       ///< fused (one pass for both terms) or separate (the thesis's two)
-    bool no_shadows = false;            ///< start without cast shadows (key S toggles)
+    /// Start with cast shadows (key S toggles). Off by default in the viewer: the shadow map
+    /// redraws every triangle once more whenever the light moves, which halves the frame rate
+    /// of large meshes on lavapipe; `specula render` and `evaluate` draw shadows by default.
+    bool shadows = false;
     std::string device;                 ///< Vulkan device selector
     std::optional<int> frames;          ///< headless: render this many frames, then exit
     std::string screenshot;             ///< save the last frame (.png sRGB 8-bit, .exr linear)
