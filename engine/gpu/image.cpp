@@ -181,9 +181,9 @@ VkDeviceSize Image::byte_size() const noexcept {
     return VkDeviceSize{m_width} * m_height * m_layers * m_texel_bytes;
 }
 
-void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_layout, VkImageLayout new_layout,
-                   VkPipelineStageFlags src_stage, VkAccessFlags src_access, VkPipelineStageFlags dst_stage,
-                   VkAccessFlags dst_access) {
+void image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, uint32_t layers, VkImageLayout old_layout,
+                   VkImageLayout new_layout, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                   VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
     const VkImageMemoryBarrier b{.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
                                  .srcAccessMask = src_access,
                                  .dstAccessMask = dst_access,
@@ -191,10 +191,17 @@ void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_la
                                  .newLayout = new_layout,
                                  .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
                                  .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-                                 .image = image.handle(),
-                                 .subresourceRange = {.aspectMask = image.aspect(), .baseMipLevel = 0, .levelCount = 1,
-                                                      .baseArrayLayer = 0, .layerCount = image.layers()}};
+                                 .image = image,
+                                 .subresourceRange = {.aspectMask = aspect, .baseMipLevel = 0, .levelCount = 1,
+                                                      .baseArrayLayer = 0, .layerCount = layers}};
     vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &b);
+}
+
+void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_layout, VkImageLayout new_layout,
+                   VkPipelineStageFlags src_stage, VkAccessFlags src_access, VkPipelineStageFlags dst_stage,
+                   VkAccessFlags dst_access) {
+    image_barrier(cmd, image.handle(), image.aspect(), image.layers(), old_layout, new_layout, src_stage, src_access,
+                  dst_stage, dst_access);
 }
 
 namespace {
@@ -347,37 +354,43 @@ bool depth_filters_linearly(const Context& ctx, VkFormat format) {
     return (optimal_features(ctx, format) & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT) != 0;
 }
 
-UniqueSampler make_shadow_compare_sampler(Context& ctx, bool linear, const std::string& name) {
-    const VkFilter filter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
-    const VkSamplerCreateInfo info{.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
-                                   .magFilter = filter,
-                                   .minFilter = filter,
-                                   .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
-                                   .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-                                   .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-                                   .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-                                   .compareEnable = VK_TRUE,
-                                   .compareOp = VK_COMPARE_OP_LESS_OR_EQUAL,
-                                   .maxLod = 0.0f,
-                                   .borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE};
+namespace {
+UniqueSampler create_sampler(Context& ctx, const VkSamplerCreateInfo& info, const std::string& name) {
     VkSampler sampler = VK_NULL_HANDLE;
     SPECULA_VK_CHECK(vkCreateSampler(ctx.device(), &info, nullptr, &sampler), "creating sampler '" + name + "'");
     return UniqueSampler(ctx.device(), sampler);
 }
+} // namespace
+
+UniqueSampler make_shadow_compare_sampler(Context& ctx, bool linear, const std::string& name) {
+    const VkFilter filter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
+    return create_sampler(ctx,
+                          {.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+                           .magFilter = filter,
+                           .minFilter = filter,
+                           .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+                           .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                           .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                           .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+                           .compareEnable = VK_TRUE,
+                           .compareOp = VK_COMPARE_OP_LESS_OR_EQUAL,
+                           .maxLod = 0.0f,
+                           .borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE},
+                          name);
+}
 
 UniqueSampler make_linear_clamp_sampler(Context& ctx, const std::string& name) {
-    const VkSamplerCreateInfo info{.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
-                                   .magFilter = VK_FILTER_LINEAR,
-                                   .minFilter = VK_FILTER_LINEAR,
-                                   .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
-                                   .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
-                                   .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
-                                   .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
-                                   .maxLod = 0.0f,
-                                   .borderColor = VK_BORDER_COLOR_FLOAT_TRANSPARENT_BLACK};
-    VkSampler sampler = VK_NULL_HANDLE;
-    SPECULA_VK_CHECK(vkCreateSampler(ctx.device(), &info, nullptr, &sampler), "creating sampler '" + name + "'");
-    return UniqueSampler(ctx.device(), sampler);
+    return create_sampler(ctx,
+                          {.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+                           .magFilter = VK_FILTER_LINEAR,
+                           .minFilter = VK_FILTER_LINEAR,
+                           .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+                           .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+                           .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+                           .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+                           .maxLod = 0.0f,
+                           .borderColor = VK_BORDER_COLOR_FLOAT_TRANSPARENT_BLACK},
+                          name);
 }
 
 } // namespace specula::gpu

@@ -109,6 +109,12 @@ private:
     UniqueImageView m_view;
 };
 
+/// One pipeline barrier with one image memory barrier over mip 0 and `layers` layers of a
+/// raw image (e.g. a swapchain image, which no gpu::Image owns).
+void image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, uint32_t layers, VkImageLayout old_layout,
+                   VkImageLayout new_layout, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                   VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
+
 /// One pipeline barrier with one image memory barrier over all layers of `image`.
 void image_barrier(VkCommandBuffer cmd, const Image& image, VkImageLayout old_layout, VkImageLayout new_layout,
                    VkPipelineStageFlags src_stage, VkAccessFlags src_access, VkPipelineStageFlags dst_stage,

@@ -421,16 +421,7 @@ void on_refresh(GLFWwindow* w) { input_of(w).dirty = true; }
 
 void swap_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to, VkPipelineStageFlags src_stage,
                         VkAccessFlags src_access, VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
-    const VkImageMemoryBarrier b{.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
-                                 .srcAccessMask = src_access,
-                                 .dstAccessMask = dst_access,
-                                 .oldLayout = from,
-                                 .newLayout = to,
-                                 .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-                                 .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-                                 .image = image,
-                                 .subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1}};
-    vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &b);
+    gpu::image_barrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT, 1, from, to, src_stage, src_access, dst_stage, dst_access);
 }
 
 VkImageBlit blit_region(uint32_t sw, uint32_t sh, const ImageRect& dst) {
