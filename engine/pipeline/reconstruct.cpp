@@ -414,10 +414,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             }
         } else {
             Stopwatch fit_watch;
-            const auto run_fit = [&](const std::string& stage) {
+            const auto run_fit = [&](const std::string& stage, std::vector<LafortuneSample> samples) {
                 return run_stage(result, stage, [&] {
-                    const std::vector<LafortuneSample> sub =
-                        stride_subsample(to_lafortune_samples(rs.samples), config.max_fit_samples);
+                    const std::vector<LafortuneSample> sub = stride_subsample(std::move(samples), config.max_fit_samples);
                     fit_samples = sub.size();
                     const Stopwatch w;
                     LafortuneFitRgb f = fit_lafortune(sub, fo);
@@ -425,7 +424,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                     return f;
                 });
             };
-            LafortuneFitRgb fit = run_fit("lafortune fit");
+            LafortuneFitRgb fit = run_fit("lafortune fit", std::move(all)); // converted above for the energy decision
             // Joint estimate (an addition to the thesis): the diffuse solve absorbs the part of a
             // broad lobe that its highlight test cannot separate, which biases the residuals low.
             // Each round subtracts the fitted lobe's light from the samples, re-solves the albedo,
@@ -466,7 +465,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                     gpu_dispatches.push_back({{"stage", "residual samples" + tag},
                                               {"dispatch", "residuals (" + std::to_string(rs.chunks) + " dispatches)"},
                                               {"ms", *rs.gpu_ms}});
-                fit = run_fit("lafortune fit" + tag);
+                fit = run_fit("lafortune fit" + tag, to_lafortune_samples(rs.samples));
                 const LafortuneRgb next = lobe_of(fit);
                 double change = 0.0;
                 for (int k = 0; k < 3; ++k) {
