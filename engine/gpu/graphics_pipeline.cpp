@@ -45,8 +45,18 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                                         .module = frag.get(),
                                         .pName = "main"}};
 
+    for (const VkVertexInputAttributeDescription& a : desc.vertex_attributes)
+        if (a.binding != 0 || desc.vertex_stride == 0)
+            throw Error(what + ": vertex attributes need binding 0 and a vertex stride");
+    const VkVertexInputBindingDescription vertex_binding{
+        .binding = 0, .stride = desc.vertex_stride, .inputRate = VK_VERTEX_INPUT_RATE_VERTEX};
+    const bool has_input = !desc.vertex_attributes.empty();
     const VkPipelineVertexInputStateCreateInfo vertex_input{
-        .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO}; // vertex pulling: none
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
+        .vertexBindingDescriptionCount = has_input ? 1u : 0u,
+        .pVertexBindingDescriptions = has_input ? &vertex_binding : nullptr,
+        .vertexAttributeDescriptionCount = static_cast<uint32_t>(desc.vertex_attributes.size()),
+        .pVertexAttributeDescriptions = desc.vertex_attributes.data()};
     const VkPipelineInputAssemblyStateCreateInfo assembly{
         .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
         .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
@@ -171,6 +181,12 @@ void DescriptorSet::write_image(uint32_t binding, const Image& image, VkSampler 
                                      .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
                                      .pImageInfo = &info};
     vkUpdateDescriptorSets(m_ctx->device(), 1, &write, 0, nullptr);
+}
+
+void bind_vertex_buffer(VkCommandBuffer cmd, const Buffer& buffer) {
+    const VkBuffer b = buffer.handle();
+    const VkDeviceSize offset = 0;
+    vkCmdBindVertexBuffers(cmd, 0, 1, &b, &offset);
 }
 
 } // namespace specula::gpu

@@ -3,8 +3,10 @@
 // (build/spirv/<stage>/<name>.vert.h defines <stage>_<name>_vert[]).
 //
 // Conventions (the raster passes' needs, kept small):
-// - No vertex input state: vertex shaders pull their vertices from storage
-//   buffers by gl_VertexIndex, so meshes live in ordinary gpu::Buffer objects.
+// - Vertices come either from one interleaved vertex buffer (binding 0, per-vertex
+//   rate, `vertex_stride` and `vertex_attributes` in the desc; the buffer is an
+//   ordinary gpu::Buffer, bound with bind_vertex_buffer) or, with no attributes, are
+//   pulled by the vertex shader from storage buffers by gl_VertexIndex.
 // - One descriptor set (set 0) whose bindings are listed in the desc, in order;
 //   a DescriptorSet owns one set of that layout and is written once.
 // - Viewport and scissor are dynamic state (render_target.h sets them).
@@ -46,7 +48,14 @@ struct GraphicsPipelineDesc {
     VkFrontFace front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
     float depth_bias_constant = 0.0f; // rasterizer depth bias (both zero: disabled)
     float depth_bias_slope = 0.0f;
+    // Vertex input binding 0 (empty: none, the shader pulls its vertices). Fixed-function
+    // fetch is the faster path on lavapipe, whose vertex stage runs on one thread.
+    uint32_t vertex_stride = 0;
+    std::vector<VkVertexInputAttributeDescription> vertex_attributes; // .binding must be 0
 };
+
+/// Binds `buffer` as vertex input binding 0 of the bound pipeline (offset 0).
+void bind_vertex_buffer(VkCommandBuffer cmd, const Buffer& buffer);
 
 class GraphicsPipeline {
 public:

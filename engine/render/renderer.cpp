@@ -23,16 +23,17 @@ namespace specula::render {
 
 namespace {
 
-// Set 0 of every raster pipeline: the per-frame parameters, the vertices, then the
-// textures the pass samples (shaders/render/*.{vert,frag}): the albedo atlas, the shadow
-// map (render/terms.glsl SPECULA_SHADOW_SAMPLER), and for the factorized passes term k's G
+// Set 0 of every raster pipeline: the per-frame parameters, then the textures the pass
+// samples (shaders/render/*.{vert,frag}): the albedo atlas, the shadow map
+// (render/terms.glsl SPECULA_SHADOW_SAMPLER), and for the factorized passes term k's G
 // at kBindingCubeG + k, its H at kBindingCubeH + k (render/terms.glsl SPECULA_FACTOR_SAMPLERS);
-// unused bindings hold term 1's cube-maps. The shadow map's depth pass uses the first two.
-constexpr uint32_t kBindingParams = 0, kBindingVertices = 1, kBindingAlbedo = 2, kBindingShadow = 3,
-                   kBindingCubeG = 4, kBindingCubeH = kBindingCubeG + kMaxFactorTerms;
+// unused bindings hold term 1's cube-maps. The shadow map's depth pass uses the first one.
+// The vertices are vertex input binding 0 (set_vertex_input), not a descriptor.
+constexpr uint32_t kBindingParams = 0, kBindingAlbedo = 1, kBindingShadow = 2, kBindingCubeG = 3,
+                   kBindingCubeH = kBindingCubeG + kMaxFactorTerms;
 constexpr uint32_t kLitBindings = kBindingShadow + 1;
 constexpr uint32_t kFactorizedBindings = kBindingCubeH + kMaxFactorTerms;
-constexpr uint32_t kShadowPassBindings = 2;
+constexpr uint32_t kShadowPassBindings = 1;
 
 // The shadow map's frustum: a light at least this many bounding radii from the centre
 // (half-angle asin(1 / 1.1) = 65 degrees); a closer light gets no shadow pass.
@@ -77,9 +78,8 @@ std::optional<LightFrustum> light_frustum(const glm::dvec3& light, const glm::dv
 std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count) {
     const gpu::DescriptorBinding params{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT};
-    const gpu::DescriptorBinding vertices{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT};
     const gpu::DescriptorBinding texture{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_SHADER_STAGE_FRAGMENT_BIT};
-    std::vector<gpu::DescriptorBinding> all{params, vertices};
+    std::vector<gpu::DescriptorBinding> all{params};
     all.resize(count, texture);
     return all;
 }
@@ -216,12 +216,10 @@ struct Renderer::Impl {
         vertex_count = static_cast<uint32_t>(3 * triangles);
         for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set, &both_factorized_set}) {
             set->write_buffer(kBindingParams, params);
-            set->write_buffer(kBindingVertices, vertices);
             set->write_image(kBindingAlbedo, albedo, sampler.get());
             set->write_image(kBindingShadow, shadow_map.depth(), shadow_map.compare_sampler());
         }
         shadow_set.write_buffer(kBindingParams, params);
-        shadow_set.write_buffer(kBindingVertices, vertices);
     }
 
     gpu::GraphicsPipelineDesc shadow_pass_desc() const {
@@ -233,7 +231,19 @@ struct Renderer::Impl {
         d.depth_compare = VK_COMPARE_OP_LESS; // standard depth (gpu/shadow_map.h)
         d.cull_mode = VK_CULL_MODE_NONE;      // both sides cast shadows (open meshes)
         d.depth_bias_slope = kDepthBiasSlope;
+        set_vertex_input(d, true);
         return d;
+    }
+
+    // shared::RenderVertex as vertex input binding 0: location 0 position_u and, unless
+    // `position_only` (the depth pass, whose shader reads nothing else), 1 normal_v.
+    static void set_vertex_input(gpu::GraphicsPipelineDesc& d, bool position_only = false) {
+        d.vertex_stride = sizeof(shared::RenderVertex);
+        d.vertex_attributes = {{.location = 0, .binding = 0, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+                                .offset = offsetof(shared::RenderVertex, position_u)}};
+        if (!position_only)
+            d.vertex_attributes.push_back({.location = 1, .binding = 0, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+                                           .offset = offsetof(shared::RenderVertex, normal_v)});
     }
 
     static const Mesh* checked_mesh(const Scene& scene) {
@@ -273,6 +283,7 @@ struct Renderer::Impl {
         // a triangle counter-clockwise seen from outside is counter-clockwise on screen, which
         // is what Vulkan's VK_FRONT_FACE_COUNTER_CLOCKWISE means with y pointing down.
         d.front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+        set_vertex_input(d);
         if (additive) {
             // Pass 2 shades exactly the fragments pass 1 kept: same vertex shader module,
             // `precise` position, so the depths are bit-identical and EQUAL selects them.
@@ -343,6 +354,7 @@ struct Renderer::Impl {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.pipeline());
         const VkDescriptorSet s = shadow_set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.layout(), 0, 1, &s, 0, nullptr);
+        gpu::bind_vertex_buffer(cmd, vertices);
         vkCmdDraw(cmd, vertex_count, 1, 0, 0);
         shadow_map.end(cmd);
     }
@@ -369,6 +381,7 @@ struct Renderer::Impl {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.pipeline());
         const VkDescriptorSet s = set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
+        gpu::bind_vertex_buffer(cmd, vertices);
         vkCmdDraw(cmd, vertex_count, 1, 0, 0);
         t.end(cmd);
     }

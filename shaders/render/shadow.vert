@@ -7,8 +7,8 @@
 #include "shared/render.h"
 
 layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams params; };
-layout(std430, set = 0, binding = 1) readonly buffer Vertices { RenderVertex vertices[]; };
+layout(location = 0) in vec4 in_position_u; // RenderVertex, vertex input binding 0
 
 void main() {
-    gl_Position = params.light_to_clip * vec4(vertices[gl_VertexIndex].position_u.xyz, 1.0);
+    gl_Position = params.light_to_clip * vec4(in_position_u.xyz, 1.0);
 }

@@ -10,9 +10,7 @@ layout(std430, set = 0, binding = 0) readonly buffer Params { RenderParams param
 SPECULA_SHADOW_SAMPLER
 SPECULA_FACTOR_SAMPLERS
 
-layout(location = 0) in vec3 in_world;
-layout(location = 1) in vec3 in_normal;
-layout(location = 2) in vec2 in_uv;
+#include "render/varyings.glsl"
 layout(location = 0) out vec4 out_color;
 
 void main() {

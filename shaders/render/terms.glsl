@@ -14,7 +14,7 @@
 const float kPi = 3.14159265358979;
 
 // The light's visibility V in [0, 1] at a surface point (1 = lit): the shadow map
-// (set 0 binding 3, a sampler2DShadow with compare LESS_OR_EQUAL, 2x2 PCF where the depth
+// (set 0 binding 2, a sampler2DShadow with compare LESS_OR_EQUAL, 2x2 PCF where the depth
 // format filters linearly) looked up from the normal-offset point (shared/render.h
 // shadow_lookup_point). Every pass multiplies both terms by it. p.shadow.x == 0: 1.
 float light_visibility(RenderParams p, sampler2DShadow shadow_map, vec3 world, vec3 n) {
@@ -26,8 +26,8 @@ float light_visibility(RenderParams p, sampler2DShadow shadow_map, vec3 world, v
     return texture(shadow_map, vec3(ndc.xy * 0.5 + 0.5, ndc.z));
 }
 
-// The pass shaders' declaration of the shadow map (set 0 binding 3).
-#define SPECULA_SHADOW_SAMPLER layout(set = 0, binding = 3) uniform sampler2DShadow shadow_map;
+// The pass shaders' declaration of the shadow map (set 0 binding 2).
+#define SPECULA_SHADOW_SAMPLER layout(set = 0, binding = 2) uniform sampler2DShadow shadow_map;
 
 // (rho / pi) V I max(0, n.u) / d^2, rho bilinear from the atlas (the gutters make
 // bilinear safe, engine/geometry/atlas.h); n unit, V = light_visibility.
@@ -52,7 +52,7 @@ vec3 specular_analytic_term(RenderParams p, vec3 world, vec3 n, float visibility
 // max(0, sum_k G_k(h) H_k(d)) over the first p.flags.y (1..4) terms of the Kautz-McCool
 // factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)), times V I max(0, n.u) / d^2.
 // Four fixed sampler pairs (no descriptor indexing on lavapipe): the pass shaders declare
-// them at bindings 4..7 (G) and 8..11 (H) and pass them in.
+// them at bindings 3..6 (G) and 7..10 (H) and pass them in.
 vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, samplerCube g2, samplerCube g3,
                               samplerCube h0, samplerCube h1, samplerCube h2, samplerCube h3, vec3 world, vec3 n,
                               float visibility) {
@@ -72,16 +72,16 @@ vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, sa
     return color;
 }
 
-// The pass shaders' declarations of the factorization's samplers (set 0, bindings 4..11).
+// The pass shaders' declarations of the factorization's samplers (set 0, bindings 3..10).
 #define SPECULA_FACTOR_SAMPLERS                                   \
-    layout(set = 0, binding = 4) uniform samplerCube cube_g0;     \
-    layout(set = 0, binding = 5) uniform samplerCube cube_g1;     \
-    layout(set = 0, binding = 6) uniform samplerCube cube_g2;     \
-    layout(set = 0, binding = 7) uniform samplerCube cube_g3;     \
-    layout(set = 0, binding = 8) uniform samplerCube cube_h0;     \
-    layout(set = 0, binding = 9) uniform samplerCube cube_h1;     \
-    layout(set = 0, binding = 10) uniform samplerCube cube_h2;    \
-    layout(set = 0, binding = 11) uniform samplerCube cube_h3;
+    layout(set = 0, binding = 3) uniform samplerCube cube_g0;     \
+    layout(set = 0, binding = 4) uniform samplerCube cube_g1;     \
+    layout(set = 0, binding = 5) uniform samplerCube cube_g2;     \
+    layout(set = 0, binding = 6) uniform samplerCube cube_g3;     \
+    layout(set = 0, binding = 7) uniform samplerCube cube_h0;     \
+    layout(set = 0, binding = 8) uniform samplerCube cube_h1;     \
+    layout(set = 0, binding = 9) uniform samplerCube cube_h2;    \
+    layout(set = 0, binding = 10) uniform samplerCube cube_h3;
 #define SPECULA_FACTOR_SAMPLER_ARGS cube_g0, cube_g1, cube_g2, cube_g3, cube_h0, cube_h1, cube_h2, cube_h3
 
 #endif
