@@ -89,6 +89,9 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
         .maxDepthBounds = 1.0f};
     const VkColorComponentFlags rgba = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
                                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    const uint32_t color_count = depth_only ? 0u : desc.color_attachments;
+    if (!depth_only && (color_count == 0 || color_count > 4))
+        throw Error(what + ": " + std::to_string(color_count) + " colour attachments (1 to 4)");
     VkPipelineColorBlendAttachmentState attachment{.blendEnable = VK_FALSE, .colorWriteMask = rgba};
     if (desc.blend == BlendMode::Additive)
         attachment = {.blendEnable = VK_TRUE,
@@ -99,10 +102,11 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                       .dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
                       .alphaBlendOp = VK_BLEND_OP_ADD,
                       .colorWriteMask = rgba};
+    const std::vector<VkPipelineColorBlendAttachmentState> attachments(color_count, attachment);
     const VkPipelineColorBlendStateCreateInfo blend{.sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
                                                     .logicOpEnable = VK_FALSE,
-                                                    .attachmentCount = depth_only ? 0u : 1u,
-                                                    .pAttachments = &attachment};
+                                                    .attachmentCount = color_count,
+                                                    .pAttachments = attachments.data()};
     const std::array dynamic_states{VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
     const VkPipelineDynamicStateCreateInfo dynamic{.sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
                                                    .dynamicStateCount = static_cast<uint32_t>(dynamic_states.size()),
@@ -120,7 +124,7 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
                                             .pDynamicState = &dynamic,
                                             .layout = m_layout.get(),
                                             .renderPass = desc.render_pass,
-                                            .subpass = 0};
+                                            .subpass = desc.subpass};
     VkPipeline pipeline = VK_NULL_HANDLE;
     SPECULA_VK_CHECK(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline), what);
     m_pipeline = UniquePipeline(dev, pipeline);
@@ -131,11 +135,12 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
 DescriptorSet::DescriptorSet(Context& ctx, const GraphicsPipeline& pipeline)
     : m_ctx(&ctx), m_name(pipeline.name()), m_bindings(pipeline.bindings()) {
     const VkDevice dev = ctx.device();
-    uint32_t buffers = 0, images = 0;
-    for (const DescriptorBinding& b : m_bindings) (b.type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER ? buffers : images) += 1;
-    std::vector<VkDescriptorPoolSize> sizes;
-    if (buffers > 0) sizes.push_back({VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, buffers});
-    if (images > 0) sizes.push_back({VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, images});
+    std::vector<VkDescriptorPoolSize> sizes; // one entry per descriptor type used
+    for (const DescriptorBinding& b : m_bindings) {
+        auto it = std::find_if(sizes.begin(), sizes.end(), [&](const VkDescriptorPoolSize& s) { return s.type == b.type; });
+        if (it == sizes.end()) sizes.push_back({b.type, 1});
+        else ++it->descriptorCount;
+    }
     const VkDescriptorPoolCreateInfo pool_info{.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
                                                .maxSets = 1,
                                                .poolSizeCount = static_cast<uint32_t>(sizes.size()),
@@ -179,6 +184,18 @@ void DescriptorSet::write_image(uint32_t binding, const Image& image, VkSampler 
                                      .dstBinding = binding,
                                      .descriptorCount = 1,
                                      .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                                     .pImageInfo = &info};
+    vkUpdateDescriptorSets(m_ctx->device(), 1, &write, 0, nullptr);
+}
+
+void DescriptorSet::write_input_attachment(uint32_t binding, const Image& image) {
+    check_binding(binding, VK_DESCRIPTOR_TYPE_INPUT_ATTACHMENT);
+    const VkDescriptorImageInfo info{.imageView = image.view(), .imageLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    const VkWriteDescriptorSet write{.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+                                     .dstSet = m_set,
+                                     .dstBinding = binding,
+                                     .descriptorCount = 1,
+                                     .descriptorType = VK_DESCRIPTOR_TYPE_INPUT_ATTACHMENT,
                                      .pImageInfo = &info};
     vkUpdateDescriptorSets(m_ctx->device(), 1, &write, 0, nullptr);
 }

@@ -24,7 +24,8 @@
 namespace specula::gpu {
 
 struct DescriptorBinding {
-    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER; // STORAGE_BUFFER or COMBINED_IMAGE_SAMPLER
+    // STORAGE_BUFFER, COMBINED_IMAGE_SAMPLER or INPUT_ATTACHMENT (fragment stage only)
+    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     VkShaderStageFlags stages = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
 };
 
@@ -40,6 +41,8 @@ struct GraphicsPipelineDesc {
     std::vector<DescriptorBinding> bindings; // set 0, binding i = bindings[i]
     uint32_t push_constant_bytes = 0;        // vertex + fragment stages, offset 0, <= 128
     VkRenderPass render_pass = VK_NULL_HANDLE;
+    uint32_t subpass = 0;
+    uint32_t color_attachments = 1; // of the subpass (1 to 4), all blended alike; none when depth only
     bool depth_test = true;
     bool depth_write = true;
     VkCompareOp depth_compare = VK_COMPARE_OP_GREATER; // reversed-Z: nearer is larger
@@ -95,6 +98,8 @@ public:
     void write_buffer(uint32_t binding, const Buffer& buffer);
     /// The image must be in SHADER_READ_ONLY_OPTIMAL when it is sampled (Image::upload leaves it so).
     void write_image(uint32_t binding, const Image& image, VkSampler sampler);
+    /// An input attachment read by subpassLoad (the image in SHADER_READ_ONLY_OPTIMAL in that subpass).
+    void write_input_attachment(uint32_t binding, const Image& image);
 
     [[nodiscard]] VkDescriptorSet get() const noexcept { return m_set; }
 

@@ -42,6 +42,7 @@ const char* kind_name(ImageKind kind) {
     case ImageKind::Texture2D: return "texture";
     case ImageKind::CubeMap: return "cube-map";
     case ImageKind::ColorTarget: return "colour target";
+    case ImageKind::GBuffer: return "G-buffer";
     case ImageKind::DepthTarget: return "depth target";
     case ImageKind::ShadowMap: return "shadow map";
     }
@@ -122,9 +123,15 @@ Image::Image(Context& ctx, const ImageDesc& desc)
         usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
         needed = VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT;
         [[fallthrough]];
+    case ImageKind::GBuffer:
+        if (m_kind == ImageKind::GBuffer) {
+            usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_INPUT_ATTACHMENT_BIT;
+            needed = VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT;
+        }
+        [[fallthrough]];
     case ImageKind::DepthTarget:
     case ImageKind::ShadowMap:
-        if (m_kind != ImageKind::ColorTarget) {
+        if (m_kind == ImageKind::DepthTarget || m_kind == ImageKind::ShadowMap) {
             usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
             needed = VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT;
             if (m_kind == ImageKind::ShadowMap) {

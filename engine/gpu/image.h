@@ -50,6 +50,7 @@ enum class ImageKind {
     Texture2D,   // sampled, one layer
     CubeMap,     // sampled, six square layers, viewed as a cube
     ColorTarget, // colour attachment, copied out with a transfer
+    GBuffer,     // colour attachment that a later subpass reads as an input attachment
     DepthTarget, // depth attachment
     ShadowMap,   // depth attachment that later passes sample (with a depth-compare sampler)
 };

@@ -1,6 +1,7 @@
 #include "gpu/render_target.h"
 
 #include <array>
+#include <span>
 
 namespace specula::gpu {
 
@@ -61,9 +62,74 @@ UniqueRenderPass make_render_pass(VkDevice dev, VkFormat color, VkFormat depth, 
     return UniqueRenderPass(dev, pass);
 }
 
-UniqueFramebuffer make_framebuffer(VkDevice dev, VkRenderPass pass, const Image& color, const Image& depth,
-                                   const std::string& what) {
-    const std::array views{color.view(), depth.view()};
+// The deferred pass: subpass 0 draws the mesh into the two G-buffer images (attachments 2
+// and 3) with the depth test; subpass 1 reads them back per pixel as input attachments and
+// writes the colour (attachment 0). The G-buffer lives only inside the pass.
+UniqueRenderPass make_deferred_render_pass(VkDevice dev, VkFormat color, VkFormat depth, VkFormat gbuffer,
+                                           const std::string& what) {
+    const auto attachment = [](VkFormat format, VkAttachmentStoreOp store, VkImageLayout final_layout) {
+        return VkAttachmentDescription{.format = format,
+                                       .samples = VK_SAMPLE_COUNT_1_BIT,
+                                       .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+                                       .storeOp = store,
+                                       .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
+                                       .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
+                                       .initialLayout = VK_IMAGE_LAYOUT_UNDEFINED,
+                                       .finalLayout = final_layout};
+    };
+    // Colour and depth end as the other passes leave them (later passes may test and blend).
+    const std::array attachments{
+        attachment(color, VK_ATTACHMENT_STORE_OP_STORE, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL),
+        attachment(depth, VK_ATTACHMENT_STORE_OP_STORE, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
+        attachment(gbuffer, VK_ATTACHMENT_STORE_OP_DONT_CARE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL),
+        attachment(gbuffer, VK_ATTACHMENT_STORE_OP_DONT_CARE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL)};
+    const std::array gbuffer_out{VkAttachmentReference{2, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL},
+                                 VkAttachmentReference{3, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL}};
+    const std::array gbuffer_in{VkAttachmentReference{2, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+                                VkAttachmentReference{3, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
+    const VkAttachmentReference color_ref{.attachment = 0, .layout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+    const VkAttachmentReference depth_ref{.attachment = 1, .layout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+    const std::array subpasses{VkSubpassDescription{.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
+                                                    .colorAttachmentCount = static_cast<uint32_t>(gbuffer_out.size()),
+                                                    .pColorAttachments = gbuffer_out.data(),
+                                                    .pDepthStencilAttachment = &depth_ref},
+                               VkSubpassDescription{.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
+                                                    .inputAttachmentCount = static_cast<uint32_t>(gbuffer_in.size()),
+                                                    .pInputAttachments = gbuffer_in.data(),
+                                                    .colorAttachmentCount = 1,
+                                                    .pColorAttachments = &color_ref}};
+    // Before either subpass: as make_render_pass (previous attachment writes, previous readback).
+    // Between them: the G-buffer's colour writes -> the shading subpass's input reads, per pixel.
+    const auto from_outside = [](uint32_t subpass) {
+        return VkSubpassDependency{.srcSubpass = VK_SUBPASS_EXTERNAL,
+                                   .dstSubpass = subpass,
+                                   .srcStageMask = kAttachmentStages | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                   .dstStageMask = kAttachmentStages,
+                                   .srcAccessMask = kAttachmentWrites,
+                                   .dstAccessMask = kAttachmentAccess};
+    };
+    const std::array dependencies{from_outside(0), from_outside(1),
+                                  VkSubpassDependency{.srcSubpass = 0,
+                                                      .dstSubpass = 1,
+                                                      .srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
+                                                      .dstStageMask = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                                                      .srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT,
+                                                      .dstAccessMask = VK_ACCESS_INPUT_ATTACHMENT_READ_BIT,
+                                                      .dependencyFlags = VK_DEPENDENCY_BY_REGION_BIT}};
+    const VkRenderPassCreateInfo info{.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
+                                      .attachmentCount = static_cast<uint32_t>(attachments.size()),
+                                      .pAttachments = attachments.data(),
+                                      .subpassCount = static_cast<uint32_t>(subpasses.size()),
+                                      .pSubpasses = subpasses.data(),
+                                      .dependencyCount = static_cast<uint32_t>(dependencies.size()),
+                                      .pDependencies = dependencies.data()};
+    VkRenderPass pass = VK_NULL_HANDLE;
+    SPECULA_VK_CHECK(vkCreateRenderPass(dev, &info, nullptr, &pass), what);
+    return UniqueRenderPass(dev, pass);
+}
+
+UniqueFramebuffer make_framebuffer(VkDevice dev, VkRenderPass pass, std::span<const VkImageView> views,
+                                   const Image& color, const std::string& what) {
     const VkFramebufferCreateInfo info{.sType = VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO,
                                        .renderPass = pass,
                                        .attachmentCount = static_cast<uint32_t>(views.size()),
@@ -83,12 +149,22 @@ RenderTarget::RenderTarget(Context& ctx, uint32_t width, uint32_t height, std::s
                     .format = choose_color_target_format(ctx)}),
       m_depth(ctx, {.name = name + " depth", .kind = ImageKind::DepthTarget, .width = width, .height = height,
                     .format = choose_depth_format(ctx)}),
+      m_gbuffer{Image(ctx, {.name = name + " G-buffer 0", .kind = ImageKind::GBuffer, .width = width, .height = height,
+                            .format = choose_color_target_format(ctx)}),
+                Image(ctx, {.name = name + " G-buffer 1", .kind = ImageKind::GBuffer, .width = width, .height = height,
+                            .format = choose_color_target_format(ctx)})},
       m_readback(ctx, m_color.byte_size(), name + " readback") {
     const VkDevice dev = ctx.device();
     m_clear_pass = make_render_pass(dev, m_color.format(), m_depth.format(), true, "render pass (clear) of '" + name + "'");
     m_keep_pass = make_render_pass(dev, m_color.format(), m_depth.format(), false, "render pass (keep) of '" + name + "'");
-    m_clear_framebuffer = make_framebuffer(dev, m_clear_pass.get(), m_color, m_depth, "framebuffer of '" + name + "'");
-    m_keep_framebuffer = make_framebuffer(dev, m_keep_pass.get(), m_color, m_depth, "framebuffer of '" + name + "'");
+    m_deferred_pass = make_deferred_render_pass(dev, m_color.format(), m_depth.format(), m_gbuffer[0].format(),
+                                                "render pass (deferred) of '" + name + "'");
+    const std::array views{m_color.view(), m_depth.view()};
+    m_clear_framebuffer = make_framebuffer(dev, m_clear_pass.get(), views, m_color, "framebuffer of '" + name + "'");
+    m_keep_framebuffer = make_framebuffer(dev, m_keep_pass.get(), views, m_color, "framebuffer of '" + name + "'");
+    const std::array deferred_views{m_color.view(), m_depth.view(), m_gbuffer[0].view(), m_gbuffer[1].view()};
+    m_deferred_framebuffer = make_framebuffer(dev, m_deferred_pass.get(), deferred_views, m_color,
+                                              "deferred framebuffer of '" + name + "'");
 }
 
 void RenderTarget::begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_color) const {
@@ -103,6 +179,24 @@ void RenderTarget::begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_
                                      .clearValueCount = clear ? 2u : 0u,
                                      .pClearValues = clear ? clears.data() : nullptr};
     vkCmdBeginRenderPass(cmd, &info, VK_SUBPASS_CONTENTS_INLINE);
+    set_viewport(cmd);
+}
+
+void RenderTarget::begin_deferred(VkCommandBuffer cmd) const {
+    std::array<VkClearValue, 4> clears{}; // colour, G-buffer: 0 (not covered); depth: 0, the far end
+    const VkRenderPassBeginInfo info{.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO,
+                                     .renderPass = m_deferred_pass.get(),
+                                     .framebuffer = m_deferred_framebuffer.get(),
+                                     .renderArea = {{0, 0}, {width(), height()}},
+                                     .clearValueCount = static_cast<uint32_t>(clears.size()),
+                                     .pClearValues = clears.data()};
+    vkCmdBeginRenderPass(cmd, &info, VK_SUBPASS_CONTENTS_INLINE);
+    set_viewport(cmd);
+}
+
+void RenderTarget::next_subpass(VkCommandBuffer cmd) const { vkCmdNextSubpass(cmd, VK_SUBPASS_CONTENTS_INLINE); }
+
+void RenderTarget::set_viewport(VkCommandBuffer cmd) const {
     // Framebuffer x right, y down; pixel (i, j) covers [i, i+1) x [j, j+1) with its sample at the centre.
     const VkViewport viewport{.x = 0.0f,
                               .y = 0.0f,

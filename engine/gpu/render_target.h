@@ -5,6 +5,10 @@
 //   begin(cmd, Load::Clear) ... draws ... end(cmd)    first pass: clears colour and depth
 //   begin(cmd, Load::Keep)  ... draws ... end(cmd)    later passes: test against the depth,
 //                                                     blend onto the colour
+//   begin_deferred(cmd) ... draws ... next_subpass(cmd) ... draws ... end(cmd)
+//                                                     the deferred pass: the mesh into the
+//                                                     G-buffer, then one shading draw that
+//                                                     reads it per pixel and writes the colour
 //   record_readback(cmd)                              colour -> host buffer (barriers included)
 //   ... submit and wait ...
 //   read_color()                                      RGBA per pixel, row 0 at the top
@@ -38,14 +42,24 @@ public:
 
     /// Build pipelines against this (both passes are compatible with it).
     [[nodiscard]] VkRenderPass render_pass() const noexcept { return m_clear_pass.get(); }
+    /// Build the deferred pass's pipelines against this: subpass 0 writes the two G-buffer
+    /// images (colour attachments 0 and 1, with depth), subpass 1 reads them as input
+    /// attachments 0 and 1 and writes the colour.
+    [[nodiscard]] VkRenderPass deferred_render_pass() const noexcept { return m_deferred_pass.get(); }
     [[nodiscard]] uint32_t width() const noexcept { return m_color.width(); }
     [[nodiscard]] uint32_t height() const noexcept { return m_color.height(); }
     [[nodiscard]] const Image& color() const noexcept { return m_color; }
     [[nodiscard]] const Image& depth() const noexcept { return m_depth; }
+    /// G-buffer image 0 or 1 (colour-target format), the input attachments of the deferred pass.
+    [[nodiscard]] const Image& gbuffer(int i) const noexcept { return m_gbuffer[i]; }
 
     /// Begins a render pass over the whole target and sets the viewport and scissor
     /// (viewport depth range [0, 1]). Clear: colour to `clear_color`, depth to 0.
     void begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_color = glm::vec4(0.0f)) const;
+    /// Begins the deferred pass in its subpass 0, everything cleared (colour and G-buffer to
+    /// 0, depth to 0), with the viewport and scissor set; next_subpass moves to subpass 1.
+    void begin_deferred(VkCommandBuffer cmd) const;
+    void next_subpass(VkCommandBuffer cmd) const;
     void end(VkCommandBuffer cmd) const;
     /// After the last pass of a frame: colour -> TRANSFER_SRC -> host buffer -> host.
     void record_readback(VkCommandBuffer cmd) const;
@@ -53,12 +67,17 @@ public:
     [[nodiscard]] std::vector<glm::vec4> read_color() const;
 
 private:
+    void set_viewport(VkCommandBuffer cmd) const;
+
     Image m_color;
     Image m_depth;
+    Image m_gbuffer[2];
     UniqueRenderPass m_clear_pass;
     UniqueRenderPass m_keep_pass;
+    UniqueRenderPass m_deferred_pass;
     UniqueFramebuffer m_clear_framebuffer;
     UniqueFramebuffer m_keep_framebuffer;
+    UniqueFramebuffer m_deferred_framebuffer;
     HostBuffer m_readback;
 };
 
