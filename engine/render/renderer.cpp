@@ -6,7 +6,11 @@
 
 #include "render/both_analytic.frag.h"
 #include "render/both_factorized.frag.h"
+#include "render/deferred_analytic.frag.h"
+#include "render/deferred_factorized.frag.h"
 #include "render/diffuse.frag.h"
+#include "render/fullscreen.vert.h"
+#include "render/gbuffer.frag.h"
 #include "render/raster.vert.h"
 #include "render/shadow.vert.h"
 #include "render/specular_analytic.frag.h"
@@ -34,6 +38,9 @@ constexpr uint32_t kBindingParams = 0, kBindingAlbedo = 1, kBindingShadow = 2, k
 constexpr uint32_t kLitBindings = kBindingShadow + 1;
 constexpr uint32_t kFactorizedBindings = kBindingCubeH + kMaxFactorTerms;
 constexpr uint32_t kShadowPassBindings = 1;
+// The deferred shading subpass adds the G-buffer's two input attachments after the
+// bindings of its forward counterpart (shaders/render/deferred_*.frag).
+constexpr uint32_t kDeferredAnalyticGbuffer = kLitBindings, kDeferredFactorizedGbuffer = kFactorizedBindings;
 
 // The shadow map's frustum: a light at least this many bounding radii from the centre
 // (half-angle asin(1 / 1.1) = 65 degrees); a closer light gets no shadow pass.
@@ -75,12 +82,15 @@ std::optional<LightFrustum> light_frustum(const glm::dvec3& light, const glm::dv
     return f;
 }
 
-std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count) {
+/// Params, then textures up to `count` bindings, then `inputs` input attachments.
+std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count, uint32_t inputs = 0) {
     const gpu::DescriptorBinding params{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT};
     const gpu::DescriptorBinding texture{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, VK_SHADER_STAGE_FRAGMENT_BIT};
+    const gpu::DescriptorBinding input{VK_DESCRIPTOR_TYPE_INPUT_ATTACHMENT, VK_SHADER_STAGE_FRAGMENT_BIT};
     std::vector<gpu::DescriptorBinding> all{params};
     all.resize(count, texture);
+    all.resize(count + inputs, input);
     return all;
 }
 
@@ -109,7 +119,14 @@ const char* mode_name(Mode mode) noexcept {
     return "?";
 }
 
-const char* passes_name(Passes passes) noexcept { return passes == Passes::Separate ? "separate" : "fused"; }
+const char* passes_name(Passes passes) noexcept {
+    switch (passes) {
+    case Passes::Separate: return "separate";
+    case Passes::Fused: return "fused";
+    case Passes::Deferred: return "deferred";
+    }
+    return "?";
+}
 
 const char* specular_model_name(SpecularModel model) noexcept {
     return model == SpecularModel::Analytic ? "analytic" : "factorized";
@@ -182,11 +199,18 @@ struct Renderer::Impl {
     gpu::GraphicsPipeline specular_factorized;
     gpu::GraphicsPipeline both_analytic;   // Passes::Fused
     gpu::GraphicsPipeline both_factorized;
+    gpu::GraphicsPipeline gbuffer;              // Passes::Deferred, subpass 0
+    gpu::GraphicsPipeline deferred_analytic;    // Passes::Deferred, subpass 1
+    gpu::GraphicsPipeline deferred_factorized;
     gpu::DescriptorSet diffuse_set;
     gpu::DescriptorSet analytic_set;
     gpu::DescriptorSet factorized_set; // textures written by set_factorization
     gpu::DescriptorSet both_analytic_set;
     gpu::DescriptorSet both_factorized_set; // cube-maps written by set_factorization
+    gpu::DescriptorSet gbuffer_set;
+    gpu::DescriptorSet deferred_analytic_set;   // G-buffer inputs: the last target drawn (use_gbuffer_of)
+    gpu::DescriptorSet deferred_factorized_set; // and cube-maps written by set_factorization
+    VkImageView gbuffer_bound = VK_NULL_HANDLE; // the target whose G-buffer the deferred sets read
     gpu::Sequence sequence;
 
     Impl(gpu::Context& c, const Scene& scene, const Options& opts)
@@ -210,11 +234,19 @@ struct Renderer::Impl {
           specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, kFactorizedBindings, true)),
           both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, kLitBindings, false)),
           both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, kFactorizedBindings, false)),
+          gbuffer(c, gbuffer_desc()),
+          deferred_analytic(c, shading_desc("deferred shading (analytic)", render_deferred_analytic_frag,
+                                            bindings_for(kLitBindings, 2))),
+          deferred_factorized(c, shading_desc("deferred shading (factorized)", render_deferred_factorized_frag,
+                                              bindings_for(kFactorizedBindings, 2))),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
-          both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized),
+          both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized), gbuffer_set(c, gbuffer),
+          deferred_analytic_set(c, deferred_analytic), deferred_factorized_set(c, deferred_factorized),
           sequence(c, 8) {
         vertex_count = static_cast<uint32_t>(3 * triangles);
-        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set, &both_factorized_set}) {
+        gbuffer_set.write_buffer(kBindingParams, params);
+        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
+                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set}) {
             set->write_buffer(kBindingParams, params);
             set->write_image(kBindingAlbedo, albedo, sampler.get());
             set->write_image(kBindingShadow, shadow_map.depth(), shadow_map.compare_sampler());
@@ -232,6 +264,30 @@ struct Renderer::Impl {
         d.cull_mode = VK_CULL_MODE_NONE;      // both sides cast shadows (open meshes)
         d.depth_bias_slope = kDepthBiasSlope;
         set_vertex_input(d, true);
+        return d;
+    }
+
+    // Subpass 0 of the deferred pass: the mesh, depth-tested, into the two G-buffer images.
+    gpu::GraphicsPipelineDesc gbuffer_desc() const {
+        gpu::GraphicsPipelineDesc d = pipeline_desc("deferred G-buffer pass", render_gbuffer_frag, kBindingParams + 1, false);
+        d.render_pass = target->deferred_render_pass();
+        d.subpass = 0;
+        d.color_attachments = 2;
+        return d;
+    }
+
+    // Subpass 1 of the deferred pass: one full-target triangle, no depth test.
+    gpu::GraphicsPipelineDesc shading_desc(const char* name, std::span<const uint32_t> frag,
+                                           std::vector<gpu::DescriptorBinding> bindings) const {
+        gpu::GraphicsPipelineDesc d;
+        d.name = name;
+        d.vertex_spirv = render_fullscreen_vert;
+        d.fragment_spirv = frag;
+        d.bindings = std::move(bindings);
+        d.render_pass = target->deferred_render_pass();
+        d.subpass = 1;
+        d.depth_test = false;
+        d.depth_write = false;
         return d;
     }
 
@@ -317,6 +373,7 @@ struct Renderer::Impl {
             info.specular_pass = true;
             info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
+        info.deferred = settings.passes == Passes::Deferred;
 
         std::optional<LightFrustum> frustum;
         if (!settings.shadows)
@@ -335,7 +392,7 @@ struct Renderer::Impl {
         p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
         p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
         p.lobe_n = glm::vec4(lobe.n, 0.0f);
-        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), 0u, 0u);
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u, 0u);
         if (frustum) {
             p.light_to_clip = glm::mat4(frustum->to_clip);
             p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
@@ -369,6 +426,37 @@ struct Renderer::Impl {
         draw(cmd, t, analytic ? both_analytic : both_factorized, analytic ? both_analytic_set : both_factorized_set,
              gpu::RenderTarget::Load::Clear);
     }
+    // Passes::Deferred: the G-buffer, then each pixel shaded once (params.flags say which terms).
+    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) {
+        use_gbuffer_of(t);
+        t.begin_deferred(cmd);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.pipeline());
+        const VkDescriptorSet g = gbuffer_set.get();
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.layout(), 0, 1, &g, 0, nullptr);
+        gpu::bind_vertex_buffer(cmd, vertices);
+        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        t.next_subpass(cmd);
+        // Without a factorization the analytic shader serves (flags.z is 0 unless the specular term is drawn).
+        const bool factorized = model == SpecularModel::Factorized && !cubes_g.empty();
+        const gpu::GraphicsPipeline& shade = factorized ? deferred_factorized : deferred_analytic;
+        const VkDescriptorSet s = (factorized ? deferred_factorized_set : deferred_analytic_set).get();
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shade.pipeline());
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shade.layout(), 0, 1, &s, 0, nullptr);
+        vkCmdDraw(cmd, 3, 1, 0, 0);
+        t.end(cmd);
+    }
+
+    // Points the deferred shading sets at t's G-buffer. Nothing is in flight between frames
+    // (render() waits; record()'s caller waits for the previous frame), so they can be rewritten.
+    void use_gbuffer_of(const gpu::RenderTarget& t) {
+        if (gbuffer_bound == t.gbuffer(0).view()) return;
+        deferred_analytic_set.write_input_attachment(kDeferredAnalyticGbuffer, t.gbuffer(0));
+        deferred_analytic_set.write_input_attachment(kDeferredAnalyticGbuffer + 1, t.gbuffer(1));
+        deferred_factorized_set.write_input_attachment(kDeferredFactorizedGbuffer, t.gbuffer(0));
+        deferred_factorized_set.write_input_attachment(kDeferredFactorizedGbuffer + 1, t.gbuffer(1));
+        gbuffer_bound = t.gbuffer(0).view();
+    }
+
     void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
         const bool analytic = model == SpecularModel::Analytic;
         draw(cmd, t, analytic ? specular_analytic : specular_factorized, analytic ? analytic_set : factorized_set,
@@ -420,7 +508,7 @@ void Renderer::set_factorization(std::span<const FactorTermCubes> terms) {
     // Nothing is in flight between frames (render() waits), so the sets can be rewritten.
     m.cubes_g = std::move(g);
     m.cubes_h = std::move(h);
-    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set})
+    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set})
         for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
             const std::size_t t = k < m.cubes_g.size() ? k : 0;
             set->write_image(kBindingCubeG + k, m.cubes_g[t], m.sampler.get());
@@ -437,6 +525,10 @@ FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target,
                     " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
     FrameInfo info = m.prepare(camera, light, settings);
     if (info.shadow_pass) m.draw_shadow_map(cmd);
+    if (info.deferred) {
+        m.draw_deferred(cmd, target, settings.specular);
+        return info;
+    }
     if (info.fused) {
         m.draw_fused(cmd, target, settings.specular);
         return info;
@@ -461,13 +553,17 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
     seq.reset();
     if (info.shadow_pass)
         seq.time_begin("shadow pass").record([&](VkCommandBuffer cmd) { m.draw_shadow_map(cmd); }).time_end();
-    if (info.fused)
+    if (info.deferred)
+        seq.time_begin("diffuse pass")
+            .record([&](VkCommandBuffer cmd) { m.draw_deferred(cmd, *m.target, settings.specular); })
+            .time_end();
+    else if (info.fused)
         seq.time_begin("diffuse pass")
             .record([&](VkCommandBuffer cmd) { m.draw_fused(cmd, *m.target, settings.specular); })
             .time_end();
     else
         seq.time_begin("diffuse pass").record([&](VkCommandBuffer cmd) { m.draw_diffuse(cmd, *m.target); }).time_end();
-    if (info.specular_pass && !info.fused)
+    if (info.specular_pass && !info.fused && !info.deferred)
         seq.time_begin("specular pass")
             .record([&](VkCommandBuffer cmd) { m.draw_specular(cmd, *m.target, settings.specular); })
             .time_end();

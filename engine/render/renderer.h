@@ -98,18 +98,22 @@ enum class SpecularModel {
 [[nodiscard]] const char* mode_name(Mode mode) noexcept;
 [[nodiscard]] const char* specular_model_name(SpecularModel model) noexcept;
 
-/// How Mode::Both is drawn.
+/// How the terms are drawn.
 enum class Passes {
     Separate, ///< the thesis's two passes: diffuse, then specular blended additively (EQUAL depth)
-    Fused,    ///< one pass whose fragment shader sums the same two terms (render/terms.glsl): half
-              ///< the vertex, setup and binning work, which bounds lavapipe on large meshes
+    Fused,    ///< Mode::Both: one pass whose fragment shader sums the same two terms (render/terms.glsl):
+              ///< half the vertex, setup and binning work, which bounds lavapipe on large meshes
+    Deferred, ///< every mode: one pass over the mesh stores its interpolated inputs (G-buffer), then
+              ///< each pixel is shaded once with the same terms. Where triangles are about a pixel,
+              ///< lavapipe shades a 4x4 block per triangle in the forward passes: this does the
+              ///< shading work once per pixel instead (gpu::RenderTarget::begin_deferred)
 };
 [[nodiscard]] const char* passes_name(Passes passes) noexcept;
 
 struct Settings {
     Mode mode = Mode::Both;
     SpecularModel specular = SpecularModel::Analytic;
-    Passes passes = Passes::Separate; ///< only Mode::Both with a specular term has a choice
+    Passes passes = Passes::Separate; ///< Fused applies to Mode::Both with a specular term; Deferred to all
     std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
     /// Cast shadows from a shadow map (on by default); false: the thesis's unshadowed render.
     bool shadows = true;
@@ -135,6 +139,7 @@ struct FrameInfo {
     bool diffuse_pass = false;        ///< pass 1 wrote the diffuse term (it always writes depth and coverage)
     bool specular_pass = false;       ///< pass 2 ran (or, fused, the specular term was drawn)
     bool fused = false;               ///< both terms in one pass (Passes::Fused); timed as diffuse_gpu_ms
+    bool deferred = false;            ///< Passes::Deferred: G-buffer, then per-pixel shading; timed as diffuse_gpu_ms
     std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
     bool shadow_pass = false;         ///< the shadow map was drawn and the lit passes are shadowed
     std::string shadow_note;          ///< why not ("shadows off", light too close to the mesh), else empty

@@ -27,14 +27,15 @@ struct RenderParams {
     vec4 lobe_cz;         // rgb: Lafortune Cz
     vec4 lobe_n;          // rgb: Lafortune N
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
-                          // y: factorized terms K (1..4, render/terms.glsl)
+                          // y: factorized terms K (1..4, render/terms.glsl);
+                          // z: 1 = the deferred shading pass adds the specular term
     mat4 light_to_clip;   // the shadow map's projection * view (light at light_position)
     vec4 shadow;          // x: 1 = sample the shadow map, 0 = no shadows (V = 1);
                           // y: world size of one map texel per unit of distance from the light;
                           // z: normal offset in texels at grazing light; w: constant normal offset in texels
 };
 
-// One vertex of the non-indexed triangle list (set 0 binding 1), pulled by gl_VertexIndex.
+// One vertex of the non-indexed triangle list (vertex input binding 0).
 struct RenderVertex {
     vec4 position_u; // xyz: world position; w: atlas u
     vec4 normal_v;   // xyz: vertex normal (unit); w: atlas v

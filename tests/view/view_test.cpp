@@ -320,11 +320,11 @@ TEST_F(ViewTest, XvfbKeysAndMouseDriveTheView) {
     ASSERT_EQ(v.code, 0) << log << v.err;
     EXPECT_EQ(log.find("validation"), std::string::npos) << log;
     const std::string t = read_text_file(out / "titles.txt");
-    for (const char* want : {"1: specula-view | truth.glb | diffuse/analytic |", "2: specula-view | truth.glb | specular/analytic |",
-                             "3: specula-view | truth.glb | both/analytic, 1 pass |", "p: specula-view | truth.glb | both/analytic, 2 passes |",
+    for (const char* want : {"1: specula-view | truth.glb | diffuse/analytic, deferred |", "2: specula-view | truth.glb | specular/analytic, deferred |",
+                             "3: specula-view | truth.glb | both/analytic, deferred |", "p: specula-view | truth.glb | both/analytic, 1 pass |",
                              "c: specula-view | truth.glb | captured photograph of frame", "resize: ", "| 150x110",
-                             "c2: specula-view | truth.glb | both/analytic, 2 passes |",
-                             "s: specula-view | truth.glb | both/analytic, 2 passes, shadows |"})
+                             "c2: specula-view | truth.glb | both/analytic, 1 pass |",
+                             "s: specula-view | truth.glb | both/analytic, 1 pass, shadows |"})
         EXPECT_NE(t.find(want), std::string::npos) << want << "\n" << t;
 }
 #endif

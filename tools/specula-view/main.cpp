@@ -24,7 +24,7 @@ int main(int argc, char** argv) {
     CLI::App app{"specula-view: show a Specula bundle (.glb) under a point light in a window, with the same raster passes\n"
                  "as `specula render`. Mouse: left drag orbits, right/middle drag pans, wheel zooms, shift + left drag\n"
                  "(or the arrow keys) moves the light. Keys: 1 diffuse, 2 specular, 3 both, F factorized/analytic,\n"
-                 "P fused/separate passes, S shadows on/off, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
+                 "P deferred/fused/separate passes, S shadows on/off, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
                  "The title shows mode and frame time.\n"
                  "Draws only when something changes (unless --continuous). Without a display, --frames and --bench\n"
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
@@ -48,9 +48,11 @@ int main(int argc, char** argv) {
     app.add_option("--specular", c.specular, "Specular model at the start: analytic (the lobe) or factorized (G/H cube-maps)")
         ->check(CLI::IsMember({"analytic", "factorized"}))
         ->capture_default_str();
-    app.add_option("--passes", c.passes, "How both terms are drawn: fused (one pass summing the diffuse and specular terms)\n"
-                                         "or separate (the thesis's two passes, as `specula render` draws them); same image")
-        ->check(CLI::IsMember({"fused", "separate"}))
+    app.add_option("--passes", c.passes, "How the terms are drawn: deferred (the mesh's interpolated inputs to a G-buffer, then every\n"
+                                         "pixel shaded once: fastest on lavapipe with small triangles), fused (one pass summing the\n"
+                                         "diffuse and specular terms) or separate (the thesis's two passes, as `specula render` draws\n"
+                                         "them); the same image")
+        ->check(CLI::IsMember({"deferred", "fused", "separate"}))
         ->capture_default_str();
     app.add_flag("--shadows,!--no-shadows", c.shadows,
                  "Start with cast shadows (a shadow map; off by default here: it costs a second pass over every triangle "

@@ -140,16 +140,20 @@ render::Settings settings_of(const ViewerConfig& c) {
         throw UsageError("--mode: '" + c.mode + "' is not both, diffuse or specular");
     if (c.specular != "analytic" && c.specular != "factorized")
         throw UsageError("--specular: '" + c.specular + "' is not analytic or factorized");
-    if (c.passes != "fused" && c.passes != "separate") throw UsageError("--passes: '" + c.passes + "' is not fused or separate");
+    if (c.passes != "fused" && c.passes != "separate" && c.passes != "deferred")
+        throw UsageError("--passes: '" + c.passes + "' is not deferred, fused or separate");
     return {.mode = c.mode == "diffuse" ? render::Mode::Diffuse : c.mode == "specular" ? render::Mode::Specular : render::Mode::Both,
             .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic,
-            .passes = c.passes == "separate" ? render::Passes::Separate : render::Passes::Fused,
+            .passes = c.passes == "separate" ? render::Passes::Separate
+                      : c.passes == "fused"  ? render::Passes::Fused
+                                             : render::Passes::Deferred,
             .shadows = c.shadows};
 }
 
 std::string settings_name(const render::Settings& s) {
     std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_model_name(s.specular);
-    if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
+    if (s.passes == render::Passes::Deferred) name += ", deferred";
+    else if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
     if (s.shadows) name += ", shadows"; // off by default in the viewer (ViewerConfig::shadows)
     return name;
 }
@@ -317,7 +321,7 @@ constexpr const char* kHelp =
     "  shift + left drag   move the light about the object (also the arrow keys)\n"
     "  1 / 2 / 3           diffuse only / specular only / both\n"
     "  F                   factorized <-> analytic specular (bundles with cube-maps)\n"
-    "  P                   both terms in one fused pass <-> the two separate passes\n"
+    "  P                   passes: deferred -> one fused pass -> the two separate passes -> deferred\n"
     "  S                   cast shadows (shadow map) on <-> off (the thesis's unshadowed render)\n"
     "  C                   captured photograph of the frame <-> render (with --capture)\n"
     "  R                   reset camera and light\n"
@@ -343,7 +347,9 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
                                                                                         : render::SpecularModel::Analytic;
         break;
     case GLFW_KEY_P:
-        in.settings->passes = in.settings->passes == render::Passes::Fused ? render::Passes::Separate : render::Passes::Fused;
+        in.settings->passes = in.settings->passes == render::Passes::Deferred ? render::Passes::Fused
+                              : in.settings->passes == render::Passes::Fused  ? render::Passes::Separate
+                                                                              : render::Passes::Deferred;
         break;
     case GLFW_KEY_S: in.settings->shadows = !in.settings->shadows; break;
     case GLFW_KEY_C:

@@ -17,7 +17,7 @@ struct ViewerConfig {
     std::optional<double> fov;          ///< free camera vertical field of view (degrees)
     std::string mode = "both";          ///< both, diffuse, specular
     std::string specular = "analytic";  ///< analytic, factorized
-    std::string passes = "fused";       ///< fused (one pass for both terms) or separate (the thesis's two)
+    std::string passes = "deferred";    ///< deferred (G-buffer, then per-pixel shading), fused (one pass for both terms) or separate (the thesis's two)
     /// Start with cast shadows (key S toggles). Off by default in the viewer: the shadow map
     /// redraws every triangle once more whenever the light moves, which halves the frame rate
     /// of large meshes on lavapipe; `specula render` and `evaluate` draw shadows by default.
