@@ -115,6 +115,35 @@ AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out, c
     return e;
 }
 
+ShadowedTexelError shadowed_texel_error(const DiffuseScene& scene, const LambertOutputs& out,
+                                        const std::vector<std::uint8_t>& select) {
+    const Visibility& vis = scene.visibility;
+    std::vector<double> abs_err;
+    double signed_sum = 0.0, sq = 0.0;
+    ShadowedTexelError e;
+    for (std::size_t p = 0; p < scene.truth.size(); ++p) {
+        const LambertParticleResult& r = out.particles[p];
+        if (!select[p] || !(r.status & shared::kLambertOk) || r.rejected_shadow == 0) continue;
+        bool lit_some = false;
+        for (std::uint32_t f = 0; f < vis.frame_count && !lit_some; ++f) lit_some = vis.lights(p, f);
+        if (!lit_some) continue;
+        ++e.count;
+        const glm::vec3 d = out.albedo(p) - scene.truth[p];
+        for (int c = 0; c < 3; ++c) {
+            abs_err.push_back(std::abs(double(d[c])));
+            signed_sum += double(d[c]);
+            sq += double(d[c]) * double(d[c]);
+        }
+    }
+    if (abs_err.empty()) return e;
+    const std::size_t mid = abs_err.size() / 2;
+    std::nth_element(abs_err.begin(), abs_err.begin() + static_cast<std::ptrdiff_t>(mid), abs_err.end());
+    e.median_abs = abs_err[mid];
+    e.signed_mean = signed_sum / double(abs_err.size());
+    e.rmse = std::sqrt(sq / double(abs_err.size()));
+    return e;
+}
+
 std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol) {
     // Image pixels sample the texture at their centres; a particle's bilinear value mixes the
     // pixels within sqrt(2) pixels of it. The texture footprint of one image pixel, per
