@@ -161,6 +161,46 @@ TEST_P(DiffuseSolve, KnotShowsNoBakedShadows) {
     EXPECT_LT(e.median_abs, 0.02);
 }
 
+// The visibility the solve gets against the images it reads: a (particle, frame) pair that
+// visibility lights and whose view sees the particle reads no black object pixel among its 4
+// bilinear taps. The shadow map marks pixels in a cast shadow AND pixels whose surface faces
+// away from the light (the smooth-shading terminator, where the face still faces the light
+// and the shadow ray is free): without the second, 2.1% (knot), 2.0% (vase) and 1.6%
+// (cologne) of these pairs read a black pixel; with it 83 of 575230, 0 and 1 (shadow rays
+// from a slightly different origin than the renderer's, at grazing light).
+TEST(DiffuseInputs, LitSamplesReadNoBlackPixels) {
+    for (const char* preset : {"knot", "vase", "cologne"}) {
+        const DiffuseScene s = test::make_scene({.preset = preset, .lambertian = true, .size = 96, .views = 4});
+        const Visibility& vis = s.visibility;
+        std::size_t lit_pairs = 0, dark = 0;
+        for (std::size_t p = 0; p < s.particles.particles.size(); ++p)
+            for (std::uint32_t v = 0; v < s.capture.views.size(); ++v) {
+                if (!vis.sees(p, v)) continue;
+                const Camera& cam = s.capture.views[v].camera;
+                const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+                const glm::dvec2 q = *cam.project(glm::dvec3(s.particles.particles[p].p()));
+                const int x0 = static_cast<int>(std::floor(q.x - 0.5)), y0 = static_cast<int>(std::floor(q.y - 0.5));
+                for (std::size_t f : s.capture.views[v].frames) {
+                    if (!vis.lights(p, f)) continue;
+                    ++lit_pairs;
+                    const FrameImage& im = s.capture.images[f];
+                    bool black = false;
+                    for (int dy = 0; dy < 2; ++dy)
+                        for (int dx = 0; dx < 2; ++dx) {
+                            const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+                            const float* c = &im.color.pixels[im.color.index(x, y)];
+                            black = black || (!(im.flags[std::size_t(y) * std::size_t(w) + std::size_t(x)] & kOutsideMask) &&
+                                              c[0] == 0.0f && c[1] == 0.0f && c[2] == 0.0f);
+                        }
+                    dark += black ? 1u : 0u;
+                }
+            }
+        std::printf("%s: %zu of %zu lit pairs read a black object pixel\n", preset, dark, lit_pairs);
+        EXPECT_GT(lit_pairs, 100000u);
+        EXPECT_LE(double(dark), 1e-3 * double(lit_pairs)) << preset;
+    }
+}
+
 // ---- extreme inputs: a value with a flag or a counted skip, never NaN ----------------------
 
 const DiffuseScene& small_can() {
