@@ -70,9 +70,11 @@ struct ShadowedTexelError {
                                                       const std::vector<std::uint8_t>& select);
 
 /// Particles whose truth the images resolve: every texture texel within `radius_pixels`
-/// image pixels (converted to texels with the triangle's footprint in its best view) of the
-/// particle's UV differs by at most `tol` from the truth. Elsewhere the error is the images'
-/// resampling of a texture finer than their pixels, not the solve's (see diffuse_test.cpp).
+/// image pixels (converted to texels with the triangle's footprint in the view that sees the
+/// particle best, i.e. with the largest projected area among the views whose `seen` bit is
+/// set) of the particle's UV differs by at most `tol` from the truth. Elsewhere the error is
+/// the images' resampling of a texture finer than their pixels, not the solve's (see
+/// diffuse_test.cpp). Particles no view sees are not flat.
 [[nodiscard]] std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol);
 
 } // namespace specula::test

@@ -6,8 +6,8 @@
 // within that footprint (text, stripes: the presets' textures are finer than 128-pixel images)
 // no solve can recover the texture value: the error is the images' resampling, not the
 // solve's. The accuracy figures are therefore asserted over "resolved" texels, whose truth is
-// flat within 1.5 image pixels (flat_truth, diffuse_scene.h), and the RMSE over all seen texels
-// is printed beside them.
+// flat within 1.5 image pixels of the view that sees them best (flat_truth, diffuse_scene.h),
+// and the RMSE over all seen texels is printed beside them.
 #include "diffuse_scene.h"
 
 #include "diffuse/albedo_texture.h"
