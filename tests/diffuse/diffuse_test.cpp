@@ -141,12 +141,23 @@ TEST_P(DiffuseSolve, HighlightsAndClippingAreRejected) {
     }
 }
 
-// Self-shadowing knot: shadowed samples are dropped, so texels shadowed in some frames are no
-// darker than the others (no baked shadow): their signed mean error is within 1% of full
-// scale and their median absolute error under 2%. Their RMSE is printed (2.2% at 128 px, 8
-// views; 2.7% before the cross-view reference was weighted by used samples): it is dominated
-// by particles that kept a single sample, on occlusion edges of the thin tube where bilinear
-// taps land on another part of the knot; one sample cannot be tested against anything.
+// Self-shadowing knot (issue 3, "no baked shadows"): shadowed samples are dropped, so texels
+// shadowed in some frames are no darker than the others: over the resolved ones, RMSE < 2%,
+// signed mean within 1% of full scale, median absolute error under 2%. At 128 px, 8 views:
+// RMSE 1.09%, signed mean -0.15%, median 0.08% (n 155601). It was 2.23% (signed mean -0.21%,
+// n 162979), for two reasons:
+//   - texels that only grazing views see (in the knot's crevices, n.v 0.1 to 0.3) counted as
+//     resolved: their footprint was taken in a view that cannot see them. A grazing pixel
+//     spreads over several texels, so the bands and the spiral blur into them (errors of both
+//     signs, 5 to 17% each; 83% of the squared error came from texels whose best view has
+//     n.v < 0.3). flat_truth now takes the footprint in a view that sees the texel: 4.5% of
+//     the texels leave the set (1.18% with this change alone);
+//   - lit samples whose bilinear taps reach past the smooth-shading terminator, where the
+//     images are black but no shadow ray is occluded: the shadow map now marks those pixels
+//     (2.18% with this change alone; LitSamplesReadNoBlackPixels below).
+// Dropping grazing views from the solve instead (n.v < 0.2 or 0.3) lowers this figure, but
+// those texels are then inpainted from atlas neighbours and the texture gets worse (texture
+// RMSE over the old set 2.23% -> 2.33% and 3.52%).
 TEST_P(DiffuseSolve, KnotShowsNoBakedShadows) {
     static const DiffuseScene s = test::make_scene({.preset = "knot", .lambertian = true, .size = 128, .views = 8});
     const auto flat = test::flat_truth(s, 1.5, 0.004f);
@@ -157,6 +168,7 @@ TEST_P(DiffuseSolve, KnotShowsNoBakedShadows) {
     ASSERT_GT(e.count, 1000u);
     std::printf("knot, resolved texels shadowed in some frames (n %zu): signed mean %.4f, median |e| %.4f, RMSE %.4f\n",
                 e.count, e.signed_mean, e.median_abs, e.rmse);
+    EXPECT_LT(e.rmse, 0.02);
     EXPECT_LT(std::abs(e.signed_mean), 0.01);
     EXPECT_LT(e.median_abs, 0.02);
 }
