@@ -28,17 +28,24 @@ struct ThreadCounts {
 
 constexpr float kNoHit = std::numeric_limits<float>::infinity();
 
-// Distance along the ray through each pixel center to the first surface (kNoHit on a miss).
-std::vector<float> depth_map(const RayScene& scene, const Camera& cam, unsigned threads) {
+// What the ray through each pixel center hits first: distance and triangle (t == kNoHit on a
+// miss). 8 bytes a pixel; the shadow map recomputes the barycentrics where it needs them.
+struct PixelHit {
+    float t = kNoHit;
+    std::uint32_t triangle = 0;
+};
+
+std::vector<PixelHit> depth_map(const RayScene& scene, const Camera& cam, unsigned threads) {
     const int w = cam.intrinsics.w, h = cam.intrinsics.h;
-    std::vector<float> depth(std::size_t(w) * std::size_t(h), kNoHit);
+    std::vector<PixelHit> depth(std::size_t(w) * std::size_t(h));
     const glm::vec3 eye(cam.center());
     std::atomic<int> next_row{0};
     auto rows = [&] {
         for (int y = next_row++; y < h; y = next_row++)
             for (int x = 0; x < w; ++x) {
                 const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
-                if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit)) depth[std::size_t(y) * w + x] = hit->t;
+                if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit))
+                    depth[std::size_t(y) * w + x] = {hit->t, hit->triangle};
             }
     };
     std::vector<std::thread> pool;
@@ -48,29 +55,58 @@ std::vector<float> depth_map(const RayScene& scene, const Camera& cam, unsigned 
     return depth;
 }
 
-// 1 where the surface a pixel shows (depth map) cannot see the light: a shadow ray from the
-// hit point (moved `offset` back toward the camera) to the light is occluded. 0 elsewhere,
-// background included. Returns the number of rays cast.
-std::uint64_t shadow_map(const RayScene& scene, const Camera& cam, const std::vector<float>& depth, const glm::vec3& light,
-                         unsigned threads, std::vector<std::uint8_t>& out) {
+// Barycentrics (s, t) of point q in the plane of triangle (a, b, c): q = (1 - s - t) a + s b + t c.
+glm::vec2 barycentrics(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, const glm::vec3& q) {
+    const glm::vec3 e1 = b - a, e2 = c - a, d = q - a;
+    const float d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
+    const float d1 = glm::dot(d, e1), d2 = glm::dot(d, e2);
+    const float det = d11 * d22 - d12 * d12;
+    if (!(det > 0.0f)) return glm::vec2(1.0f / 3.0f);
+    return glm::vec2(d22 * d1 - d12 * d2, d11 * d2 - d12 * d1) / det;
+}
+
+// 1 where the surface a pixel shows (depth map) gets no light, so the pixel is black:
+//   - it faces away from the light (attached shadow): its interpolated normal or its
+//     triangle's face (the side the camera sees) has n.u <= 0, or
+//   - a shadow ray from the hit point (moved `offset` back toward the camera) to the light
+//     is occluded (cast shadow).
+// 0 elsewhere, background included. Returns the number of shadow rays cast.
+std::uint64_t shadow_map(const RayScene& scene, const Mesh& mesh, std::span<const glm::vec3> face_normal, const Camera& cam,
+                         const std::vector<PixelHit>& depth, const glm::vec3& light, unsigned threads,
+                         std::vector<std::uint8_t>& out) {
     const int w = cam.intrinsics.w, h = cam.intrinsics.h;
     out.assign(std::size_t(w) * std::size_t(h), 0u);
     const glm::vec3 eye(cam.center());
     const float offset = scene.ray_offset();
+    const bool vertex_normals = mesh.normals.size() == mesh.positions.size();
     std::atomic<int> next_row{0};
     std::atomic<std::uint64_t> rays{0};
     auto rows = [&] {
         std::uint64_t cast = 0;
         for (int y = next_row++; y < h; y = next_row++)
             for (int x = 0; x < w; ++x) {
-                const float t = depth[std::size_t(y) * w + x];
-                if (t == kNoHit) continue;
+                const PixelHit& hit = depth[std::size_t(y) * w + x];
+                if (hit.t == kNoHit) continue;
                 const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
-                const glm::vec3 p = eye + (t - offset) * dir;
+                const glm::vec3 p = eye + (hit.t - offset) * dir;
                 const glm::vec3 to_light = light - p;
                 const float d = glm::length(to_light);
+                const glm::vec3 u = to_light / d;
+                glm::vec3 face = face_normal[hit.triangle];
+                if (glm::dot(face, dir) > 0.0f) face = -face;
+                glm::vec3 n = face;
+                if (vertex_normals) {
+                    const glm::uvec3 tri = mesh.triangles[hit.triangle];
+                    const glm::vec2 b = barycentrics(mesh.positions[tri.x], mesh.positions[tri.y], mesh.positions[tri.z],
+                                                     eye + hit.t * dir);
+                    n = (1.0f - b.x - b.y) * mesh.normals[tri.x] + b.x * mesh.normals[tri.y] + b.y * mesh.normals[tri.z];
+                }
+                if (!(glm::dot(n, u) > 0.0f) || !(glm::dot(face, u) > 0.0f)) {
+                    out[std::size_t(y) * w + x] = 1u;
+                    continue;
+                }
                 ++cast;
-                if (scene.occluded(p, to_light / d, offset, d - offset)) out[std::size_t(y) * w + x] = 1u;
+                if (scene.occluded(p, u, offset, d - offset)) out[std::size_t(y) * w + x] = 1u;
             }
         rays += cast;
     };
@@ -97,7 +133,7 @@ bool any_tap_set(const Camera& cam, const std::vector<std::uint8_t>& map, const 
 // surface through `pos` with normal `n`: each pixel's depth matches where its ray meets
 // the particle's tangent plane, within `tolerance` pixel footprints (curvature over a
 // pixel is far below that; an occluder or a surface behind an edge is far above it).
-bool footprint_on_surface(const Camera& cam, const std::vector<float>& depth, const glm::dvec2& q, const glm::vec3& pos,
+bool footprint_on_surface(const Camera& cam, const std::vector<PixelHit>& depth, const glm::dvec2& q, const glm::vec3& pos,
                           const glm::vec3& n, float tolerance) {
     const glm::dvec3 eye = cam.center();
     const glm::dvec3 to_p = glm::dvec3(pos) - eye;
@@ -110,7 +146,7 @@ bool footprint_on_surface(const Camera& cam, const std::vector<float>& depth, co
     for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx) {
             const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
-            const float t_hit = depth[std::size_t(y) * w + x];
+            const float t_hit = depth[std::size_t(y) * w + x].t;
             if (t_hit == kNoHit) return false;
             const glm::dvec3 dir = cam.ray_direction(x + 0.5, y + 0.5);
             const double denom = glm::dot(dir, glm::dvec3(n));
@@ -174,7 +210,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     // (On a convex mesh a tap off the particle's surface can only be background, which the
     // capture's mask already flags.)
     const bool footprint_test = options.footprint_test && !st.convexity.convex && !options.skip_rays;
-    std::vector<std::vector<float>> depth(footprint_test ? views.size() : 0);
+    std::vector<std::vector<PixelHit>> depth(footprint_test ? views.size() : 0);
     for (std::size_t v = 0; v < depth.size(); ++v) {
         depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));
         st.depth_rays += depth[v].size();
@@ -187,7 +223,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     for (std::size_t f = 0; f < shadows.size(); ++f) {
         const std::uint32_t v = options.frame_view[f];
         if (v >= views.size()) throw Error("visibility: frame " + std::to_string(f) + " names view " + std::to_string(v));
-        st.shadow_map_rays += shadow_map(scene, views[v].camera, depth[v], glm::vec3(lights[f].position),
+        st.shadow_map_rays += shadow_map(scene, mesh, face_normal, views[v].camera, depth[v], glm::vec3(lights[f].position),
                                          std::max(1u, options.threads), shadows[f]);
     }
 
@@ -263,7 +299,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                             (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
                         }
                     }
-                    // A lit frame whose sample would read a pixel in a cast shadow does not light it.
+                    // A lit frame whose sample would read a dark pixel (shadow map) does not light it.
                     for (std::uint32_t f = 0; f < shadows.size(); ++f) {
                         if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
                         const std::uint32_t v = options.frame_view[f];
@@ -363,7 +399,7 @@ std::string describe(const VisibilityStats& s) {
                " depth rays\n";
     if (s.shadow_map_rays > 0)
         out += "  shadow-edge test: " + std::to_string(s.shadow_edge_rejected) +
-               " (particle, frame) pairs unlit (a bilinear tap lies in a cast shadow); " + std::to_string(s.shadow_map_rays) +
+               " (particle, frame) pairs unlit (a bilinear tap is dark: in a cast shadow or facing away from the light); " + std::to_string(s.shadow_map_rays) +
                " shadow-map rays\n";
     out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
                              : "  occlusion rays skipped: " + s.skipped + "\n";

@@ -63,9 +63,11 @@ struct VisibilityOptions {
     float footprint_tolerance = 2.0f;
     /// Per frame, the view (index into `views`) whose image it is (VisibilityInputs::frame_view).
     /// When given, with the footprint test on, a frame lights a particle only when the 4 pixels
-    /// its bilinear sample reads are lit too: a cast-shadow edge inside the footprint would mix
-    /// shadowed pixels into a lit sample. Each frame's pixels get a shadow map (one shadow ray
-    /// per object pixel of its view's depth map).
+    /// its bilinear sample reads are lit too: a shadow edge inside the footprint would mix
+    /// black pixels into a lit sample. Each frame's pixels get a shadow map: a pixel is dark
+    /// when the surface it shows faces away from the light (its interpolated normal or the
+    /// seen side of its face, as the synthetic renderer shades it) or one shadow ray from it
+    /// is occluded (cast only for the facing ones).
     std::span<const std::uint32_t> frame_view;
 };
 
@@ -83,7 +85,7 @@ struct VisibilityStats {
     std::uint64_t depth_rays = 0;    ///< primary rays of the per-view depth maps (footprint test)
     std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     std::uint64_t shadow_map_rays = 0;    ///< shadow rays of the per-frame pixel shadow maps
-    std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap lies in a cast shadow
+    std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap is dark (cast shadow or facing away)
     ConvexityReport convexity;
     std::string skipped;             ///< why occlusion rays were skipped; empty when they were cast
     unsigned threads = 0;

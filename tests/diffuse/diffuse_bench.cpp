@@ -2,8 +2,9 @@
 //   diffuse_bench [size=512] [views=20] [lights=6] [presets=can,cologne,vase,woodenpot,knot] [format=exr|png8|png16] [exposure=1] [lambertian=0|1]
 //   SPECULA_BENCH_LIGHT_ANGLES=a,b,... sets the rig's train light angles (synth/rig.h; "14": a thesis-like ring)
 // Prints per preset and mode: particles, solve time on cpu and vulkan (GPU time from the
-// timestamps), and the albedo RMSE against the truth over seen particles and over particles
-// whose truth is flat around them.
+// timestamps), and the albedo RMSE against the truth over seen particles, over particles
+// whose truth is flat around them, and over the flat ones shadowed in some frames (issue 3's
+// "no baked shadows" figure; test::shadowed_texel_error).
 #include "diffuse_scene.h"
 
 #include "diffuse/albedo_texture.h"
@@ -53,6 +54,7 @@ int main(int argc, char** argv) try {
         std::printf("\n== %s %dx%d, %d views x %d lights, %s, exposure %.2f, %s: %zu particles, %zu clipped pixels (scene %.1f s)\n",
                     name.c_str(), size, size, views, lights, format.c_str(), exposure, lambertian ? "lambertian" : "with lobe",
                     scene.particles.particles.size(), scene.clipped_pixels, scene.seconds);
+        std::printf("%s", describe(scene.visibility.stats).c_str());
         const auto flat = test::flat_truth(scene, 1.5, 0.004f);
         if (std::getenv("DIFFUSE_DEBUG")) {
             LambertOutputs out = lambert_solve_cpu(in, {});
@@ -100,9 +102,12 @@ int main(int argc, char** argv) try {
                     }
                     const auto e_all = test::albedo_error(scene, out, seen);
                     const auto e_flat = test::albedo_error(scene, out, flat_seen);
-                    std::printf("  %-6s RMSE seen %.4f%% (max %.3f, n %zu); flat truth %.4f%% (max %.3f, n %zu)\n",
+                    const auto e_shadow = test::shadowed_texel_error(scene, out, flat);
+                    std::printf("  %-6s RMSE seen %.4f%% (max %.3f, n %zu); flat truth %.4f%% (max %.3f, n %zu); "
+                                "flat, shadowed in some frames %.4f%% (signed mean %+.4f%%, n %zu)\n",
                                 choice == ViewChoice::BestView ? "best" : "robust", 100 * e_all.rmse, e_all.max_abs, e_all.count,
-                                100 * e_flat.rmse, e_flat.max_abs, e_flat.count);
+                                100 * e_flat.rmse, e_flat.max_abs, e_flat.count, 100 * e_shadow.rmse, 100 * e_shadow.signed_mean,
+                                e_shadow.count);
                 }
             }
         }

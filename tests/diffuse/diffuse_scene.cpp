@@ -115,15 +115,64 @@ AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out, c
     return e;
 }
 
+ShadowedTexelError shadowed_texel_error(const DiffuseScene& scene, const LambertOutputs& out,
+                                        const std::vector<std::uint8_t>& select) {
+    const Visibility& vis = scene.visibility;
+    std::vector<double> abs_err;
+    double signed_sum = 0.0, sq = 0.0;
+    ShadowedTexelError e;
+    for (std::size_t p = 0; p < scene.truth.size(); ++p) {
+        const LambertParticleResult& r = out.particles[p];
+        if (!select[p] || !(r.status & shared::kLambertOk) || r.rejected_shadow == 0) continue;
+        bool lit_some = false;
+        for (std::uint32_t f = 0; f < vis.frame_count && !lit_some; ++f) lit_some = vis.lights(p, f);
+        if (!lit_some) continue;
+        ++e.count;
+        const glm::vec3 d = out.albedo(p) - scene.truth[p];
+        for (int c = 0; c < 3; ++c) {
+            abs_err.push_back(std::abs(double(d[c])));
+            signed_sum += double(d[c]);
+            sq += double(d[c]) * double(d[c]);
+        }
+    }
+    if (abs_err.empty()) return e;
+    const std::size_t mid = abs_err.size() / 2;
+    std::nth_element(abs_err.begin(), abs_err.begin() + static_cast<std::ptrdiff_t>(mid), abs_err.end());
+    e.median_abs = abs_err[mid];
+    e.signed_mean = signed_sum / double(abs_err.size());
+    e.rmse = std::sqrt(sq / double(abs_err.size()));
+    return e;
+}
+
 std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol) {
     // Image pixels sample the texture at their centres; a particle's bilinear value mixes the
     // pixels within sqrt(2) pixels of it. The texture footprint of one image pixel, per
-    // triangle, in its best view: sqrt(uv area in texels / projected area in pixels).
+    // particle: sqrt(uv area in texels / projected area in pixels) of its triangle, in the
+    // view that SEES the particle with the largest projected area. (The largest area over all
+    // cameras the triangle faces, occlusion ignored, overstates the resolution on a
+    // self-occluding mesh: a knot texel hidden from every view but a grazing one was judged
+    // in a view that cannot see it, and counted as resolved where the grazing view's pixels,
+    // each spread over several texels, blur the texture.)
     const Image& tex = scene.preset.material.albedo_texture;
     const Mesh& mesh = scene.capture.mesh;
-    std::vector<Camera> cameras;
-    for (const View& v : scene.capture.views) cameras.push_back(v.camera);
-    const std::vector<double> px_area = best_pixel_footprint(mesh, cameras);
+    const Visibility& vis = scene.visibility;
+    const std::size_t views = scene.capture.views.size();
+    std::vector<double> area(mesh.triangles.size() * views, -1.0); // per (triangle, view), computed on first use
+    const auto projected_area = [&](std::uint32_t triangle, std::size_t v) {
+        double& a = area[std::size_t(triangle) * views + v];
+        if (a < 0.0) {
+            const Camera& cam = scene.capture.views[v].camera;
+            const glm::uvec3 t = mesh.triangles[triangle];
+            const auto q0 = cam.project(glm::dvec3(mesh.positions[t.x])), q1 = cam.project(glm::dvec3(mesh.positions[t.y])),
+                       q2 = cam.project(glm::dvec3(mesh.positions[t.z]));
+            a = 0.0;
+            if (q0 && q1 && q2) {
+                const glm::dvec2 e1 = *q1 - *q0, e2 = *q2 - *q0;
+                a = 0.5 * std::abs(e1.x * e2.y - e1.y * e2.x);
+            }
+        }
+        return a;
+    };
     std::vector<std::uint8_t> flat(scene.truth.size(), 0);
     for (std::size_t p = 0; p < flat.size(); ++p) {
         const Particle& part = scene.particles.particles[p];
@@ -131,7 +180,9 @@ std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pi
         const glm::vec2 e1 = (mesh.texcoords[t.y] - mesh.texcoords[t.x]) * glm::vec2(tex.width, tex.height);
         const glm::vec2 e2 = (mesh.texcoords[t.z] - mesh.texcoords[t.x]) * glm::vec2(tex.width, tex.height);
         const double uv_area = 0.5 * std::abs(double(e1.x) * e2.y - double(e1.y) * e2.x);
-        const double pa = px_area[part.triangle];
+        double pa = 0.0;
+        for (std::size_t v = 0; v < views; ++v)
+            if (vis.sees(p, v)) pa = std::max(pa, projected_area(part.triangle, v));
         const double texels_per_pixel = pa > 0.0 ? std::sqrt(uv_area / pa) : 1e9;
         const int r = static_cast<int>(std::ceil(radius_pixels * texels_per_pixel + 1.0));
         if (r > 64) continue;

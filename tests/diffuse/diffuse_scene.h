@@ -56,10 +56,25 @@ struct AlbedoError {
 [[nodiscard]] AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out,
                                        const std::vector<std::uint8_t>& select);
 
+/// The error on "texels shadowed in some frames" (issue 3: no baked shadows): particles in
+/// `select` that the solve gave a value (kLambertOk), that some frame of a view that sees them
+/// leaves unlit (rejected_shadow > 0: cast shadow, or facing away from the light) and some
+/// frame lights. Over all channels of those particles.
+struct ShadowedTexelError {
+    std::size_t count = 0;    ///< particles
+    double signed_mean = 0.0; ///< mean of (estimate - truth): negative when shadows are baked in
+    double median_abs = 0.0;  ///< median |estimate - truth|
+    double rmse = 0.0;
+};
+[[nodiscard]] ShadowedTexelError shadowed_texel_error(const DiffuseScene& scene, const LambertOutputs& out,
+                                                      const std::vector<std::uint8_t>& select);
+
 /// Particles whose truth the images resolve: every texture texel within `radius_pixels`
-/// image pixels (converted to texels with the triangle's footprint in its best view) of the
-/// particle's UV differs by at most `tol` from the truth. Elsewhere the error is the images'
-/// resampling of a texture finer than their pixels, not the solve's (see diffuse_test.cpp).
+/// image pixels (converted to texels with the triangle's footprint in the view that sees the
+/// particle best, i.e. with the largest projected area among the views whose `seen` bit is
+/// set) of the particle's UV differs by at most `tol` from the truth. Elsewhere the error is
+/// the images' resampling of a texture finer than their pixels, not the solve's (see
+/// diffuse_test.cpp). Particles no view sees are not flat.
 [[nodiscard]] std::vector<std::uint8_t> flat_truth(const DiffuseScene& scene, double radius_pixels, float tol);
 
 } // namespace specula::test

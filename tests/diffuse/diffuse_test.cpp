@@ -6,8 +6,8 @@
 // within that footprint (text, stripes: the presets' textures are finer than 128-pixel images)
 // no solve can recover the texture value: the error is the images' resampling, not the
 // solve's. The accuracy figures are therefore asserted over "resolved" texels, whose truth is
-// flat within 1.5 image pixels (flat_truth, diffuse_scene.h), and the RMSE over all seen texels
-// is printed beside them.
+// flat within 1.5 image pixels of the view that sees them best (flat_truth, diffuse_scene.h),
+// and the RMSE over all seen texels is printed beside them.
 #include "diffuse_scene.h"
 
 #include "diffuse/albedo_texture.h"
@@ -141,40 +141,76 @@ TEST_P(DiffuseSolve, HighlightsAndClippingAreRejected) {
     }
 }
 
-// Self-shadowing knot: shadowed samples are dropped, so texels shadowed in some frames are no
-// darker than the others (no baked shadow): their signed mean error is within 1% of full
-// scale and their median absolute error under 2%. Their RMSE is printed (2.2% at 128 px, 8
-// views; 2.7% before the cross-view reference was weighted by used samples): it is dominated
-// by particles that kept a single sample, on occlusion edges of the thin tube where bilinear
-// taps land on another part of the knot; one sample cannot be tested against anything.
+// Self-shadowing knot (issue 3, "no baked shadows"): shadowed samples are dropped, so texels
+// shadowed in some frames are no darker than the others: over the resolved ones, RMSE < 2%,
+// signed mean within 1% of full scale, median absolute error under 2%. At 128 px, 8 views:
+// RMSE 1.09%, signed mean -0.15%, median 0.08% (n 155601). It was 2.23% (signed mean -0.21%,
+// n 162979), for two reasons:
+//   - texels that only grazing views see (in the knot's crevices, n.v 0.1 to 0.3) counted as
+//     resolved: their footprint was taken in a view that cannot see them. A grazing pixel
+//     spreads over several texels, so the bands and the spiral blur into them (errors of both
+//     signs, 5 to 17% each; 83% of the squared error came from texels whose best view has
+//     n.v < 0.3). flat_truth now takes the footprint in a view that sees the texel: 4.5% of
+//     the texels leave the set (1.18% with this change alone);
+//   - lit samples whose bilinear taps reach past the smooth-shading terminator, where the
+//     images are black but no shadow ray is occluded: the shadow map now marks those pixels
+//     (2.18% with this change alone; LitSamplesReadNoBlackPixels below).
+// Dropping grazing views from the solve instead (n.v < 0.2 or 0.3) lowers this figure, but
+// those texels are then inpainted from atlas neighbours and the texture gets worse (texture
+// RMSE over the old set 2.23% -> 2.33% and 3.52%).
 TEST_P(DiffuseSolve, KnotShowsNoBakedShadows) {
     static const DiffuseScene s = test::make_scene({.preset = "knot", .lambertian = true, .size = 128, .views = 8});
     const auto flat = test::flat_truth(s, 1.5, 0.004f);
-    const Visibility& vis = s.visibility;
     LambertOutputs out = run(s.inputs(), {});
     expect_sane(out);
     EXPECT_GT(out.summary.rejected_shadow, 0u);
-    std::vector<double> err;
-    double signed_sum = 0.0, sq = 0.0;
-    for (std::size_t p = 0; p < s.truth.size(); ++p) {
-        if (!flat[p] || !(out.particles[p].status & shared::kLambertOk) || out.particles[p].rejected_shadow == 0) continue;
-        bool lit_some = false;
-        for (std::uint32_t f = 0; f < vis.frame_count && !lit_some; ++f) lit_some = vis.lights(p, f);
-        if (!lit_some) continue;
-        const glm::vec3 d = out.albedo(p) - s.truth[p];
-        for (int c = 0; c < 3; ++c) {
-            err.push_back(std::abs(d[c]));
-            signed_sum += d[c];
-            sq += double(d[c]) * d[c];
-        }
-    }
-    ASSERT_GT(err.size(), 3000u);
-    std::sort(err.begin(), err.end());
-    const double mean = signed_sum / double(err.size());
+    const test::ShadowedTexelError e = test::shadowed_texel_error(s, out, flat);
+    ASSERT_GT(e.count, 1000u);
     std::printf("knot, resolved texels shadowed in some frames (n %zu): signed mean %.4f, median |e| %.4f, RMSE %.4f\n",
-                err.size() / 3, mean, err[err.size() / 2], std::sqrt(sq / double(err.size())));
-    EXPECT_LT(std::abs(mean), 0.01);
-    EXPECT_LT(err[err.size() / 2], 0.02);
+                e.count, e.signed_mean, e.median_abs, e.rmse);
+    EXPECT_LT(e.rmse, 0.02);
+    EXPECT_LT(std::abs(e.signed_mean), 0.01);
+    EXPECT_LT(e.median_abs, 0.02);
+}
+
+// The visibility the solve gets against the images it reads: a (particle, frame) pair that
+// visibility lights and whose view sees the particle reads no black object pixel among its 4
+// bilinear taps. The shadow map marks pixels in a cast shadow AND pixels whose surface faces
+// away from the light (the smooth-shading terminator, where the face still faces the light
+// and the shadow ray is free): without the second, 2.1% (knot), 2.0% (vase) and 1.6%
+// (cologne) of these pairs read a black pixel; with it 83 of 575230, 0 and 1 (shadow rays
+// from a slightly different origin than the renderer's, at grazing light).
+TEST(DiffuseInputs, LitSamplesReadNoBlackPixels) {
+    for (const char* preset : {"knot", "vase", "cologne"}) {
+        const DiffuseScene s = test::make_scene({.preset = preset, .lambertian = true, .size = 96, .views = 4});
+        const Visibility& vis = s.visibility;
+        std::size_t lit_pairs = 0, dark = 0;
+        for (std::size_t p = 0; p < s.particles.particles.size(); ++p)
+            for (std::uint32_t v = 0; v < s.capture.views.size(); ++v) {
+                if (!vis.sees(p, v)) continue;
+                const Camera& cam = s.capture.views[v].camera;
+                const int w = cam.intrinsics.w, h = cam.intrinsics.h;
+                const glm::dvec2 q = *cam.project(glm::dvec3(s.particles.particles[p].p()));
+                const int x0 = static_cast<int>(std::floor(q.x - 0.5)), y0 = static_cast<int>(std::floor(q.y - 0.5));
+                for (std::size_t f : s.capture.views[v].frames) {
+                    if (!vis.lights(p, f)) continue;
+                    ++lit_pairs;
+                    const FrameImage& im = s.capture.images[f];
+                    bool black = false;
+                    for (int dy = 0; dy < 2; ++dy)
+                        for (int dx = 0; dx < 2; ++dx) {
+                            const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+                            const float* c = &im.color.pixels[im.color.index(x, y)];
+                            black = black || (!(im.flags[std::size_t(y) * std::size_t(w) + std::size_t(x)] & kOutsideMask) &&
+                                              c[0] == 0.0f && c[1] == 0.0f && c[2] == 0.0f);
+                        }
+                    dark += black ? 1u : 0u;
+                }
+            }
+        std::printf("%s: %zu of %zu lit pairs read a black object pixel\n", preset, dark, lit_pairs);
+        EXPECT_GT(lit_pairs, 100000u);
+        EXPECT_LE(double(dark), 1e-3 * double(lit_pairs)) << preset;
+    }
 }
 
 // ---- extreme inputs: a value with a flag or a counted skip, never NaN ----------------------
