@@ -65,7 +65,7 @@ namespace specula {
 struct AtlasOptions {
     std::uint32_t max_width = 4096;       ///< budget: the atlas never exceeds max_width x max_height
     std::uint32_t max_height = 4096;
-    double texels_per_pixel = 1.0;        ///< patch texels per pixel of the best view (> 1 adds cost, no information)
+    double texels_per_pixel = 1.0;        ///< patch texels per pixel of the best view (> 1: sharper edges for other views, at a cost)
     std::uint32_t min_patch = 1;          ///< leg length bounds (texels)
     std::uint32_t max_patch = 512;
 };

@@ -12,6 +12,7 @@
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "gpu/context.h"
+#include "pipeline/albedo_refine.h"
 #include "report/report_html.h"
 #include "visibility/visibility.h"
 
@@ -345,6 +346,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         }
         return fn(LambertBackend::Cpu);
     };
+    LambertOptions solve_options = lambert; // the options of the last solve (its lobe, after joint rounds)
     LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
         return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lambert, b, ctx.get()); });
     });
@@ -454,6 +456,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                 solve = run_stage(result, "diffuse solve" + tag, [&] {
                     return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lo, b, ctx.get()); });
                 });
+                solve_options = lo;
                 rs = run_stage(result, "residual samples" + tag, [&] {
                     return on_backend("residual samples", [&](LambertBackend b) {
                         return residual_samples(lambert_in, solve, residual_options, b, ctx.get());
@@ -503,9 +506,62 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         plan.add(decide_atlas(atlas.summary, config.atlas, particles.particles.size(), particle_seconds));
     }
 
+    // A Vulkan device for rendering (refinement, evaluation): the solve's, else one made now.
+    std::unique_ptr<gpu::Context> render_only_ctx;
+    std::string no_device;
+    const auto render_context = [&]() -> gpu::Context* {
+        if (ctx) return ctx.get();
+        if (!render_only_ctx && no_device.empty()) {
+            try {
+                render_only_ctx = std::make_unique<gpu::Context>(gpu::ContextOptions{.device = config.device});
+            } catch (const std::exception& e) {
+                no_device = e.what();
+            }
+        }
+        return render_only_ctx.get();
+    };
+
+    // 6b. Albedo refinement by back-projection (albedo_refine.h): the albedo whose renders,
+    //     read back by the solve, reproduce the solve's reading of the captured images.
+    std::optional<AlbedoRefineResult> refined;
+    json refinement = nullptr;
+    PlanDecision& refine_decision = plan.add(decide_albedo_refinement(config.refine_rounds, stage_seconds(result, "diffuse solve")));
+    const std::uint32_t refine_rounds = decided_refine_rounds(refine_decision);
+    if (refine_rounds == 0) {
+        result.left_out.push_back({"albedo refinement", refine_decision.reason});
+    } else if (gpu::Context* rc = render_context(); rc == nullptr) {
+        result.left_out.push_back({"albedo refinement", "rendering needs a Vulkan device and none could be had: " + no_device});
+    } else {
+        refined = run_stage(result, "albedo refinement", [&] {
+            return refine_albedo(*rc, capture, atlas, particles.particles, lambert_in, solve, solve_options.lobe,
+                                 refine_rounds, [&](const LambertInputs& in) {
+                                     return on_backend("diffuse solve", [&](LambertBackend b) {
+                                         return lambert_solve(in, solve_options, b, ctx.get());
+                                     });
+                                 });
+        });
+        json rounds = json::array();
+        for (std::size_t i = 0; i < refined->rounds.size(); ++i) {
+            const AlbedoRefineRound& r = refined->rounds[i];
+            rounds.push_back({{"round", i + 1},
+                              {"mean_abs_change", r.mean_abs_change},
+                              {"corrected_particles", r.corrected},
+                              {"render_seconds", r.render_seconds},
+                              {"solve_seconds", r.solve_seconds}});
+            log::info("albedo refinement round " + std::to_string(i + 1) + ": mean |change| " + std::to_string(r.mean_abs_change) +
+                      " over " + std::to_string(r.corrected) + " particles");
+        }
+        set_refinement_cost(refine_decision, stage_seconds(result, "albedo refinement"));
+        refinement = {{"rounds", rounds},
+                      {"method", "A <- A + S(captured) - S(render(A)): S the diffuse solve's robust combination over views, "
+                                 "render without cast shadows with the solve's lobe (pipeline/albedo_refine.h)"},
+                      {"seconds", stage_seconds(result, "albedo refinement")}};
+    }
+
     // 7. Albedo texture: inpaint what no view saw, write linear EXR and sRGB PNG.
     const AlbedoTexture texture = run_stage(result, "albedo texture", [&] {
-        AlbedoTexture t = make_albedo_texture(atlas, particles.particles, solve);
+        AlbedoTexture t = refined ? make_albedo_texture(atlas, particles.particles, refined->albedo, refined->valid)
+                                  : make_albedo_texture(atlas, particles.particles, solve);
         write_albedo_texture(t, config.out_dir / "albedo");
         return t;
     });
@@ -631,16 +687,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     if (!config.evaluate) {
         result.left_out.push_back({"evaluation", "--no-evaluate"});
     } else {
-        std::unique_ptr<gpu::Context> eval_ctx;
-        std::string no_device;
-        if (!ctx) {
-            try {
-                eval_ctx = std::make_unique<gpu::Context>(gpu::ContextOptions{.device = config.device});
-            } catch (const std::exception& e) {
-                no_device = e.what();
-            }
-        }
-        gpu::Context* render_ctx = ctx ? ctx.get() : eval_ctx.get();
+        gpu::Context* render_ctx = render_context();
         if (render_ctx == nullptr) {
             result.left_out.push_back({"evaluation", "rendering needs a Vulkan device and none could be had: " + no_device});
         } else {
@@ -695,6 +742,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         {"particles", {{"count", particles.particles.size()}, {"interior", particles.interior}, {"gutter", particles.gutter}}},
         {"visibility", visibility_json(visibility.stats)},
         {"diffuse", lambert_json(solve, lambert, particle_backend)},
+        {"albedo_refinement", refinement},
         {"specular", specular},
         {"factorization", factorization_report},
         {"bundle", {{"file", "object.glb"}, {"has_lobe", bundle.lobe.has_value()}, {"has_cubemaps", bundle.cube_g.has_value()}}},

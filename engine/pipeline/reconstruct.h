@@ -8,7 +8,8 @@
 //   load capture -> plan (convexity, light directions) -> atlas -> particles
 //     -> visibility (Embree; occlusion rays only where the mesh can occlude itself)
 //     -> diffuse solve (photometric where the lights allow it) -> residual samples
-//     -> Lafortune fit (when the residuals hold specular energy) -> albedo texture
+//     -> Lafortune fit (when the residuals hold specular energy)
+//     -> albedo refinement (back-projection through renders of the train frames) -> albedo texture
 //     -> factorization (grid from the lobe's width) -> bundle (object.glb)
 //     -> self-evaluation -> report.html -> report.json
 #include "diffuse/lambert_solve.h"
@@ -19,7 +20,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,6 +57,10 @@ struct ReconstructConfig {
     /// light subtracted, residuals, fit); 0 = the thesis's one pass.
     std::uint32_t joint_rounds = 3;
     double joint_tolerance = 0.005; ///< stop when no lobe parameter changes by more than this (relative)
+    /// Albedo refinement by back-projection (albedo_refine.h): rounds of A <- A + S(captured) -
+    /// S(render(A)) after the last solve. nullopt: the planner's choice (kAlbedoRefineRounds);
+    /// 0: the solve's albedo (bilinear reading of the best view).
+    std::optional<std::uint32_t> refine_rounds;
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan
     /// device; left out, with the reason, when none can be had).

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 
 namespace specula {
 namespace {
@@ -213,6 +214,48 @@ double mean_abs_difference(const fs::path& a_path, const fs::path& b_path) {
     for (std::size_t i = 0; i < std::min(a.pixels.size(), b.pixels.size()); ++i)
         sum += std::abs(static_cast<double>(a.pixels[i]) - b.pixels[i]);
     return a.pixels.empty() ? 0.0 : sum / static_cast<double>(a.pixels.size());
+}
+
+// Issue 6's quality target (noise-free captures: masked test Q1 >= 99, PSNR >= 40 dB) in
+// small. The sphere's checker has sharp albedo edges; the solve reads each particle
+// bilinearly from its best view and the renderer reads the atlas bilinearly again, so the
+// edges come back as ramps that the held-out views see at another phase. The albedo
+// refinement (pipeline/albedo_refine.h) corrects them with every view's sampling.
+// 128 px, 12 views x 4 lights, 2 test views x 2 lights, png16. Measured (lavapipe): test
+// masked PSNR 41.75 dB, Q1 99.18 without the refinement (the pipeline before it), 43.60 dB,
+// Q1 99.34 with the planner's 2 rounds. The thresholds lie between the two.
+TEST(Reconstruct, AlbedoRefinementSharpensEdgesForHeldOutViews) {
+    SPECULA_REQUIRE_VULKAN(); // the refinement renders the train frames
+    test::TempDir dir("pipe");
+    synth::SynthOptions o;
+    o.size = 128;
+    o.views = 12;
+    o.lights = 4;
+    o.test_views = 2;
+    o.test_lights = 2;
+    o.format = synth::ImageFormat::Png16;
+    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("sphere")), dir / "sphere", o);
+    ReconstructConfig c;
+    c.capture = dir / "sphere";
+    c.backend = LambertBackend::Cpu; // on lavapipe the reference is the faster solve
+    c.evaluate_train = false;
+    c.write_sheets = false;
+    c.write_html = false;
+    c.cost_probes = false;
+    const auto test_masked = [&](std::optional<std::uint32_t> rounds, const char* out) {
+        c.refine_rounds = rounds;
+        c.out_dir = dir / out;
+        const ReconstructResult r = reconstruct(c);
+        EXPECT_EQ(decision(r.report, "albedo_refinement")["value"], rounds == 0u ? "skip" : "2 rounds");
+        return r.report["evaluation"]["test"]["masked"];
+    };
+    const nlohmann::json refined = test_masked(std::nullopt, "auto"), plain = test_masked(0u, "plain");
+    const double psnr = refined["psnr"].get<double>(), q1 = refined["q1"].get<double>();
+    std::printf("test masked: refined PSNR %.2f dB Q1 %.3f; without refinement PSNR %.2f dB Q1 %.3f\n", psnr, q1,
+                plain["psnr"].get<double>(), plain["q1"].get<double>());
+    EXPECT_GE(psnr, 42.7);
+    EXPECT_GE(q1, 99.26);
+    EXPECT_GE(psnr - plain["psnr"].get<double>(), 1.0);
 }
 
 // Planner (pipeline.md section 9), convex preset: auto skips the occlusion rays and

@@ -97,8 +97,8 @@ void add_reconstruct_command(CLI::App& app) {
         ->check(CLI::Range(16u, 32767u))
         ->capture_default_str();
     cmd->add_option("--texels-per-pixel", args->config.atlas.texels_per_pixel,
-                    "Atlas texels per image pixel of a triangle's best view; the planner uses 1 (more adds cost, no\n"
-                    "information; less trades detail for time)")
+                    "Atlas texels per image pixel of a triangle's best view; the planner uses 1 (more sharpens albedo\n"
+                    "edges a little for other views at several times the particle stages' cost; less trades detail for time)")
         ->check(CLI::Range(0.05, 8.0))
         ->capture_default_str();
     cmd->add_option("--noise", args->config.lambert.noise_sigma,
@@ -115,6 +115,12 @@ void add_reconstruct_command(CLI::App& app) {
                     "lobe settles; 0 = the thesis's single pass")
         ->check(CLI::Range(0u, 10u))
         ->capture_default_str();
+    cmd->add_option("--refine-rounds", args->config.refine_rounds,
+                    "Albedo refinement: rounds of (render the train frames from the albedo, solve them, add the\n"
+                    "difference to the captured frames' solve), which sharpens albedo edges for held-out views; each\n"
+                    "costs one render of every train frame and one diffuse solve (default: the planner's 2; 0 = the\n"
+                    "solve's bilinear reading of the best view)")
+        ->check(CLI::Range(0u, 10u));
     cmd->add_option("--occlusion-rays", args->occlusion_rays,
                     "auto: Embree occlusion rays only where the mesh can occlude itself (not convex); on: always (the\n"
                     "report gives their measured cost); off: never (biased where the mesh shadows or hides itself)")
