@@ -17,6 +17,16 @@
 // lobe (Cx = -Cz) is flat along d, an off-specular one (|Cx| != |Cz|) is not. The same
 // rule with N_d gives R_d.
 //
+// The mirrored parametrization (shared/gshd.h part 4) swaps the two: F_mirrored of a lobe at
+// (h, d) is the lobe at (r(u), v) with (u, v) = gshd_to_uv(h, d), and slicing as above,
+//   at d = pole (u = v = h):  plain  f = ((Cz - Cx) hz^2 + Cx)^N        (the peak: rule h)
+//                             mirror f = ((Cx + Cz) hz^2 - Cx)^N        (rule d's N_d)
+//   at h = n (v = r(u)):      plain  f = ((Cx + Cz) dz^2 - Cx)^N        (rule d's N_d)
+//                             mirror f = ((Cz - Cx) dz^2 + Cx)^N        (the peak: rule h)
+// so the mirrored grids take the plain rule's values with h and d exchanged: the d grid
+// resolves the peak (a Phong lobe, Cx = -Cz, is a function of d alone there), the h grid the
+// off-specular variation.
+//
 // Cube faces: a texel at a face centre spans (pi/2)/R_cube radians; matching a grid cell
 // (sqrt(2)/R) gives R_cube = R pi / (2 sqrt 2) ~ 1.11 R.
 #include "factorization/resolution.h"
@@ -44,7 +54,8 @@ uint32_t cube_res_for_grid(uint32_t grid_res) {
     return std::max<uint32_t>(8, (r + 7u) / 8u * 8u);
 }
 
-FactorizationResolution default_resolution(const LafortuneRgb& lobe) {
+FactorizationResolution default_resolution(const LafortuneRgb& lobe, FactorParam param) {
+    const bool mirrored = param == FactorParam::Mirrored;
     double n_max = 1.0;
     double n_d = 1.0;
     for (int c = 0; c < 3; ++c) {
@@ -56,24 +67,29 @@ FactorizationResolution default_resolution(const LafortuneRgb& lobe) {
         if (big > 0.0 && std::isfinite(big))
             n_d = std::max(n_d, n * std::abs(static_cast<double>(lobe.cx[c]) + lobe.cz[c]) / big);
     }
-    FactorizationResolution r;
-    r.grid_h = res_for(n_max, kMinGridRes, kMaxGridResH);
-    r.grid_d = res_for(n_d, kMinGridRes, kMaxGridResD);
+    // peak: the axis that resolves the lobe's width; other: the off-specular variation.
+    uint32_t peak = res_for(n_max, kMinGridRes, kMaxGridResH);
+    uint32_t other = res_for(n_d, kMinGridRes, kMaxGridResD);
     bool limited = false;
-    while (r.grid_h * r.grid_d > kMaxGridProduct) {
+    while (peak * other > kMaxGridProduct) {
         limited = true;
-        if (r.grid_d > kMinGridRes) --r.grid_d; else --r.grid_h;
+        if (other > kMinGridRes) --other; else --peak;
     }
+    FactorizationResolution r;
+    r.grid_h = mirrored ? other : peak;
+    r.grid_d = mirrored ? peak : other;
     r.cube_g = cube_res_for_grid(r.grid_h);
     r.cube_h = cube_res_for_grid(r.grid_d);
-    char buf[512];
+    const char* peak_axis = mirrored ? "d" : "h";
+    const char* other_axis = mirrored ? "h" : "d";
+    char buf[640];
     std::snprintf(buf, sizeof buf,
-                  "lobe half-width sqrt(2/N) = %.3f rad (N = %.4g) -> h grid %u (%.0f cells per half-width, clamped "
-                  "[%u, %u]); variation along d N|Cx+Cz|/max|C| = %.3g -> d grid %u (clamped [%u, %u])%s; cube faces "
+                  "%slobe half-width sqrt(2/N) = %.3f rad (N = %.4g) -> %s grid %u (%.0f cells per half-width, clamped "
+                  "[%u, %u]); variation along %s N|Cx+Cz|/max|C| = %.3g -> %s grid %u (clamped [%u, %u])%s; cube faces "
                   "%u (G) and %u (H): texel <= grid cell",
-                  std::sqrt(2.0 / n_max), n_max, r.grid_h, kCellsPerHalfWidth, kMinGridRes, kMaxGridResH, n_d, r.grid_d,
-                  kMinGridRes, kMaxGridResD,
-                  limited ? "; reduced so that F (3 R_h^2 R_d^2 floats) fits one 128 MiB storage binding" : "",
+                  mirrored ? "mirrored parametrization, the axes swapped: " : "", std::sqrt(2.0 / n_max), n_max, peak_axis,
+                  peak, kCellsPerHalfWidth, kMinGridRes, kMaxGridResH, other_axis, n_d, other_axis, other, kMinGridRes,
+                  kMaxGridResD, limited ? "; reduced so that F (3 R_h^2 R_d^2 floats) fits one 128 MiB storage binding" : "",
                   r.cube_g, r.cube_h);
     r.reason = buf;
     return r;
