@@ -57,6 +57,8 @@ int main(int argc, char** argv) try {
         {"woodenpot", gray(-1.4299f, -0.7763f, 9.74f)},
         {"mirror", gray(-1.0f, 1.0f, 1000.0f)},
         {"mirror300", gray(-1.0f, 1.0f, 300.0f)},
+        {"phong", gray(-1.0f, 1.0f, 10.0f)}, // Cx = -Cz: rank 1 mirrored
+        {"retro", gray(1.0f, 1.0f, 10.0f)},  // Cx = +Cz: rank 1 plain
     };
     gpu::Context* ctx = test::vulkan_context();
     std::optional<FactorizeVk> vk;
@@ -69,12 +71,15 @@ int main(int argc, char** argv) try {
     std::printf("direct error over %u random (u, v) pairs\n\n", pairs);
 
     // Issue 5: error against the number of separable terms K, default resolutions.
+    // Both parametrizations (shared/gshd.h part 4), then the automatic choice's reason.
     std::printf("## Error against the number of terms K (grid %u, 0 = default resolutions; %u iterations)\n\n", grid, iterations);
-    std::printf("| lobe | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf("| lobe | param | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : lobes) {
+        for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored})
         for (uint32_t k = 1; k <= kMaxTerms; ++k) {
-            const FactorizationOptions o{.grid_h = grid, .grid_d = grid, .keep_matrix = true, .terms = k, .iterations = iterations};
+            const FactorizationOptions o{.grid_h = grid, .grid_d = grid, .keep_matrix = true, .terms = k, .iterations = iterations,
+                                         .param = param};
             const Factorization c = factorize_cpu(l.lobe, o);
             const DirectError ed = direct_relative_rms(l.lobe, c, 0, pairs);
             std::string vk_ms = "n/a", vk_gpu = "n/a";
@@ -83,12 +88,14 @@ int main(int argc, char** argv) try {
                 vk_ms = ms(g.timings.total_s * 1e9);
                 vk_gpu = ms(g.timings.residual_gpu_ns);
             }
-            std::printf("| %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, c.resolution.grid_h,
+            std::printf("| %s | %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, to_string(param), c.resolution.grid_h,
                         c.resolution.grid_d, k, c.terms.matrix_rms.back(), ed.grid, ed.cube, c.timings.total_s * 1e3,
                         vk_ms.c_str(), vk_gpu.c_str());
             std::fflush(stdout);
         }
-        std::printf("| %s | | | auto: %s | | | | | | |\n", l.name, factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid, .iterations = iterations}).terms.reason.c_str());
+        const Factorization a = factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid, .iterations = iterations});
+        std::printf("| %s | %s | | | auto: %s; %s | | | | | | |\n", l.name, to_string(a.param), a.terms.reason.c_str(),
+                    a.param_choice.reason.c_str());
     }
     if (terms_only) return 0;
 
