@@ -1,6 +1,6 @@
 // Factorization sweep (not a test): approximation error and time against grid and
 // cube-map resolution for the thesis's four lobes (table 5.2) and a near-mirror lobe.
-//   factorization_sweep [--quick] [--pairs N]
+//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--cpu]
 // Errors: "matrix" = relative RMS of G H against F over the valid entries; "direct" =
 // relative RMS of G(h) H(d) against the lobe for uniformly random (u, v) pairs, with G and H
 // interpolated from the grids ("grid") or from the cube-maps ("cube"). Times: the CPU
@@ -40,13 +40,15 @@ int main(int argc, char** argv) try {
     bool terms_only = false;
     bool cpu_only = false;
     uint32_t iterations = kResidualIterations;
-    uint32_t grid = 0; // 0: default resolutions
+    uint32_t grid = 0;   // 0: default resolutions
+    uint32_t grid_d = 0; // --terms: the d grid, when not --grid's
     uint32_t pairs = 1u << 20;
     for (int i = 1; i < argc; ++i) {
         if (std::strcmp(argv[i], "--quick") == 0) quick = true;
         else if (std::strcmp(argv[i], "--terms") == 0) terms_only = true;
         else if (std::strcmp(argv[i], "--iterations") == 0 && i + 1 < argc) iterations = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--grid") == 0 && i + 1 < argc) grid = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--grid-d") == 0 && i + 1 < argc) grid_d = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--cpu") == 0) cpu_only = true;
         else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
     }
@@ -78,7 +80,7 @@ int main(int argc, char** argv) try {
     for (const auto& l : lobes) {
         for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored})
         for (uint32_t k = 1; k <= kMaxTerms; ++k) {
-            const FactorizationOptions o{.grid_h = grid, .grid_d = grid, .keep_matrix = true, .terms = k, .iterations = iterations,
+            const FactorizationOptions o{.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .keep_matrix = true, .terms = k, .iterations = iterations,
                                          .param = param};
             const Factorization c = factorize_cpu(l.lobe, o);
             const DirectError ed = direct_relative_rms(l.lobe, c, 0, pairs);
@@ -93,7 +95,7 @@ int main(int argc, char** argv) try {
                         vk_ms.c_str(), vk_gpu.c_str());
             std::fflush(stdout);
         }
-        const Factorization a = factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid, .iterations = iterations});
+        const Factorization a = factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .iterations = iterations});
         std::printf("| %s | %s | | | auto: %s; %s | | | | | | |\n", l.name, to_string(a.param), a.terms.reason.c_str(),
                     a.param_choice.reason.c_str());
     }
