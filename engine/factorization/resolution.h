@@ -9,8 +9,10 @@
 //   and R_h R_d <= kMaxGridProduct (F must fit one storage binding: 3 R_h^2 R_d^2 floats);
 //   cube faces: R_cube = ceil(R * pi / (2 sqrt 2)) rounded up to a multiple of 8.
 // In the mirrored parametrization (shared/gshd.h part 4) the two axes swap roles (derivation
-// in resolution.cpp): R_d is the rule's h value (clamped to [16, 128]) and R_h its d value
-// ([16, 64]), cube faces likewise.
+// in resolution.cpp): R_h is the rule's d value ([16, 64]) and R_d resolves the peak, with
+// kMirroredPeakCellsPerHalfWidth instead of kCellsPerHalfWidth:
+//   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
+// (finer: there the separability floor is gone and the rendered highlights' tails need it).
 #include "core/factor_param.h"
 #include "factorization/lobe.h"
 
@@ -28,6 +30,7 @@ struct FactorizationResolution {
 };
 
 inline constexpr double kCellsPerHalfWidth = 2.0;
+inline constexpr double kMirroredPeakCellsPerHalfWidth = 16.0;
 inline constexpr uint32_t kMinGridRes = 16;
 inline constexpr uint32_t kMaxGridResH = 128;
 inline constexpr uint32_t kMaxGridResD = 64;

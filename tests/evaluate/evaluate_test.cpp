@@ -177,9 +177,9 @@ TEST_F(EvaluateTest, FactorizedWithoutCubeMapsIsRefused) {
 }
 
 /// The bundle's parametrization reaches the renderer (BundleRenderer): the sphere's lobe
-/// (Cx < 0) factorized in each parametrization (measured train masked PSNR: analytic 69.7 dB
-/// against the noiseless capture, plain K = 4 44.9 dB, mirrored K = 3 51.7 dB); the mirrored
-/// cube-maps in a bundle that says plain GSHD 28.3 dB.
+/// (Cx < 0) factorized in each parametrization on its default grids (measured train masked
+/// PSNR: analytic 69.7 dB against the noiseless capture, plain K = 4 44.9 dB, mirrored K = 3
+/// 59.1 dB); the mirrored cube-maps in a bundle that says plain GSHD 28.2 dB.
 TEST_F(EvaluateTest, FactorizedBundleIsLookedUpInItsParametrization) {
     const SphereCapture& s = sphere();
     const EvaluationResult analytic = evaluate(ctx(), s.truth, s.capture, {});
@@ -209,7 +209,7 @@ TEST_F(EvaluateTest, FactorizedBundleIsLookedUpInItsParametrization) {
             EXPECT_LE(wrong.metrics.train_masked.psnr, r.metrics.train_masked.psnr - 10.0);
         }
     }
-    EXPECT_GE(psnr[1], psnr[0] + 3.0);
+    EXPECT_GE(psnr[1], psnr[0] + 10.0);
 }
 
 TEST(EvaluateSelect, EvenlySpacedPerSplit) {

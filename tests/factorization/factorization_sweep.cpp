@@ -1,6 +1,6 @@
 // Factorization sweep (not a test): approximation error and time against grid and
 // cube-map resolution for the thesis's four lobes (table 5.2) and a near-mirror lobe.
-//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--cpu]
+//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--cpu] [--lobe NAME]
 // Errors: "matrix" = relative RMS of G H against F over the valid entries; "direct" =
 // relative RMS of G(h) H(d) against the lobe for uniformly random (u, v) pairs, with G and H
 // interpolated from the grids ("grid") or from the cube-maps ("cube"). Times: the CPU
@@ -42,6 +42,7 @@ int main(int argc, char** argv) try {
     uint32_t iterations = kResidualIterations;
     uint32_t grid = 0;   // 0: default resolutions
     uint32_t grid_d = 0; // --terms: the d grid, when not --grid's
+    std::string only;    // --lobe NAME: that lobe only
     uint32_t pairs = 1u << 20;
     for (int i = 1; i < argc; ++i) {
         if (std::strcmp(argv[i], "--quick") == 0) quick = true;
@@ -49,10 +50,11 @@ int main(int argc, char** argv) try {
         else if (std::strcmp(argv[i], "--iterations") == 0 && i + 1 < argc) iterations = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--grid") == 0 && i + 1 < argc) grid = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--grid-d") == 0 && i + 1 < argc) grid_d = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--lobe") == 0 && i + 1 < argc) only = argv[++i];
         else if (std::strcmp(argv[i], "--cpu") == 0) cpu_only = true;
         else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
     }
-    const std::vector<NamedLobe> lobes = {
+    std::vector<NamedLobe> lobes = {
         {"pepsi", gray(-0.8962f, 0.7587f, 10.11f)},
         {"cologne", gray(-0.8874f, 1.1162f, 18.09f)},
         {"vase", gray(-1.2127f, 0.5653f, 20.36f)},
@@ -62,6 +64,8 @@ int main(int argc, char** argv) try {
         {"phong", gray(-1.0f, 1.0f, 10.0f)}, // Cx = -Cz: rank 1 mirrored
         {"retro", gray(1.0f, 1.0f, 10.0f)},  // Cx = +Cz: rank 1 plain
     };
+    if (!only.empty())
+        std::erase_if(lobes, [&](const NamedLobe& l) { return only != l.name; });
     gpu::Context* ctx = test::vulkan_context();
     std::optional<FactorizeVk> vk;
     if (ctx && !cpu_only) {

@@ -613,11 +613,11 @@ double masked_psnr(const Frame& a, const Frame& ref) {
 // >= 39.4 dB (test) and >= 47.6 dB (train) here.
 // In the thesis's GSHD (lavapipe, the five views): K = 1 31.6 to 33.3 dB, automatic K (= 4)
 // 38.8 to 46.0 dB: the can's lobe, |Cx| > Cz, keeps 15% matrix RMS at K = 4. In the mirrored
-// GSHD (shared/gshd.h part 4), which the automatic choice keeps for this lobe: K = 3, 47.4 to
-// 48.1 dB (what is left is interpolation between the 16 x 16 grids' cells: 10% against the lobe
-// for 1.8% on the grid); the same cube-maps looked up as plain GSHD 28 to 32 dB. Asserted (worst
-// view): plain automatic K at least 5 dB better than K = 1 and >= 38 dB; mirrored at least 8 dB
-// better than plain and >= 47 dB; mirrored cube-maps looked up as plain worse than plain K = 1.
+// GSHD (shared/gshd.h part 4), which the automatic choice keeps for this lobe: K = 3 on its
+// default grids (h 16 x d 51) 57.1 to 63.3 dB (on 16 x 16 grids 47.4 to 48.1 dB: the rest was
+// interpolation between cells); the same cube-maps looked up as plain GSHD 29 to 32 dB. Asserted
+// (worst view): plain automatic K at least 5 dB better than K = 1 and >= 38 dB; mirrored at least
+// 15 dB better than plain and >= 55 dB; mirrored cube-maps looked up as plain worse than plain K = 1.
 TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     const synth::Preset preset = synth::make_preset("can");
     const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
@@ -660,8 +660,8 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     EXPECT_GE(f.term_count(), 2u);
     EXPECT_GE(worst_all, worst_one + 5.0);
     EXPECT_GE(worst_all, 38.0);
-    EXPECT_GE(worst_mirrored, worst_all + 8.0);
-    EXPECT_GE(worst_mirrored, 47.0);
+    EXPECT_GE(worst_mirrored, worst_all + 15.0);
+    EXPECT_GE(worst_mirrored, 55.0);
     EXPECT_LT(worst_wrong, worst_one); // the renderer must apply the bundle's parametrization
 }
 
