@@ -29,12 +29,12 @@ render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const st
                     " texcoords for " + std::to_string(bundle.mesh.positions.size()) + " vertices)");
     const std::vector<glm::vec2> corner_uv = corner_uvs(bundle.mesh);
     render::Renderer r(ctx, scene_of(bundle, corner_uv));
-    if (bundle.cube_g && bundle.cube_h) { // all K terms (docs/SPECULA_lafortune.md, cubeTerms)
+    if (bundle.cube_g && bundle.cube_h) { // all K terms (docs/SPECULA_lafortune.md, cubeTerms, parametrization)
         std::vector<render::FactorTermCubes> terms{{render::CubeMapRgb{bundle.cube_g->resolution, bundle.cube_g->rgb},
                                                     render::CubeMapRgb{bundle.cube_h->resolution, bundle.cube_h->rgb}}};
         for (const BundleFactorTerm& t : bundle.extra_terms)
             terms.push_back({render::CubeMapRgb{t.g.resolution, t.g.rgb}, render::CubeMapRgb{t.h.resolution, t.h.rgb}});
-        r.set_factorization(terms);
+        r.set_factorization(terms, bundle.factor_param);
     }
     return r;
 }

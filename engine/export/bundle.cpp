@@ -33,7 +33,9 @@ namespace {
 constexpr const char* kExtension = "SPECULA_lafortune";
 // Version 1: one factorization term (cubeG, cubeH). Version 2 adds cubeTerms (terms 2..K);
 // a bundle is written as version 1 when it has one term, so older readers still load it.
-constexpr int kExtensionVersion = 2;
+// Version 3 adds "parametrization": "mirrored" (shared/gshd.h part 4), written only for such
+// cube-maps, which a version 1 or 2 reader would look up wrongly: it refuses version 3 instead.
+constexpr int kExtensionVersion = 3;
 constexpr std::size_t kMaxExtraTerms = 3; // K <= 4 (render::kMaxFactorTerms)
 
 constexpr std::uint32_t kGlbMagic = 0x46546C67u;  // "glTF"
@@ -483,7 +485,8 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     const std::vector<unsigned char> png = encode_srgb_png(albedo, path);
     const std::size_t png_view = add_view(png.data(), png.size(), 0);
 
-    json ext = {{"version", bundle.extra_terms.empty() ? 1 : kExtensionVersion}};
+    const bool mirrored = bundle.cube_g && bundle.factor_param == FactorParam::Mirrored;
+    json ext = {{"version", mirrored ? 3 : bundle.extra_terms.empty() ? 1 : 2}};
     if (bundle.lobe) {
         ext["lobe"] = {{"cx", vec3_json(bundle.lobe->cx)}, {"cz", vec3_json(bundle.lobe->cz)},
                        {"n", vec3_json(bundle.lobe->n)}, {"status", bundle.lobe_status}};
@@ -505,6 +508,7 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
                                         {"resolution", t.h.resolution}}}});
         ext["cubeTerms"] = std::move(terms);
     }
+    if (mirrored) ext["parametrization"] = to_string(bundle.factor_param);
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
     const json material = {
@@ -687,6 +691,16 @@ Bundle read_bundle(const fs::path& path) {
             if (!terms[k].is_object()) throw InputError(path, kf, "not an object");
             b.extra_terms.push_back({read_cube(d, terms[k], "cubeG", kf), read_cube(d, terms[k], "cubeH", kf)});
         }
+    }
+    if (ext->contains("parametrization")) { // version 3; absent: the thesis's GSHD
+        const std::string pf = ext_field + ".parametrization";
+        const json& p = (*ext)["parametrization"];
+        const std::optional<FactorParam> param = p.is_string() ? factor_param_from_string(p.get<std::string>()) : std::nullopt;
+        if (!param) throw InputError(path, pf, "not \"gshd\" or \"mirrored\"");
+        if (*param == FactorParam::Mirrored && version.get<int>() < 3)
+            throw InputError(path, pf, "mirrored in a version " + std::to_string(version.get<int>()) + " extension (needs version 3)");
+        if (!ext->contains("cubeG")) throw InputError(path, pf, "a parametrization without cube-maps (cubeG, cubeH)");
+        b.factor_param = *param;
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) throw InputError(path, ext_field + ".info", "not an object");

@@ -7,6 +7,7 @@
 //  - the extension SPECULA_lafortune (docs/SPECULA_lafortune.md) carrying what
 //    Specula needs exactly: the per-channel lobe, its fit status, the linear float
 //    albedo (so a round trip is exact, not 8-bit), and the two factorization cube-maps.
+#include "core/factor_param.h"
 #include "core/image.h"
 #include "core/lafortune.h"
 #include "capture/mesh.h"
@@ -48,6 +49,10 @@ struct Bundle {
     /// Terms 2..K of the factorization f ~ max(0, sum_k G_k H_k) (K - 1 entries, at most 3;
     /// needs cube_g / cube_h, which are term 1). Empty: the thesis's single term.
     std::vector<BundleFactorTerm> extra_terms;
+    /// How the cube-maps are looked up (shared/gshd.h part 4): the thesis's GSHD of (u, v), or the
+    /// mirrored GSHD of (r(u), v). Written as "parametrization" (version 3) when mirrored; a bundle
+    /// without the field is plain GSHD.
+    FactorParam factor_param = FactorParam::Gshd;
     nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.

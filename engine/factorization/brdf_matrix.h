@@ -4,6 +4,9 @@
 // Row = cell of the h grid (res_h x res_h), column = cell of the d grid (res_d x res_d).
 // Layout, channel-planar (what the shader writes): values[(c * rows + row) * cols + col].
 // Entries outside the BRDF's domain (u or v below the horizon) are kGshdInvalid (-1).
+// `param` picks the parametrization of the pairs (shared/gshd.h part 4): the thesis's GSHD
+// of (u, v), or the mirrored GSHD of (r(u), v).
+#include "core/factor_param.h"
 #include "factorization/lobe.h"
 #include "gpu/buffer.h"
 #include "gpu/pipeline.h"
@@ -21,11 +24,16 @@ struct BrdfMatrixInputs {
     LafortuneRgb lobe;
     uint32_t res_h = 32;
     uint32_t res_d = 32;
+    FactorParam param = FactorParam::Gshd;
 };
+
+static_assert(static_cast<uint32_t>(FactorParam::Gshd) == shared::kGshdPlain &&
+              static_cast<uint32_t>(FactorParam::Mirrored) == shared::kGshdMirrored);
 
 struct BrdfMatrix {
     uint32_t res_h = 0;
     uint32_t res_d = 0;
+    FactorParam param = FactorParam::Gshd;
     std::vector<float> values; // 3 * rows() * cols()
     [[nodiscard]] std::size_t rows() const noexcept { return std::size_t{res_h} * res_h; }
     [[nodiscard]] std::size_t cols() const noexcept { return std::size_t{res_d} * res_d; }
@@ -47,8 +55,10 @@ struct BrdfMatrixPush {
     float cx[4];
     float cz[4];
     float n[4];
+    uint32_t param; // shared::kGshdPlain or kGshdMirrored
 };
-static_assert(sizeof(BrdfMatrixPush) == 64 && offsetof(BrdfMatrixPush, cx) == 16 && offsetof(BrdfMatrixPush, n) == 48);
+static_assert(sizeof(BrdfMatrixPush) == 68 && offsetof(BrdfMatrixPush, cx) == 16 && offsetof(BrdfMatrixPush, n) == 48 &&
+              offsetof(BrdfMatrixPush, param) == 64);
 
 /// The Vulkan kernel (shaders/factorization/brdf_matrix.comp). Owns its pipeline.
 class BrdfMatrixVk {

@@ -19,16 +19,17 @@ void brdf_matrix_validate(const BrdfMatrixInputs& in) {
 BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in) {
     namespace f64 = shared::f64;
     brdf_matrix_validate(in);
-    BrdfMatrix m{.res_h = in.res_h, .res_d = in.res_d, .values = {}};
+    BrdfMatrix m{.res_h = in.res_h, .res_d = in.res_d, .param = in.param, .values = {}};
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
     m.values.assign(3 * rows * cols, shared::kGshdInvalid);
     std::vector<glm::dvec3> dgrid(cols);
     for (std::size_t col = 0; col < cols; ++col) dgrid[col] = f64::gshd_grid_dir(static_cast<uint32_t>(col), in.res_d);
+    const uint32_t param = static_cast<uint32_t>(in.param);
     for (std::size_t row = 0; row < rows; ++row) {
         const glm::dvec3 h = f64::gshd_grid_dir(static_cast<uint32_t>(row), in.res_h);
         for (std::size_t col = 0; col < cols; ++col) {
-            const f64::GshdPair p = f64::gshd_to_uv(h, dgrid[col]);
+            const f64::GshdPair p = f64::gshd_to_uv_param(h, dgrid[col], param);
             if (!(p.u.z > shared::kGshdMinCos && p.v.z > shared::kGshdMinCos)) continue;
             glm::dvec3 f;
             for (int c = 0; c < 3; ++c) f[c] = lafortune_eval_f64(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v);

@@ -100,8 +100,8 @@ TermChoice choose_terms(const BrdfMatrix* m, const Decomposition& first, const s
 
 } // namespace
 
-FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& o) {
-    FactorizationResolution r = default_resolution(lobe);
+FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param) {
+    FactorizationResolution r = default_resolution(lobe, param);
     std::string forced;
     const auto force = [&](uint32_t value, uint32_t& field, const char* name) {
         if (value == 0) return;
@@ -118,14 +118,69 @@ FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const Facto
     return r;
 }
 
-Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions& options) {
+namespace {
+
+std::string param_errors(const ParamCandidate& c) {
+    const TermChoice& t = c.terms;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "K=%u: %.1f%% vs the lobe, matrix %s", t.count, 100.0 * c.direct_rms,
+                  t.matrix_rms.empty() ? "n/a" : percent(t.matrix_rms[t.count - 1]).c_str());
+    return buf;
+}
+
+ParamCandidate candidate_of(const LafortuneRgb& lobe, const Factorization& f) {
+    return ParamCandidate{.computed = true,
+                          .resolution = f.resolution,
+                          .terms = f.terms,
+                          .direct_rms = direct_relative_rms(lobe, f, 0, kParamChoicePairs).cube};
+}
+
+/// ParamChoice's rule: `run(param, errors)` factorizes in one parametrization (errors: F's matrix
+/// errors are needed even where the path would skip them).
+template <class Run>
+Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOptions& o, Run&& run) {
+    if (o.param) {
+        Factorization f = run(*o.param, false);
+        ParamChoice& c = f.param_choice;
+        c.param = *o.param;
+        c.forced = true;
+        c.candidates[static_cast<std::size_t>(*o.param)] = candidate_of(lobe, f);
+        c.reason = std::string("forced ") + to_string(*o.param) + " (" + param_errors(c.of(*o.param)) + ")";
+        return f;
+    }
+    Stopwatch both;
+    Factorization plain = run(FactorParam::Gshd, true);
+    Factorization mirrored = run(FactorParam::Mirrored, true);
+    ParamChoice c;
+    c.candidates = {candidate_of(lobe, plain), candidate_of(lobe, mirrored)};
+    const ParamCandidate& a = c.of(FactorParam::Gshd);
+    const ParamCandidate& b = c.of(FactorParam::Mirrored);
+    const std::string errors = " (gshd " + param_errors(a) + "; mirrored " + param_errors(b) + ")";
+    if (std::abs(a.direct_rms - b.direct_rms) <= kParamTieMargin * std::max(a.direct_rms, b.direct_rms)) {
+        c.param = b.terms.count < a.terms.count ? FactorParam::Mirrored : FactorParam::Gshd;
+        c.reason = std::string("automatic: ") + to_string(c.param) + ", " +
+                   (a.terms.count == b.terms.count ? "the thesis's" : "fewer terms") +
+                   " (relative RMS against the lobe through the cube-maps within " + percent(kParamTieMargin) + ")" + errors;
+    } else {
+        c.param = b.direct_rms < a.direct_rms ? FactorParam::Mirrored : FactorParam::Gshd;
+        c.reason = std::string("automatic: ") + to_string(c.param) +
+                   ", the lower relative RMS against the lobe through the cube-maps" + errors;
+    }
+    Factorization& kept = c.param == FactorParam::Mirrored ? mirrored : plain;
+    kept.param_choice = std::move(c);
+    kept.timings.total_s = both.seconds(); // both factorizations and their errors
+    return std::move(kept);
+}
+
+Factorization factorize_cpu_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param) {
     Factorization f;
-    f.resolution = resolve_resolution(lobe, options);
+    f.param = param;
+    f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     Stopwatch total;
     Stopwatch step;
-    BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d});
+    BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param});
     f.timings.matrix_s = step.seconds();
     step.restart();
     f.decomposition = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
@@ -157,16 +212,28 @@ Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions
     return f;
 }
 
+} // namespace
+
+Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions& options) {
+    return with_param_choice(lobe, options, [&](FactorParam param, bool) { return factorize_cpu_param(lobe, options, param); });
+}
+
 FactorizeVk::FactorizeVk(gpu::Context& ctx)
     : m_ctx(&ctx), m_matrix(ctx), m_decomposition(ctx), m_residual(ctx), m_cubemaps(ctx) {}
 
 Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOptions& options) {
+    return with_param_choice(lobe, options, [&](FactorParam param, bool errors) { return run_param(lobe, options, param, errors); });
+}
+
+Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param,
+                                     bool errors) {
     Factorization f;
-    f.resolution = resolve_resolution(lobe, options);
+    f.param = param;
+    f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     const FactorizationResolution& r = f.resolution;
-    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d};
+    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param};
     brdf_matrix_validate(min);
     if (!(options.p >= 1.0f && options.p <= 64.0f)) throw Error("factorize: p must be in [1, 64]");
     std::string note;
@@ -200,12 +267,12 @@ Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOpti
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
 
     f.decomposition = Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
-                                    .h = h.download<glm::vec3>(cols)};
+                                    .h = h.download<glm::vec3>(cols), .param = param};
     f.cube_g = Cubemap{.res = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)};
     f.cube_h = Cubemap{.res = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)};
     std::optional<BrdfMatrix> m;
-    if (options.keep_matrix || kmax > 1)
-        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .values = matrix.download<float>(3 * rows * cols)};
+    if (options.keep_matrix || errors || kmax > 1)
+        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .values = matrix.download<float>(3 * rows * cols)};
     std::vector<Decomposition> rest;
     if (kmax > 1) {
         const std::vector<glm::vec3> ga = g.download<glm::vec3>(kmax * rows);
@@ -213,7 +280,8 @@ Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOpti
         for (uint32_t k = 1; k < kmax; ++k)
             rest.push_back(Decomposition{.res_h = r.grid_h, .res_d = r.grid_d,
                                          .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
-                                         .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols}});
+                                         .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols},
+                                         .param = param});
     }
     f.terms = choose_terms(m ? &*m : nullptr, f.decomposition, rest, options, note);
     rest.resize(f.terms.count - 1);
@@ -262,6 +330,8 @@ double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* c
     for (const Decomposition* d : terms)
         if (d == nullptr || d->res_h != m.res_h || d->res_d != m.res_d || d->g.size() != m.rows() || d->h.size() != m.cols())
             throw Error("matrix_relative_rms: resolutions differ");
+        else if (d->param != m.param)
+            throw Error("matrix_relative_rms: the terms and the matrix have different parametrizations");
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
     double err = 0.0;
@@ -285,6 +355,7 @@ double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* c
 
 double matrix_relative_rms(const BrdfMatrix& m, const Decomposition& dec) {
     if (dec.res_h != m.res_h || dec.res_d != m.res_d) throw Error("matrix_relative_rms: resolutions differ");
+    if (dec.param != m.param) throw Error("matrix_relative_rms: the terms and the matrix have different parametrizations");
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
     double err = 0.0;
@@ -307,9 +378,9 @@ namespace {
 
 /// Relative RMS against the lobe over `pairs` random (u, v) pairs, both uniform in solid
 /// angle on the upper hemisphere; `model(c)` gives the (grid, cube-map) approximations at the
-/// GSHD coordinates c of a pair.
+/// coordinates c of a pair in parametrization `param`.
 template <class Model>
-DirectError sample_direct_error(const LafortuneRgb& lobe, uint32_t pairs, uint32_t seed, Model&& model) {
+DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, uint32_t pairs, uint32_t seed, Model&& model) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     const double two_pi = 6.283185307179586;
@@ -323,7 +394,7 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, uint32_t pairs, uint32
     for (uint32_t i = 0; i < pairs; ++i) {
         const glm::dvec3 u = hemisphere();
         const glm::dvec3 v = hemisphere();
-        const auto [gg, gc] = model(shared::f64::gshd_from_uv(u, v));
+        const auto [gg, gc] = model(shared::f64::gshd_from_uv_param(u, v, static_cast<uint32_t>(param)));
         for (int k = 0; k < 3; ++k) {
             const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
             ref += f * f;
@@ -343,7 +414,7 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, uint32_t pairs, uint32
 DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const Cubemap* cube_g,
                                 const Cubemap* cube_h, uint32_t pairs, uint32_t seed) {
     const bool cubes = cube_g != nullptr && cube_h != nullptr;
-    DirectError out = sample_direct_error(lobe, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    DirectError out = sample_direct_error(lobe, dec.param, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
         const glm::dvec3 gc = cubes ? cubemap_sample(*cube_g, c.h) * cubemap_sample(*cube_h, c.d) : glm::dvec3(0.0);
         return std::pair{gg, gc};
@@ -359,7 +430,7 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f
         throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
                     std::to_string(fac.term_count()));
     // The same draws as the one-term overload; the sum of the terms is clamped at 0 as the renderer does.
-    return sample_direct_error(lobe, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    return sample_direct_error(lobe, fac.param, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         glm::dvec3 gg(0.0), gc(0.0);
         for (uint32_t k = 0; k < k_count; ++k) {
             const Decomposition& d = fac.grids(k);

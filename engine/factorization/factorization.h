@@ -11,8 +11,14 @@
 ///   f.terms.count, f.terms.reason      // K, and why (issue 5: sum of K separable terms)
 ///   f.extra[k - 2].cube_g              // terms 2..K (residual_term.h)
 ///
-/// A renderer evaluates f_s(u, v) ~ max(0, sum_k G_k(h) H_k(d)) with (h, d) = gshd_from_uv(u, v);
-/// K = 1 is the thesis's single term.
+/// A renderer evaluates f_s(u, v) ~ max(0, sum_k G_k(h) H_k(d)) with
+/// (h, d) = gshd_from_uv_param(u, v, f.param); K = 1 is the thesis's single term.
+///
+/// The parametrization f.param (shared/gshd.h part 4): the thesis's GSHD of (u, v), or the
+/// mirrored GSHD of (r(u), v) with r(u) = (-ux, -uy, uz). A lobe with Cx < 0 peaks about the
+/// mirror direction, and the mirrored F is exactly rank 1 when Cx = -Cz; the plain one is when
+/// Cx = +Cz. By default both are factorized and the one with the lower matrix error is kept
+/// (f.param_choice says which, why, and both errors).
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
 #include "factorization/lobe.h"
@@ -20,6 +26,7 @@
 #include "factorization/residual_term.h"
 #include "factorization/resolution.h"
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -46,6 +53,9 @@ struct FactorizationOptions {
     uint32_t max_terms = kMaxTerms;
     double term_target = kDefaultTermTarget;
     uint32_t iterations = kResidualIterations; ///< ALS iterations per residual term
+    /// Parametrization of the pairs: nullopt = automatic (both factorized, ParamChoice's rule),
+    /// else forced (FactorParam::Gshd is the thesis). Zero grid fields take each one's default rule.
+    std::optional<FactorParam> param;
 };
 
 /// Wall-clock seconds per step (host side, including the submit and wait on Vulkan) and,
@@ -82,8 +92,43 @@ struct TermChoice {
     std::string reason;
 };
 
+/// One parametrization's factorization, as the choice saw it.
+struct ParamCandidate {
+    bool computed = false;
+    FactorizationResolution resolution; ///< its grids (default_resolution per parametrization)
+    TermChoice terms;                   ///< its K and matrix errors
+    /// Relative RMS against the lobe of its K terms through the cube-maps (direct_relative_rms,
+    /// kParamChoicePairs pairs): the error of what the renderer draws.
+    double direct_rms = 0.0;
+};
+
+/// Pairs of the direct error that decides the parametrization, and the relative difference
+/// within which two direct errors tie (the same pairs, looked up at different (h, d): equal
+/// matrices, Cx = 0, differ by ~0.1% in their interpolation errors).
+inline constexpr uint32_t kParamChoicePairs = 1u << 16;
+inline constexpr double kParamTieMargin = 0.02;
+
+/// How the parametrization was chosen. Automatic: both are factorized (each on its own default
+/// grids, each with its own K by TermChoice's rule) and the one whose K terms have the lower
+/// relative RMS against the lobe through the cube-maps (ParamCandidate::direct_rms) is kept;
+/// within kParamTieMargin the one with fewer terms (cheaper to render), then the thesis's
+/// GSHD. Not the matrix error: the two matrices sample the (u, v) pairs differently (and on
+/// different grids), and a grid that misses a narrow peak has a small matrix error (measured at
+/// the default grids: woodenpot's lobe has matrix RMS 2.7% plain vs 4.8% mirrored at K = 4, but
+/// 30% vs 14% against the lobe; with one 16 x 16 grid for both, the N = 1000 mirror lobe's
+/// mirrored matrix RMS is 0.0% and its error against the lobe 99.98%).
+struct ParamChoice {
+    FactorParam param = FactorParam::Gshd;
+    bool forced = false;
+    std::string reason;
+    std::array<ParamCandidate, 2> candidates{}; ///< index = FactorParam's value; only the forced one when forced
+    [[nodiscard]] const ParamCandidate& of(FactorParam p) const { return candidates[static_cast<std::size_t>(p)]; }
+};
+
 struct Factorization {
     FactorizationResolution resolution;
+    FactorParam param = FactorParam::Gshd; ///< how (h, d) come from (u, v) (shared/gshd.h part 4)
+    ParamChoice param_choice;
     TermChoice terms;
     float p = 2.0f;
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
@@ -99,8 +144,10 @@ struct Factorization {
     FactorizationTimings timings;
 };
 
-/// The options' resolutions with zeros replaced by the default rule (reason says which were forced).
-[[nodiscard]] FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& options);
+/// The options' resolutions with zeros replaced by the default rule of parametrization `param`
+/// (reason says which were forced).
+[[nodiscard]] FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& options,
+                                                         FactorParam param = FactorParam::Gshd);
 
 /// The reference path (all steps on the CPU, double accumulation).
 [[nodiscard]] Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions& options = {});
@@ -113,6 +160,9 @@ public:
     [[nodiscard]] Factorization run(const LafortuneRgb& lobe, const FactorizationOptions& options = {});
 
 private:
+    /// One parametrization; F is read back when keep_matrix or errors (the automatic choice needs them).
+    [[nodiscard]] Factorization run_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param,
+                                          bool errors);
     gpu::Context* m_ctx;
     BrdfMatrixVk m_matrix;
     NormalizedDecompositionVk m_decomposition;
@@ -138,7 +188,7 @@ struct DirectError {
 };
 /// Relative RMS of G(h) H(d) against lafortune_eval(u, v) for `pairs` pairs (u, v) drawn
 /// uniformly (in solid angle) from the upper hemisphere with a fixed seed: the sampling,
-/// decomposition and interpolation errors together.
+/// decomposition and interpolation errors together. (h, d) in the decomposition's param.
 [[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& decomposition,
                                               const Cubemap* cube_g, const Cubemap* cube_h, uint32_t pairs = 1u << 18,
                                               uint32_t seed = 1);

@@ -55,6 +55,7 @@ struct Decomposition {
     uint32_t res_d = 0;
     std::vector<glm::vec3> g; // res_h^2 cells of the h grid, rgb
     std::vector<glm::vec3> h; // res_d^2 cells of the d grid, rgb
+    FactorParam param = FactorParam::Gshd; // the decomposed matrix's: how (h, d) come from (u, v)
 };
 
 /// Throws specula::Error for a missing or inconsistent matrix or p not in [1, 64].

@@ -50,7 +50,8 @@ std::vector<Decomposition> residual_terms_cpu(const ResidualTermsInputs& in) {
     const std::size_t cols = m.cols();
     std::vector<Decomposition> all(in.terms, Decomposition{.res_h = m.res_h, .res_d = m.res_d,
                                                            .g = std::vector<glm::vec3>(rows, glm::vec3(0.0f)),
-                                                           .h = std::vector<glm::vec3>(cols, glm::vec3(0.0f))});
+                                                           .h = std::vector<glm::vec3>(cols, glm::vec3(0.0f)),
+                                                           .param = m.param});
     all[0] = *in.first;
     std::vector<double> r(rows * cols); // residual of one channel; NaN marks invalid entries
     std::vector<double> g(rows), h(cols);

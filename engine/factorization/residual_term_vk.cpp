@@ -59,7 +59,8 @@ std::vector<Decomposition> ResidualTermsVk::run(const ResidualTermsInputs& in) {
     for (uint32_t k = 1; k < in.terms; ++k)
         out.push_back(Decomposition{.res_h = m.res_h, .res_d = m.res_d,
                                     .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
-                                    .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols}});
+                                    .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols},
+                                    .param = m.param});
     return out;
 }
 

@@ -8,6 +8,12 @@
 //            N_d = max over channels of N |Cx + Cz| / max(|Cx|, |Cz|)
 //   and R_h R_d <= kMaxGridProduct (F must fit one storage binding: 3 R_h^2 R_d^2 floats);
 //   cube faces: R_cube = ceil(R * pi / (2 sqrt 2)) rounded up to a multiple of 8.
+// In the mirrored parametrization (shared/gshd.h part 4) the two axes swap roles (derivation
+// in resolution.cpp): R_h is the rule's d value ([16, 64]) and R_d resolves the peak, with
+// kMirroredPeakCellsPerHalfWidth instead of kCellsPerHalfWidth:
+//   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
+// (finer: there the separability floor is gone and the rendered highlights' tails need it).
+#include "core/factor_param.h"
 #include "factorization/lobe.h"
 
 #include <cstdint>
@@ -24,13 +30,15 @@ struct FactorizationResolution {
 };
 
 inline constexpr double kCellsPerHalfWidth = 2.0;
+inline constexpr double kMirroredPeakCellsPerHalfWidth = 16.0;
 inline constexpr uint32_t kMinGridRes = 16;
 inline constexpr uint32_t kMaxGridResH = 128;
 inline constexpr uint32_t kMaxGridResD = 64;
 inline constexpr uint32_t kMaxGridProduct = 3072; // 3 (R_h R_d)^2 floats <= 108 MiB
 
-/// The default rule above. Non-finite or non-positive exponents count as N = 1.
-[[nodiscard]] FactorizationResolution default_resolution(const LafortuneRgb& lobe);
+/// The default rule above, for the grids of parametrization `param`. Non-finite or
+/// non-positive exponents count as N = 1.
+[[nodiscard]] FactorizationResolution default_resolution(const LafortuneRgb& lobe, FactorParam param = FactorParam::Gshd);
 
 /// Cube-map face size that resolves a grid of resolution `grid_res` (texel no larger than a cell).
 [[nodiscard]] uint32_t cube_res_for_grid(uint32_t grid_res);

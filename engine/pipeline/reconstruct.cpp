@@ -124,6 +124,21 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBac
 
 json rgb(const double (&v)[3]) { return json::array({v[0], v[1], v[2]}); }
 
+/// Both parametrizations' factorizations as the choice saw them (only the forced one when forced).
+json param_candidates_json(const factorization::ParamChoice& c) {
+    json out = json::object();
+    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored}) {
+        const factorization::ParamCandidate& k = c.of(p);
+        if (!k.computed) continue;
+        out[to_string(p)] = {{"grid_h", k.resolution.grid_h},
+                             {"grid_d", k.resolution.grid_d},
+                             {"terms", k.terms.count},
+                             {"matrix_relative_rms", k.terms.matrix_rms},
+                             {"relative_rms_vs_lobe_cubemaps", k.direct_rms}};
+    }
+    return out;
+}
+
 json specular_json(const ResidualSamples& rs, const ResidualEnergy& energy, const LafortuneFitRgb* fit, double fit_seconds,
                    LambertBackend backend, const std::string& decision) {
     const ResidualCounts& c = rs.counts;
@@ -567,7 +582,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     });
 
     // 8. Factorization of the lobe into the two cube-maps (Kautz and McCool), on the grid
-    //    the planner chose from the lobe's width. Channels whose fit did not converge carry
+    //    the planner chose from the lobe's width, in the parametrization (plain or mirrored
+    //    GSHD) whose error against the lobe is lower. Channels whose fit did not converge carry
     //    no lobe (they render diffuse only, and say so).
     std::optional<LafortuneRgb> lobe;
     std::vector<std::string> lobe_status;
@@ -593,12 +609,23 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             const auto backend = config.backend == LambertBackend::Vulkan ? factorization::FactorizationBackend::Vulkan
                                                                           : factorization::FactorizationBackend::Cpu;
             factorization::FactorizationOptions fo;
-            fo.grid_h = res.grid_h;
-            fo.grid_d = res.grid_d;
-            fo.cube_g = res.cube_g;
-            fo.cube_h = res.cube_h;
+            // The planner's grid is the plain GSHD's; the mirrored one swaps the axes of the same
+            // rule (factorization/resolution.h), so unforced axes are left to each parametrization.
+            fo.grid_h = config.factorization_grid_h;
+            fo.grid_d = config.factorization_grid_d;
+            fo.param = config.factor_param;
             return factorization::factorize(*lobe, fo, backend, ctx.get());
         });
+        if (cubes->resolution.grid_h != res.grid_h || cubes->resolution.grid_d != res.grid_d) {
+            grid.value = "h " + std::to_string(cubes->resolution.grid_h) + " x d " + std::to_string(cubes->resolution.grid_d) +
+                         " (cube faces " + std::to_string(cubes->resolution.cube_g) + ", " +
+                         std::to_string(cubes->resolution.cube_h) + ")";
+            grid.detail["grid_h"] = cubes->resolution.grid_h;
+            grid.detail["grid_d"] = cubes->resolution.grid_d;
+            grid.detail["cube_g"] = cubes->resolution.cube_g;
+            grid.detail["cube_h"] = cubes->resolution.cube_h;
+            grid.reason = cubes->resolution.reason;
+        }
         {
             // The CPU path times each step; the Vulkan path records the three kernels in one
             // submission (no per-step wall time), so its dispatches' GPU time stands in.
@@ -638,6 +665,10 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                 {"terms_reason", cubes->terms.reason},
                                 {"terms_target", cubes->terms.target},
                                 {"per_term", std::move(per_term)},
+                                {"parametrization", to_string(cubes->param)},
+                                {"parametrization_forced", cubes->param_choice.forced},
+                                {"parametrization_reason", cubes->param_choice.reason},
+                                {"parametrization_candidates", param_candidates_json(cubes->param_choice)},
                                 {"seconds", cubes->timings.total_s}};
         if (const auto ns = cubes->timings.gpu_total_ns()) factorization_report["gpu_ms"] = *ns * 1e-6;
         const auto add_gpu = [&](const char* label, const std::optional<double>& ns) {
@@ -676,6 +707,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             b.cube_h = to_cube(cubes->cube_h);
             for (const factorization::FactorTerm& t : cubes->extra)
                 b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
+            b.factor_param = cubes->param;
         }
         b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(config.out_dir / "object.glb", b);

@@ -12,6 +12,7 @@
 //     -> albedo refinement (back-projection through renders of the train frames) -> albedo texture
 //     -> factorization (grid from the lobe's width) -> bundle (object.glb)
 //     -> self-evaluation -> report.html -> report.json
+#include "core/factor_param.h"
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
 #include "pipeline/planner.h"
@@ -47,6 +48,9 @@ struct ReconstructConfig {
     /// Factorization grid (0: the planner's choice from the lobe's width, per axis).
     std::uint32_t factorization_grid_h = 0;
     std::uint32_t factorization_grid_d = 0;
+    /// Parametrization of the factorization (shared/gshd.h part 4): nullopt = automatic (both,
+    /// factorization::ParamChoice), else forced (Gshd: the thesis's).
+    std::optional<FactorParam> factor_param;
     /// Auto: specular energy is present when the mean squared residual exceeds this many noise
     /// variances (lambert.noise_sigma, floored at one 16-bit step).
     double specular_energy_threshold = 4.0;

@@ -188,6 +188,7 @@ struct Renderer::Impl {
     gpu::Buffer vertices;
     gpu::Image albedo;
     std::vector<gpu::Image> cubes_g, cubes_h; // one per term (empty before set_factorization)
+    FactorParam factor_param = FactorParam::Gshd; // their parametrization: params.flags.w
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
@@ -392,7 +393,8 @@ struct Renderer::Impl {
         p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
         p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
         p.lobe_n = glm::vec4(lobe.n, 0.0f);
-        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u, 0u);
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u,
+                             static_cast<uint32_t>(factor_param));
         if (frustum) {
             p.light_to_clip = glm::mat4(frustum->to_clip);
             p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
@@ -488,13 +490,14 @@ bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
 VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
 bool Renderer::has_factorization() const noexcept { return !m_impl->cubes_g.empty(); }
 uint32_t Renderer::factorization_terms() const noexcept { return static_cast<uint32_t>(m_impl->cubes_g.size()); }
+FactorParam Renderer::factorization_param() const noexcept { return m_impl->factor_param; }
 
-void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h) {
+void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param) {
     const FactorTermCubes one{g, h};
-    set_factorization(std::span<const FactorTermCubes>(&one, 1));
+    set_factorization(std::span<const FactorTermCubes>(&one, 1), param);
 }
 
-void Renderer::set_factorization(std::span<const FactorTermCubes> terms) {
+void Renderer::set_factorization(std::span<const FactorTermCubes> terms, FactorParam param) {
     if (terms.empty() || terms.size() > kMaxFactorTerms)
         throw Error("renderer: the factorized model takes 1 to " + std::to_string(kMaxFactorTerms) + " terms (got " +
                     std::to_string(terms.size()) + ")");
@@ -508,6 +511,7 @@ void Renderer::set_factorization(std::span<const FactorTermCubes> terms) {
     // Nothing is in flight between frames (render() waits), so the sets can be rewritten.
     m.cubes_g = std::move(g);
     m.cubes_h = std::move(h);
+    m.factor_param = param;
     for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set})
         for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
             const std::size_t t = k < m.cubes_g.size() ? k : 0;

@@ -7,7 +7,8 @@
 ///   pass 2, specular:  f_s(u, v) I max(0, n.u) / d^2, blended additively, with f_s
 ///                      the Lafortune lobe (`analytic`) or max(0, sum_k G_k(h) H_k(d))
 ///                      from K pairs of cube-maps (`factorized`, Kautz-McCool, shared/gshd.h;
-///                      K = 1 is the thesis, up to kMaxFactorTerms)
+///                      K = 1 is the thesis, up to kMaxFactorTerms), (h, d) in the
+///                      factorization's parametrization (plain or mirrored GSHD)
 ///
 /// The formulas live once in shaders/shared/render.h (with lafortune.h,
 /// tangent_frame.h, gshd.h); the synth renderer (engine/synth) evaluates the same
@@ -31,6 +32,7 @@
 ///   r.set_factorization({{g1, h1}, {g2, h2}});                 // or K terms
 ///   render::Frame f = r.render(camera, light, {.mode = render::Mode::Both});
 ///   f.color (linear RGB, w x h, row 0 at the top), f.mask (255 = covered), f.info (passes, timings)
+#include "core/factor_param.h"
 #include "core/lafortune.h"
 #include "capture/camera.h"
 #include "capture/capture.h"
@@ -177,12 +179,15 @@ public:
 
     /// Uploads the two factorization cube-maps (G looked up by h, H by d; both may have
     /// their own resolution). Enables SpecularModel::Factorized with one term (the thesis).
-    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h);
+    /// `param`: the parametrization the cube-maps were made in (shared/gshd.h part 4; the
+    /// factorization's Factorization::param, a bundle's Bundle::factor_param).
+    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param = FactorParam::Gshd);
     /// K = terms.size() terms (1..kMaxFactorTerms), summed and clamped at 0 per channel.
     /// Each cube-map may have its own resolution.
-    void set_factorization(std::span<const FactorTermCubes> terms);
+    void set_factorization(std::span<const FactorTermCubes> terms, FactorParam param = FactorParam::Gshd);
     [[nodiscard]] bool has_factorization() const noexcept;
     [[nodiscard]] uint32_t factorization_terms() const noexcept; ///< 0 before set_factorization
+    [[nodiscard]] FactorParam factorization_param() const noexcept;
 
     /// Renders one frame and reads it back. Throws Error when `settings` asks for the
     /// factorized model before set_factorization().

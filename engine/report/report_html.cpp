@@ -248,6 +248,9 @@ std::string lobe_section(const json& r) {
                (f.contains("terms") ? "; " + num(f.value("terms", json()), "%g") + " separable term(s): " +
                                           str(f.value("terms_reason", json()))
                                     : std::string()) +
+               (f.contains("parametrization") ? "; parametrization " + str(f.value("parametrization", json())) + ": " +
+                                                    str(f.value("parametrization_reason", json()))
+                                              : std::string()) +
                ".</p>\n";
     return out;
 }

@@ -4,7 +4,8 @@
 // columns the cells of the d grid (res_d x res_d); element e = row * cols + col.
 // Output is channel-planar: f[c * rows * cols + e]. Entries whose (u, v) leaves the upper
 // hemisphere are kGshdInvalid; values are flushed below kGshdMinValue and clamped at
-// kGshdMaxValue. Reference: engine/factorization/brdf_matrix_cpu.cpp.
+// kGshdMaxValue. pc.param picks the parametrization (shared/gshd.h part 4: kGshdPlain, the
+// thesis's GSHD, or kGshdMirrored). Reference: engine/factorization/brdf_matrix_cpu.cpp.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
@@ -21,6 +22,7 @@ layout(push_constant) uniform Push {
     vec4 cx; // rgb in xyz
     vec4 cz;
     vec4 n;
+    uint param; // kGshdPlain or kGshdMirrored
 } pc;
 
 void main() {
@@ -29,7 +31,7 @@ void main() {
     uint cols = pc.res_d * pc.res_d;
     uint row = e / cols;
     uint col = e - row * cols;
-    GshdPair p = gshd_to_uv(gshd_grid_dir(row, pc.res_h), gshd_grid_dir(col, pc.res_d));
+    GshdPair p = gshd_to_uv_param(gshd_grid_dir(row, pc.res_h), gshd_grid_dir(col, pc.res_d), pc.param);
     vec3 value = vec3(kGshdInvalid);
     if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos) {
         value = gshd_clamp_value(lafortune_eval_rgb(pc.cx.xyz, pc.cz.xyz, pc.n.xyz, p.u, p.v));

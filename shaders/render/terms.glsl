@@ -50,7 +50,9 @@ vec3 specular_analytic_term(RenderParams p, vec3 world, vec3 n, float visibility
 }
 
 // max(0, sum_k G_k(h) H_k(d)) over the first p.flags.y (1..4) terms of the Kautz-McCool
-// factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)), times V I max(0, n.u) / d^2.
+// factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)), times V I max(0, n.u) / d^2,
+// with (h, d) in the factorization's parametrization p.flags.w (kGshdPlain: the GSHD of (u, v);
+// kGshdMirrored: of (r(u), v), shared/gshd.h part 4).
 // Four fixed sampler pairs (no descriptor indexing on lavapipe): the pass shaders declare
 // them at bindings 3..6 (G) and 7..10 (H) and pass them in.
 vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, samplerCube g2, samplerCube g3,
@@ -61,7 +63,7 @@ vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, sa
     if (irradiance != vec3(0.0)) {
         vec3 u = to_tangent_frame(n, direction_to(world, p.light_position.xyz));
         vec3 v = to_tangent_frame(n, direction_to(world, p.eye.xyz));
-        GshdCoords c = gshd_from_uv(u, v);
+        GshdCoords c = gshd_from_uv_param(u, v, p.flags.w);
         uint terms = p.flags.y;
         vec3 f = texture(g0, c.h).rgb * texture(h0, c.d).rgb;
         if (terms > 1u) f += texture(g1, c.h).rgb * texture(h1, c.d).rgb;

@@ -32,8 +32,23 @@
 //    +Z, -Z; texel (col, row) of a face of size R has (s, t) = ((col + 0.5) / R,
 //    (row + 0.5) / R), so an array [face][row][col][rgb] uploads directly as a cube image.
 //
+// 4. The mirrored GSHD (ours; not in the thesis): the GSHD of the pair (r(u), v) with
+//        r(u) = (-ux, -uy, uz) = 2 (u.n) n - u      the mirror direction of u about the normal
+//    (the reflection about n, i.e. a rotation by pi about it: u.z, so the hemisphere tests,
+//    are unchanged, and r(r(u)) = u). Why: the Lafortune lobe (shared/lafortune.h) is
+//        f(u, v) = (Cx (ux vx + uy vy) + Cz uz vz)^N = (-Cx (r(u)x vx + r(u)y vy) + Cz r(u)z vz)^N,
+//    so with Cx = -Cz (a Phong lobe about the mirror direction) f = Cz^N (r(u).v)^N, and
+//    r(u).v = cos(2 theta_d) is a function of the GSHD difference vector of (r(u), v) alone:
+//    F is exactly rank 1 in this parametrization and far from it in the plain one (the
+//    demo can's lobe, Cx = -0.90, Cz = 0.76, keeps 16% matrix RMS with 4 plain terms).
+//    Conversely a retro-reflective lobe (Cx = +Cz) is rank 1 in the plain GSHD, u.v being a
+//    function of d. Coordinates: gshd_from_uv_param(u, v, kGshdMirrored) =
+//    gshd_from_uv(r(u), v); inverse gshd_to_uv_param: (u', v) = gshd_to_uv(h, d), u = r(u').
+//    kGshdPlain is the thesis's parametrization; the factorization picks one per lobe
+//    (engine/factorization/factorization.h) and the bundle records which.
+//
 // Rendering (pipeline.md section 7) looks G and H up as
-//     GshdCoords c = gshd_from_uv(u, v);                    // u, v in the tangent frame
+//     GshdCoords c = gshd_from_uv_param(u, v, param);       // u, v in the tangent frame
 //     f ~ texture(cube_g, c.h).rgb * texture(cube_h, c.d).rgb
 // (or, from the grids: gshd_grid_bilinear(c.h, R_h) and gshd_grid_bilinear(c.d, R_d)).
 //
@@ -63,6 +78,9 @@ const float kGshdMinValue = 1.0e-30f;
 // to the total, so the float sum of K terms has a relative error <= (64 + K / 64) eps.
 const uint kGshdSumBlock = 64u;
 const uint kCubeFaces = 6u;
+// The parametrizations of part 4 (engine/core/factor_param.h FactorParam has these values).
+const uint kGshdPlain = 0u;
+const uint kGshdMirrored = 1u;
 
 #define GSHD_REAL float
 #define GSHD_VEC2 vec2

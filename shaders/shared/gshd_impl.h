@@ -116,6 +116,25 @@ SHARED_FN GshdPair gshd_to_uv(GSHD_VEC3 h, GSHD_VEC3 d) {
     return p;
 }
 
+// ---- mirrored GSHD (gshd.h part 4) ------------------------------------------------
+
+// r(u) = (-ux, -uy, uz): the mirror direction of u about the normal (its own inverse).
+SHARED_FN GSHD_VEC3 gshd_mirror(GSHD_VEC3 u) {
+    return GSHD_VEC3(-u.x, -u.y, u.z);
+}
+
+// (u, v) -> (h, d) in parametrization `param` (kGshdPlain: gshd_from_uv; kGshdMirrored: of (r(u), v)).
+SHARED_FN GshdCoords gshd_from_uv_param(GSHD_VEC3 u, GSHD_VEC3 v, uint param) {
+    return gshd_from_uv(param == kGshdMirrored ? gshd_mirror(u) : u, v);
+}
+
+// (h, d) -> (u, v), the inverse of gshd_from_uv_param.
+SHARED_FN GshdPair gshd_to_uv_param(GSHD_VEC3 h, GSHD_VEC3 d, uint param) {
+    GshdPair p = gshd_to_uv(h, d);
+    if (param == kGshdMirrored) p.u = gshd_mirror(p.u);
+    return p;
+}
+
 // A sampled lobe value as F stores it: flushed below kGshdMinValue, clamped at kGshdMaxValue.
 SHARED_FN GSHD_VEC3 gshd_clamp_value(GSHD_VEC3 f) {
     GSHD_VEC3 r = min(f, GSHD_VEC3(kGshdMaxValue));

@@ -28,7 +28,8 @@ struct RenderParams {
     vec4 lobe_n;          // rgb: Lafortune N
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
                           // y: factorized terms K (1..4, render/terms.glsl);
-                          // z: 1 = the deferred shading pass adds the specular term
+                          // z: 1 = the deferred shading pass adds the specular term;
+                          // w: the factorization's parametrization, kGshdPlain or kGshdMirrored (shared/gshd.h)
     mat4 light_to_clip;   // the shadow map's projection * view (light at light_position)
     vec4 shadow;          // x: 1 = sample the shadow map, 0 = no shadows (V = 1);
                           // y: world size of one map texel per unit of distance from the light;

@@ -11,6 +11,7 @@
 #include "evaluate/bundle_render.h"
 #include "evaluate/evaluate.h"
 #include "export/bundle.h"
+#include "factorization/factorization.h"
 #include "synth/presets.h"
 #include "synth/synth.h"
 #include "test_dirs.h"
@@ -173,6 +174,42 @@ TEST_F(EvaluateTest, FactorizedWithoutCubeMapsIsRefused) {
         EXPECT_NE(std::string(e.what()).find("truth.glb"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("cube-maps"), std::string::npos) << e.what();
     }
+}
+
+/// The bundle's parametrization reaches the renderer (BundleRenderer): the sphere's lobe
+/// (Cx < 0) factorized in each parametrization on its default grids (measured train masked
+/// PSNR: analytic 69.7 dB against the noiseless capture, plain K = 4 44.9 dB, mirrored K = 3
+/// 59.1 dB); the mirrored cube-maps in a bundle that says plain GSHD 28.2 dB.
+TEST_F(EvaluateTest, FactorizedBundleIsLookedUpInItsParametrization) {
+    const SphereCapture& s = sphere();
+    const EvaluationResult analytic = evaluate(ctx(), s.truth, s.capture, {});
+    const auto to_cube = [](const factorization::Cubemap& c) {
+        BundleCubeMap out{c.res, {}};
+        for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
+        return out;
+    };
+    const EvaluateOptions factorized{.render = {.specular = render::SpecularModel::Factorized}};
+    double psnr[2] = {0.0, 0.0}; // per FactorParam
+    for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored}) {
+        const factorization::Factorization f = factorization::factorize_cpu(*s.truth.lobe, {.param = param});
+        Bundle b = s.truth;
+        b.cube_g = to_cube(f.cube_g);
+        b.cube_h = to_cube(f.cube_h);
+        for (const factorization::FactorTerm& t : f.extra) b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
+        b.factor_param = param;
+        const EvaluationResult r = evaluate(ctx(), b, s.capture, factorized);
+        std::printf("%s K = %u: train masked PSNR %.2f dB (analytic %.2f dB)\n", to_string(param), f.term_count(),
+                    r.metrics.train_masked.psnr, analytic.metrics.train_masked.psnr);
+        EXPECT_GE(r.metrics.train_masked.psnr, 40.0) << to_string(param);
+        psnr[static_cast<std::size_t>(param)] = r.metrics.train_masked.psnr;
+        if (param == FactorParam::Mirrored) {
+            b.factor_param = FactorParam::Gshd;
+            const EvaluationResult wrong = evaluate(ctx(), b, s.capture, factorized);
+            std::printf("mirrored cube-maps looked up as gshd: %.2f dB\n", wrong.metrics.train_masked.psnr);
+            EXPECT_LE(wrong.metrics.train_masked.psnr, r.metrics.train_masked.psnr - 10.0);
+        }
+    }
+    EXPECT_GE(psnr[1], psnr[0] + 10.0);
 }
 
 TEST(EvaluateSelect, EvenlySpacedPerSplit) {

@@ -141,6 +141,45 @@ TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
     EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
 }
 
+// The mirrored parametrization (shared/gshd.h part 4) is recorded as version 3 with
+// "parametrization": "mirrored"; a plain bundle is written exactly as before (no field,
+// version 1 or 2) and read as plain GSHD.
+TEST(Bundle, RoundTripWithTheMirroredParametrization) {
+    const test::BundlePieces p = test::make_pieces();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    b.cube_g = test::random_cube(8, 1);
+    b.cube_h = test::random_cube(16, 2);
+    TempDir dir("bundle");
+    write_bundle(dir / "plain.glb", b);
+    const json plain = test::glb_json(dir / "plain.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
+    EXPECT_EQ(plain["version"], 1);
+    EXPECT_FALSE(plain.contains("parametrization"));
+    EXPECT_EQ(read_bundle(dir / "plain.glb").factor_param, FactorParam::Gshd);
+    for (const std::size_t terms : {1u, 3u}) {
+        b.extra_terms.assign(terms - 1, {test::random_cube(8, 3), test::random_cube(16, 4)});
+        b.factor_param = FactorParam::Mirrored;
+        const auto file = dir / ("mirrored" + std::to_string(terms) + ".glb");
+        write_bundle(file, b);
+        const json ext = test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"];
+        EXPECT_EQ(ext["version"], 3);
+        EXPECT_EQ(ext["parametrization"], "mirrored");
+        const Bundle r = read_bundle(file);
+        EXPECT_EQ(r.factor_param, FactorParam::Mirrored);
+        EXPECT_EQ(r.extra_terms.size(), terms - 1);
+        EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
+        write_bundle(dir / "again.glb", r);
+        EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
+    }
+    // Without cube-maps the parametrization means nothing and is not written.
+    b.cube_g.reset();
+    b.cube_h.reset();
+    b.extra_terms.clear();
+    write_bundle(dir / "diffuse.glb", b);
+    const json none = test::glb_json(dir / "diffuse.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
+    EXPECT_EQ(none["version"], 1);
+    EXPECT_FALSE(none.contains("parametrization"));
+}
+
 TEST(Bundle, MaterialCarriesTheViewerApproximationAndAnOptionalExtension) {
     const test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
@@ -265,8 +304,21 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeG");
     expect_field(d, ext + ".cubeG");
     d = good;
-    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 3;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 4;
     expect_field(d, ext + ".version");
+    // The parametrization: "gshd" or "mirrored", mirrored only in version 3, with cube-maps.
+    d = good;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = "mirrored";
+    expect_field(d, ext + ".parametrization");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 3;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = "spherical";
+    expect_field(d, ext + ".parametrization");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = 1;
+    expect_field(d, ext + ".parametrization");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = "mirrored";
+    d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeG");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeH");
+    expect_field(d, ext + ".parametrization");
     // Further factorization terms: only in version 2, each with both cube-maps.
     d = good;
     d["materials"][0]["extensions"]["SPECULA_lafortune"]["cubeTerms"] =
@@ -313,9 +365,10 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     b.cube_h = test::random_cube(8, 2);
     b.extra_terms = {{test::random_cube(8, 3), test::random_cube(8, 4)}}; // version 2, cubeTerms
     TempDir dir("bundle");
-    for (const bool with_lobe : {true, false}) {
-        if (!with_lobe) b.lobe.reset();
-        const auto file = dir / (with_lobe ? "lobe.glb" : "diffuse.glb");
+    for (const int kind : {0, 1, 2}) { // lobe; lobe, mirrored (version 3); diffuse only
+        if (kind == 1) b.factor_param = FactorParam::Mirrored;
+        if (kind == 2) b.lobe.reset();
+        const auto file = dir / (kind == 0 ? "lobe.glb" : kind == 1 ? "mirrored.glb" : "diffuse.glb");
         write_bundle(file, b);
         const std::string cmd = "SPECULA_GLTF_VALIDATOR_PATHS='" + std::string(SPECULA_NODE_MODULES_DIR) +
                                 "' node '" + std::string(SPECULA_GLTF_VALIDATE_JS) + "' '" +

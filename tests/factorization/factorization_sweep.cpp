@@ -1,6 +1,6 @@
 // Factorization sweep (not a test): approximation error and time against grid and
 // cube-map resolution for the thesis's four lobes (table 5.2) and a near-mirror lobe.
-//   factorization_sweep [--quick] [--pairs N]
+//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--cpu] [--lobe NAME]
 // Errors: "matrix" = relative RMS of G H against F over the valid entries; "direct" =
 // relative RMS of G(h) H(d) against the lobe for uniformly random (u, v) pairs, with G and H
 // interpolated from the grids ("grid") or from the cube-maps ("cube"). Times: the CPU
@@ -40,24 +40,32 @@ int main(int argc, char** argv) try {
     bool terms_only = false;
     bool cpu_only = false;
     uint32_t iterations = kResidualIterations;
-    uint32_t grid = 0; // 0: default resolutions
+    uint32_t grid = 0;   // 0: default resolutions
+    uint32_t grid_d = 0; // --terms: the d grid, when not --grid's
+    std::string only;    // --lobe NAME: that lobe only
     uint32_t pairs = 1u << 20;
     for (int i = 1; i < argc; ++i) {
         if (std::strcmp(argv[i], "--quick") == 0) quick = true;
         else if (std::strcmp(argv[i], "--terms") == 0) terms_only = true;
         else if (std::strcmp(argv[i], "--iterations") == 0 && i + 1 < argc) iterations = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--grid") == 0 && i + 1 < argc) grid = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--grid-d") == 0 && i + 1 < argc) grid_d = static_cast<uint32_t>(std::stoul(argv[++i]));
+        else if (std::strcmp(argv[i], "--lobe") == 0 && i + 1 < argc) only = argv[++i];
         else if (std::strcmp(argv[i], "--cpu") == 0) cpu_only = true;
         else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
     }
-    const std::vector<NamedLobe> lobes = {
+    std::vector<NamedLobe> lobes = {
         {"pepsi", gray(-0.8962f, 0.7587f, 10.11f)},
         {"cologne", gray(-0.8874f, 1.1162f, 18.09f)},
         {"vase", gray(-1.2127f, 0.5653f, 20.36f)},
         {"woodenpot", gray(-1.4299f, -0.7763f, 9.74f)},
         {"mirror", gray(-1.0f, 1.0f, 1000.0f)},
         {"mirror300", gray(-1.0f, 1.0f, 300.0f)},
+        {"phong", gray(-1.0f, 1.0f, 10.0f)}, // Cx = -Cz: rank 1 mirrored
+        {"retro", gray(1.0f, 1.0f, 10.0f)},  // Cx = +Cz: rank 1 plain
     };
+    if (!only.empty())
+        std::erase_if(lobes, [&](const NamedLobe& l) { return only != l.name; });
     gpu::Context* ctx = test::vulkan_context();
     std::optional<FactorizeVk> vk;
     if (ctx && !cpu_only) {
@@ -69,12 +77,15 @@ int main(int argc, char** argv) try {
     std::printf("direct error over %u random (u, v) pairs\n\n", pairs);
 
     // Issue 5: error against the number of separable terms K, default resolutions.
+    // Both parametrizations (shared/gshd.h part 4), then the automatic choice's reason.
     std::printf("## Error against the number of terms K (grid %u, 0 = default resolutions; %u iterations)\n\n", grid, iterations);
-    std::printf("| lobe | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf("| lobe | param | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : lobes) {
+        for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored})
         for (uint32_t k = 1; k <= kMaxTerms; ++k) {
-            const FactorizationOptions o{.grid_h = grid, .grid_d = grid, .keep_matrix = true, .terms = k, .iterations = iterations};
+            const FactorizationOptions o{.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .keep_matrix = true, .terms = k, .iterations = iterations,
+                                         .param = param};
             const Factorization c = factorize_cpu(l.lobe, o);
             const DirectError ed = direct_relative_rms(l.lobe, c, 0, pairs);
             std::string vk_ms = "n/a", vk_gpu = "n/a";
@@ -83,12 +94,14 @@ int main(int argc, char** argv) try {
                 vk_ms = ms(g.timings.total_s * 1e9);
                 vk_gpu = ms(g.timings.residual_gpu_ns);
             }
-            std::printf("| %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, c.resolution.grid_h,
+            std::printf("| %s | %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, to_string(param), c.resolution.grid_h,
                         c.resolution.grid_d, k, c.terms.matrix_rms.back(), ed.grid, ed.cube, c.timings.total_s * 1e3,
                         vk_ms.c_str(), vk_gpu.c_str());
             std::fflush(stdout);
         }
-        std::printf("| %s | | | auto: %s | | | | | | |\n", l.name, factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid, .iterations = iterations}).terms.reason.c_str());
+        const Factorization a = factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .iterations = iterations});
+        std::printf("| %s | %s | | | auto: %s; %s | | | | | | |\n", l.name, to_string(a.param), a.terms.reason.c_str(),
+                    a.param_choice.reason.c_str());
     }
     if (terms_only) return 0;
 

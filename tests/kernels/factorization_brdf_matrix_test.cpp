@@ -1,4 +1,6 @@
-// brdf_matrix: CPU reference (double) vs Vulkan (float) conformance.
+// brdf_matrix: CPU reference (double) vs Vulkan (float) conformance, in both
+// parametrizations (shared/gshd.h parts 1 and 4: the mirror r(u) only negates two components,
+// exactly, so the same bounds hold).
 //
 // Tolerance, per entry, from a float error analysis of the shader's steps:
 // - the GSHD directions (decode, normalize, Gram-Schmidt, cross, u = .., v = 2 (u.h) h - u)
@@ -36,6 +38,7 @@ struct Case {
     LafortuneRgb lobe;
     uint32_t res_h;
     uint32_t res_d;
+    FactorParam param = FactorParam::Gshd;
 };
 
 LafortuneRgb gray(float cx, float cz, float n) { return {glm::vec3(cx), glm::vec3(cz), glm::vec3(n)}; }
@@ -44,11 +47,13 @@ class BrdfMatrixConformance : public test::VulkanTest, public ::testing::WithPar
 
 TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
     const Case& c = GetParam();
-    const BrdfMatrixInputs in{.lobe = c.lobe, .res_h = c.res_h, .res_d = c.res_d};
+    const BrdfMatrixInputs in{.lobe = c.lobe, .res_h = c.res_h, .res_d = c.res_d, .param = c.param};
     const BrdfMatrix ref = brdf_matrix_cpu(in);
     BrdfMatrixVk kernel(ctx());
     const BrdfMatrix vk = kernel.run(in);
     ASSERT_EQ(vk.values.size(), ref.values.size());
+    EXPECT_EQ(vk.param, c.param);
+    EXPECT_EQ(ref.param, c.param);
     const std::size_t rows = ref.rows(), cols = ref.cols();
     std::size_t flips = 0, bad = 0, valid = 0;
     double worst_rel = 0.0;
@@ -56,7 +61,7 @@ TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
         const glm::dvec3 h = shared::f64::gshd_grid_dir(static_cast<uint32_t>(row), c.res_h);
         for (std::size_t col = 0; col < cols; ++col) {
             const glm::dvec3 d = shared::f64::gshd_grid_dir(static_cast<uint32_t>(col), c.res_d);
-            const auto p = shared::f64::gshd_to_uv(h, d);
+            const auto p = shared::f64::gshd_to_uv_param(h, d, static_cast<uint32_t>(c.param));
             for (uint32_t ch = 0; ch < 3; ++ch) {
                 const float fr = ref.at(ch, row, col);
                 const float fv = vk.at(ch, row, col);
@@ -104,7 +109,13 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"woodenpot_cz_negative", gray(-1.4299f, -0.7763f, 9.74f), 12, 16},
                       Case{"mirror_n1000_odd_grid", gray(-1.0f, 1.0f, 1000.0f), 17, 9},
                       Case{"rgb_mixed", LafortuneRgb{{-0.9f, -1.2f, -1.0f}, {0.8f, 0.5f, 1.0f}, {5.0f, 20.0f, 100.0f}}, 10, 10},
-                      Case{"overflowing_height", gray(-1.5f, 1.5f, 10000.0f), 8, 8}),
+                      Case{"overflowing_height", gray(-1.5f, 1.5f, 10000.0f), 8, 8},
+                      Case{"pepsi_mirrored", gray(-0.8962f, 0.7587f, 10.11f), 16, 12, FactorParam::Mirrored},
+                      Case{"woodenpot_mirrored", gray(-1.4299f, -0.7763f, 9.74f), 12, 16, FactorParam::Mirrored},
+                      Case{"mirror_n1000_mirrored", gray(-1.0f, 1.0f, 1000.0f), 17, 9, FactorParam::Mirrored},
+                      Case{"rgb_mixed_mirrored",
+                           LafortuneRgb{{-0.9f, -1.2f, 1.0f}, {0.8f, 0.5f, 1.0f}, {5.0f, 20.0f, 100.0f}}, 10, 10,
+                           FactorParam::Mirrored}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 } // namespace

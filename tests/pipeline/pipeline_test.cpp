@@ -345,8 +345,9 @@ TEST(Planner, LambertianLeavesSpecularOutAndForcingItChangesLittle) {
 }
 
 // Planner, near-mirror lobe: the factorization grid follows the fitted lobe's width
-// (factorization/resolution.h: R_h = ceil(2 sqrt(N)), clamped to [16, 128]), so a lobe of
-// N ~ 300 gets a finer h grid than the 16 a broad lobe gets. --specular on: at 128 px the
+// (factorization/resolution.h: R = ceil(k sqrt(N)), clamped to [16, 128], along h in the plain
+// GSHD (k = 2), along d in the mirrored one (k = 16), which the automatic choice keeps for this
+// lobe), so a lobe of N ~ 300 gets a finer grid than the 16 a broad lobe gets. --specular on: at 128 px the
 // energy test alone does not see so small a highlight (about 3 noise variances).
 TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     test::TempDir dir("plan");
@@ -372,10 +373,20 @@ TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     EXPECT_EQ(d["mode"], "auto");
     const double n = d["detail"]["max_exponent"].get<double>();
     EXPECT_GT(n, 100.0); // a narrow lobe was fitted (truth 300)
-    const int expected = std::clamp(static_cast<int>(std::ceil(2.0 * std::sqrt(n))), 16, 128);
-    EXPECT_EQ(d["detail"]["grid_h"].get<int>(), expected);
-    EXPECT_GT(d["detail"]["grid_h"].get<int>(), 16);
-    EXPECT_EQ(r.report["factorization"]["grid_h"].get<int>(), expected); // the grid the factorization used
+    const nlohmann::json& f = r.report["factorization"];
+    const double k = f["parametrization"] == "mirrored" ? factorization::kMirroredPeakCellsPerHalfWidth
+                                                        : factorization::kCellsPerHalfWidth;
+    const int expected = std::clamp(static_cast<int>(std::ceil(k * std::sqrt(n))), 16, 128);
+    const int expected_plain = std::clamp(static_cast<int>(std::ceil(2.0 * std::sqrt(n))), 16, 128);
+    EXPECT_EQ(f["parametrization"], "mirrored") << f["parametrization_reason"];
+    EXPECT_FALSE(f["parametrization_forced"].get<bool>());
+    EXPECT_TRUE(f["parametrization_candidates"].contains("gshd") && f["parametrization_candidates"].contains("mirrored"));
+    const char* peak = f["parametrization"] == "mirrored" ? "grid_d" : "grid_h";
+    EXPECT_EQ(d["detail"][peak].get<int>(), expected);
+    EXPECT_GT(d["detail"][peak].get<int>(), 16);
+    EXPECT_EQ(f[peak].get<int>(), expected); // the grid the factorization used
+    EXPECT_EQ(f["parametrization_candidates"]["gshd"]["grid_h"].get<int>(), expected_plain);
+    EXPECT_EQ(d["detail"]["auto_grid_h"].get<int>(), expected_plain); // the planner's rule is the plain one's
     ASSERT_TRUE(d["avoided_seconds"].is_number());
     EXPECT_GT(d["avoided_seconds"].get<double>(), 0.0);
 }

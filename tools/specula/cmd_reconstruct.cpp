@@ -24,6 +24,7 @@ struct ReconstructArgs {
     std::string views = "best";
     std::uint32_t texture_size = 4096;
     std::string specular = "auto";
+    std::string factor_param = "auto";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -46,6 +47,7 @@ void run_reconstruct(ReconstructArgs& args) {
         c.factorization_grid_h = args.grid[0];
         c.factorization_grid_d = args.grid.size() > 1 ? args.grid[1] : args.grid[0];
     }
+    c.factor_param = factor_param_from_string(args.factor_param); // "auto": nullopt
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.atlas.max_width = args.texture_size;
@@ -74,7 +76,8 @@ void add_reconstruct_command(CLI::App& app) {
         "re-rendered and compared), OUT/report.html (one self-contained page) and OUT/report.json (the planner's\n"
         "decisions, stage times, GPU dispatch times, counts, quality figures, the lobe, and what was left out\n"
         "for this scene and why). Every planner decision can be forced: --occlusion-rays, --mode, --specular,\n"
-        "--texels-per-pixel/--texture-size, --factorization-grid; the report then gives the cost of the forced work.");
+        "--texels-per-pixel/--texture-size, --factorization-grid, --factor-param; the report then gives the cost of the\n"
+        "forced work.");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
     cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
     cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
@@ -132,6 +135,12 @@ void add_reconstruct_command(CLI::App& app) {
                     "2 cells per lobe half-width, h in [16, 128], d in [16, 64]); H x D at most 3072")
         ->delimiter(',')
         ->expected(1, 2);
+    cmd->add_option("--factor-param", args->factor_param,
+                    "Parametrization of the factorization's cube-maps: gshd (the thesis's half/difference vectors of the\n"
+                    "light and view), mirrored (those of the light's mirror direction and the view: near separable for a\n"
+                    "lobe about the mirror direction, Cx < 0), or auto (both, the one of lower error against the lobe)")
+        ->check(CLI::IsMember({"auto", "gshd", "mirrored"}))
+        ->capture_default_str();
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
     cmd->add_flag("--no-evaluate{false}", args->config.evaluate,
