@@ -303,7 +303,9 @@ TEST_F(FactorizationVulkan, SeveralTermsMatchCpuEndToEnd) {
         const auto autok = vk.run(lobe, {.grid_h = 12, .grid_d = 10});
         const auto autoc = factorize_cpu(lobe, {.grid_h = 12, .grid_d = 10});
         EXPECT_EQ(autok.term_count(), autoc.term_count()) << autok.terms.reason << " / " << autoc.terms.reason;
-        if (ctx().info().timestamps_supported()) EXPECT_TRUE(b.timings.residual_gpu_ns.has_value());
+        if (ctx().info().timestamps_supported()) {
+            EXPECT_TRUE(b.timings.residual_gpu_ns.has_value());
+        }
     }
 }
 

@@ -96,7 +96,9 @@ TEST_F(LambertSolveConformance, VulkanMatchesCpuReference) {
                     ref.summary.not_seen, flips, worst, worst_angle, vk.summary.gpu_ms.value_or(-1.0));
         EXPECT_LE(flips, (ref.summary.ok + ref.summary.no_sample) / 200);
         EXPECT_GT(ref.summary.rejected_clipped, 0u);
-        if (!cfg.lobe) EXPECT_GT(ref.summary.rejected_highlight, 0u);
+        if (!cfg.lobe) {
+            EXPECT_GT(ref.summary.rejected_highlight, 0u);
+        }
         EXPECT_GT(ref.summary.rejected_shadow + ref.summary.rejected_grazing, 0u);
         if (mode == LambertMode::Photometric) {
             EXPECT_GT(ref.summary.fallback, 0u);
