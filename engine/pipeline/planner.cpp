@@ -1,6 +1,7 @@
 #include "pipeline/planner.h"
 
 #include "core/error.h"
+#include "core/format.h"
 
 #include <Eigen/Dense>
 
@@ -13,12 +14,6 @@ namespace specula {
 using nlohmann::json;
 
 namespace {
-
-std::string fmt(const char* format, double a) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, format, a);
-    return buf;
-}
 
 } // namespace
 
@@ -167,8 +162,8 @@ PlanDecision decide_diffuse_mode(const LightConditioning& lc, DiffuseModeChoice 
     const bool allowed = lc.views > 0 &&
                          static_cast<double>(lc.capable_views) >= kPhotometricViewFraction * static_cast<double>(lc.views);
     const std::string why = std::to_string(lc.capable_views) + " of " + std::to_string(lc.views) +
-                            " train views have >= 3 light directions with rcond >= " + fmt("%.3g", lc.min_rcond) +
-                            " (median rcond " + fmt("%.3g", lc.median_rcond) + ", fewest lights in a view " +
+                            " train views have >= 3 light directions with rcond >= " + format_text("%.3g", lc.min_rcond) +
+                            " (median rcond " + format_text("%.3g", lc.median_rcond) + ", fewest lights in a view " +
                             std::to_string(lc.min_lights) + ")";
     const bool photometric = allowed && !specular_may_run;
     const std::string highlight =
@@ -201,7 +196,7 @@ PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::siz
     d.name = "atlas";
     d.forced = o.texels_per_pixel != defaults.texels_per_pixel || o.max_width != defaults.max_width ||
                o.max_height != defaults.max_height;
-    d.value = std::to_string(s.width) + "x" + std::to_string(s.height) + ", " + fmt("%.3g", o.texels_per_pixel) +
+    d.value = std::to_string(s.width) + "x" + std::to_string(s.height) + ", " + format_text("%.3g", o.texels_per_pixel) +
               " texel(s) per pixel";
     d.detail = {{"width", s.width},
                 {"height", s.height},
@@ -214,7 +209,7 @@ PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::siz
                            ? "patch sizes follow each triangle's pixel footprint in its best train view"
                            : "no camera sees the mesh: patch sizes follow surface area";
     if (s.budget_clipped) base += "; the " + std::to_string(o.max_width) + "x" + std::to_string(o.max_height) +
-                                  " budget clipped them (scale " + fmt("%.3g", s.budget_scale) + ")";
+                                  " budget clipped them (scale " + format_text("%.3g", s.budget_scale) + ")";
     if (!d.forced) {
         // Not "no information": views sample an edge at different sub-pixel phases, and the albedo
         // refinement combines them. Measured on the can (512 px, refinement on): 2 texels per pixel
@@ -224,10 +219,10 @@ PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::siz
         // Twice the linear resolution: 4x the particles; the particle-proportional stages scale with them.
         d.avoided_seconds = 3.0 * particle_stage_seconds;
         d.cost_basis = "estimate: at 2 texels per pixel (4x the particles) the particle stages (visibility, diffuse "
-                       "solve, residual samples; measured " + fmt("%.3g", particle_stage_seconds) +
+                       "solve, residual samples; measured " + format_text("%.3g", particle_stage_seconds) +
                        " s) would take about 4x as long";
     } else {
-        d.reason = base + "; forced by --texels-per-pixel " + fmt("%.3g", o.texels_per_pixel) + " / --texture-size " +
+        d.reason = base + "; forced by --texels-per-pixel " + format_text("%.3g", o.texels_per_pixel) + " / --texture-size " +
                    std::to_string(o.max_width) + " (the planner uses 1 texel per pixel, 4096 budget)";
         d.measured_seconds = particle_stage_seconds;
         d.cost_basis = "measured: visibility, diffuse solve and residual samples at this atlas (" + std::to_string(particles) +
@@ -258,7 +253,7 @@ PlanDecision decide_albedo_refinement(std::optional<std::uint32_t> forced_rounds
                    std::to_string(kAlbedoRefineRounds) + " rounds: " + why + ")";
         d.avoided_seconds = static_cast<double>(kAlbedoRefineRounds) * solve_seconds;
         d.cost_basis = "estimate: " + std::to_string(kAlbedoRefineRounds) + " diffuse solves (the first took " +
-                       fmt("%.3g", solve_seconds) + " s); the renders of the train frames are not included";
+                       format_text("%.3g", solve_seconds) + " s); the renders of the train frames are not included";
     } else {
         d.reason = "--refine-rounds " + std::to_string(rounds) + " (the planner runs " + std::to_string(kAlbedoRefineRounds) +
                    ")";
@@ -283,9 +278,9 @@ PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle) {
     const bool fit = toggle == Toggle::On || (toggle == Toggle::Auto && e.has_specular);
     d.value = fit ? "fit" : "skip";
     d.skipped = !fit;
-    const std::string energy = "mean squared residual " + fmt("%.3g", e.mean_square) + " = " + fmt("%.3g", e.ratio) +
-                               " noise variances (noise sigma " + fmt("%.3g", e.noise_sigma) + ", threshold " +
-                               fmt("%.3g", e.threshold) + ")";
+    const std::string energy = "mean squared residual " + format_text("%.3g", e.mean_square) + " = " + format_text("%.3g", e.ratio) +
+                               " noise variances (noise sigma " + format_text("%.3g", e.noise_sigma) + ", threshold " +
+                               format_text("%.3g", e.threshold) + ")";
     d.detail = {{"mean_square_residual", e.mean_square},
                 {"ratio_to_noise_variance", e.ratio},
                 {"threshold", e.threshold},
@@ -312,7 +307,7 @@ void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std
         const double scale = static_cast<double>(std::max(fit_samples, probe_samples)) / static_cast<double>(probe_samples);
         d.avoided_seconds = *probe_seconds * scale;
         d.cost_basis = "estimate: the fit timed on a " + std::to_string(probe_samples) + "-sample subsample (" +
-                       fmt("%.3g", *probe_seconds) + " s), scaled linearly to the " + std::to_string(fit_samples) +
+                       format_text("%.3g", *probe_seconds) + " s), scaled linearly to the " + std::to_string(fit_samples) +
                        " samples it would use; the factorization and specular pass are not included";
     }
 }
@@ -369,9 +364,9 @@ void set_factorization_cost(PlanDecision& d, double seconds, const std::string& 
     const double ratio = (max_product * max_product) / ((h * g) * (h * g));
     if (ratio <= 1.0) return;
     d.avoided_seconds = seconds * (ratio - 1.0);
-    d.cost_basis = "estimate: the " + what + " (" + fmt("%.3g", seconds) +
+    d.cost_basis = "estimate: the " + what + " (" + format_text("%.3g", seconds) +
                    " s) scales with the matrix size 3 R_h^2 R_d^2; the finest grid the rule allows (R_h R_d = " +
-                   std::to_string(factorization::kMaxGridProduct) + ") has " + fmt("%.3g", ratio) + "x the entries";
+                   std::to_string(factorization::kMaxGridProduct) + ") has " + format_text("%.3g", ratio) + "x the entries";
 }
 
 } // namespace specula

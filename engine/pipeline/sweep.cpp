@@ -3,6 +3,7 @@
 #include "capture/capture.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/format.h"
 #include "core/log.h"
 #include "core/timer.h"
 #include "factorization/resolution.h"
@@ -20,12 +21,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
-
-std::string fmt(const char* format, double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, format, v);
-    return buf;
-}
 
 std::string samples_text(std::uint32_t n) {
     if (n == 0) return "all";
@@ -102,7 +97,7 @@ SweepResult run_sweep(const SweepOptions& o) {
     }
     for (SweepPoint& p : points) {
         p.is_default = is_default(p);
-        p.label = "tpp " + fmt("%g", p.texels_per_pixel) + ", fit " + samples_text(p.fit_samples) + ", grid " +
+        p.label = "tpp " + format_text("%g", p.texels_per_pixel) + ", fit " + samples_text(p.fit_samples) + ", grid " +
                   (p.factorization_grid == 0 ? std::string("auto") : std::to_string(p.factorization_grid)) + ", " +
                   to_string(p.backend);
     }
@@ -172,7 +167,7 @@ SweepResult run_sweep(const SweepOptions& o) {
         p.stages = r.report["stages"];
         if (!o.keep_points) fs::remove_all(c.out_dir);
         log::info("  [" + std::to_string(i + 1) + "/" + std::to_string(points.size()) + "] " + p.label + ": " +
-                  fmt("%.2f", p.seconds) + " s, test masked RMS " + fmt("%.3f", p.error) + " %" +
+                  format_text("%.2f", p.seconds) + " s, test masked RMS " + format_text("%.3f", p.error) + " %" +
                   (p.is_default ? "  (default)" : ""));
         progress.update(i + 1);
     }
@@ -233,12 +228,12 @@ std::string to_csv(const SweepResult& r) {
     std::string out = "index,texels_per_pixel,fit_samples,factorization_grid,factorization_grid_used,backend,seconds,"
                       "test_masked_rms_percent,test_masked_q1,test_masked_psnr,test_full_rms_percent,particles,has_lobe,"
                       "is_default,on_front,failure\n";
-    const auto g = [](double v) { return std::isfinite(v) ? fmt("%.6g", v) : std::string(); };
+    const auto g = [](double v) { return std::isfinite(v) ? format_text("%.6g", v) : std::string(); };
     for (std::size_t i = 0; i < r.points.size(); ++i) {
         const SweepPoint& p = r.points[i];
         out += std::to_string(i) + "," + g(p.texels_per_pixel) + "," + std::to_string(p.fit_samples) + "," +
                (p.factorization_grid == 0 ? std::string("auto") : std::to_string(p.factorization_grid)) + ",\"" + p.grid_used +
-               "\"," + to_string(p.backend) + "," + g(p.seconds) + "," + (std::isfinite(p.error) ? fmt("%.9g", p.error) : std::string()) + "," + g(p.test_q1) + "," +
+               "\"," + to_string(p.backend) + "," + g(p.seconds) + "," + (std::isfinite(p.error) ? format_text("%.9g", p.error) : std::string()) + "," + g(p.test_q1) + "," +
                g(p.test_psnr) + "," + g(p.test_full_rms_percent) + "," + std::to_string(p.particles) + "," +
                (p.has_lobe ? "1" : "0") + "," + (p.is_default ? "1" : "0") + "," + (p.on_front ? "1" : "0") + ",\"" + csv_quote(p.failure) + "\"\n";
     }
@@ -261,7 +256,7 @@ std::string to_html(const SweepResult& r, const std::string& title) {
                       "</title>\n<style>" + std::string(report::report_css()) + "</style>\n</head>\n<body>\n<h1>" +
                       html_escape(title) + "</h1>\n";
     out += "<p>Error: the test frames' masked RMS % (100 &minus; Q1), the lobe rendered through its factorization "
-           "cube-maps. Run time: the reconstruction's stages without the capture load (" + fmt("%.2f", r.load_seconds) +
+           "cube-maps. Run time: the reconstruction's stages without the capture load (" + format_text("%.2f", r.load_seconds) +
            " s, shared) and the self-evaluation. " + std::to_string(r.test_frames) + " test frames.</p>\n";
     out += to_svg(r, title);
     out += "<table>\n<tr><th>#</th><th>texels/pixel</th><th>fit samples</th><th>grid</th><th>grid used</th><th>backend</th>"
@@ -271,12 +266,12 @@ std::string to_html(const SweepResult& r, const std::string& title) {
         std::string mark = p.on_front ? "Pareto front" : "";
         if (p.is_default) mark += mark.empty() ? "default" : ", default";
         if (!p.failure.empty()) mark = "failed: " + html_escape(p.failure);
-        out += "<tr><td>" + std::to_string(i) + "</td><td>" + fmt("%g", p.texels_per_pixel) + "</td><td>" +
+        out += "<tr><td>" + std::to_string(i) + "</td><td>" + format_text("%g", p.texels_per_pixel) + "</td><td>" +
                samples_text(p.fit_samples) + "</td><td>" +
                (p.factorization_grid == 0 ? std::string("auto") : std::to_string(p.factorization_grid)) + "</td><td>" +
-               html_escape(p.grid_used) + "</td><td>" + to_string(p.backend) + "</td><td>" + fmt("%.2f", p.seconds) +
-               "</td><td>" + fmt("%.3f", p.error) + "</td><td>" + fmt("%.2f", p.test_q1) + "</td><td>" +
-               fmt("%.2f", p.test_psnr) + "</td><td>" + mark + "</td></tr>\n";
+               html_escape(p.grid_used) + "</td><td>" + to_string(p.backend) + "</td><td>" + format_text("%.2f", p.seconds) +
+               "</td><td>" + format_text("%.3f", p.error) + "</td><td>" + format_text("%.2f", p.test_q1) + "</td><td>" +
+               format_text("%.2f", p.test_psnr) + "</td><td>" + mark + "</td></tr>\n";
     }
     return out + "</table>\n</body>\n</html>\n";
 }

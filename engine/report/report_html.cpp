@@ -2,6 +2,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/format.h"
 
 #include <algorithm>
 #include <cmath>
@@ -59,15 +60,9 @@ std::string data_uri(const fs::path& png) {
 
 namespace {
 
-std::string fmt(const char* format, double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, format, v);
-    return buf;
-}
-
 // A JSON number (or null / missing) as text.
 std::string num(const json& j, const char* format = "%.4g") {
-    if (j.is_number()) return fmt(format, j.get<double>());
+    if (j.is_number()) return format_text(format, j.get<double>());
     if (j.is_boolean()) return j.get<bool>() ? "yes" : "no";
     if (j.is_string()) return html_escape(j.get<std::string>());
     return "&mdash;";
@@ -299,9 +294,9 @@ std::string svg_bar_chart(std::span<const Bar> bars, std::string_view unit, int 
         out += "<text x=\"" + std::to_string(label_w - 6) + "\" y=\"" + std::to_string(y + 14) + "\" text-anchor=\"end\">" +
                html_escape(b.label) + "</text>";
         out += "<rect class=\"bar\" x=\"" + std::to_string(label_w) + "\" y=\"" + std::to_string(y + 3) + "\" width=\"" +
-               fmt("%.1f", w) + "\" height=\"" + std::to_string(row_h - 6) + "\" fill=\"#4a78b5\"/>";
-        out += "<text x=\"" + fmt("%.1f", label_w + w + 4) + "\" y=\"" + std::to_string(y + 14) + "\">" +
-               fmt("%.3g", b.value) + " " + html_escape(unit) + "</text>\n";
+               format_text("%.1f", w) + "\" height=\"" + std::to_string(row_h - 6) + "\" fill=\"#4a78b5\"/>";
+        out += "<text x=\"" + format_text("%.1f", label_w + w + 4) + "\" y=\"" + std::to_string(y + 14) + "\">" +
+               format_text("%.3g", b.value) + " " + html_escape(unit) + "</text>\n";
         y += row_h;
     }
     return out + "</svg>\n";

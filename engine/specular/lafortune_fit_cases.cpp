@@ -1,6 +1,7 @@
 // The stiff-case suite of the Lafortune fit (see lafortune_fit_cases.h).
 #include "specular/lafortune_fit_cases.h"
 
+#include "core/format.h"
 #include "core/timer.h"
 
 #include <glm/geometric.hpp>
@@ -79,12 +80,6 @@ private:
 };
 
 double rel(double got, double truth) { return std::abs(got - truth) / std::max(std::abs(truth), 1e-12); }
-
-std::string fmt(const char* f, double a, double b = 0, double c = 0, double d = 0) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf, f, a, b, c, d);
-    return buf;
-}
 
 double largest_true(const std::vector<LafortuneSample>& s, const LafortuneFitCase& c) {
     double m = 0.0;
@@ -233,7 +228,7 @@ std::string case_verdict(const LafortuneFitCase& c, const LafortuneChannelFit& f
         return std::string(to_string(f.status)) + (honest ? "" : " (false: the lobe is recoverable)");
     }
     if (case_recovered(c, f)) return "recovered";
-    return fmt("wrong (dCx %+.0f%% dCz %+.0f%% dN %+.0f%%)", 100 * (f.cx - c.cx) / std::abs(c.cx),
+    return format_text("wrong (dCx %+.0f%% dCz %+.0f%% dN %+.0f%%)", 100 * (f.cx - c.cx) / std::abs(c.cx),
                100 * (f.cz - c.cz) / std::abs(c.cz), 100 * (f.n - c.n) / c.n);
 }
 
@@ -283,9 +278,9 @@ std::string lafortune_case_table_row(const LafortuneFitCase& c, const LafortuneC
     };
     std::string status = r.robust_verdict;
     char buf[1024];
-    const std::string samples = c.samples >= 1000000 ? fmt("%.0fM", double(c.samples) / 1e6) : fmt("%.0f", double(c.samples));
+    const std::string samples = c.samples >= 1000000 ? format_text("%.0fM", double(c.samples) / 1e6) : format_text("%.0f", double(c.samples));
     const std::string plain = r.plain_run ? triple(r.plain.cx, r.plain.cz, r.plain.n) : std::string("-");
-    const std::string plain_iter = r.plain_run ? fmt("%.0f", r.plain.iterations) : std::string("-");
+    const std::string plain_iter = r.plain_run ? format_text("%.0f", r.plain.iterations) : std::string("-");
     const std::string plain_verdict = r.plain_run ? r.plain_verdict : std::string("not run");
     std::snprintf(buf, sizeof buf, "%-34s %8s %-28s %-31s %5u %7.3fs %-18s %-4s | %-31s %5s %s", c.name.c_str(),
                   samples.c_str(), triple(c.cx, c.cz, c.n).c_str(),
