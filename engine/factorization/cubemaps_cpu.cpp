@@ -33,7 +33,7 @@ Cubemap cubemaps_cpu(const CubemapInputs& in) {
         for (uint32_t row = 0; row < in.cube_res; ++row)
             for (uint32_t col = 0; col < in.cube_res; ++col) {
                 const glm::dvec3 dir = shared::f64::cube_texel_dir(face, col, row, in.cube_res);
-                if (!(dir.z > 0.0)) continue; // lower hemisphere: 0
+                if (!shared::f64::cube_texel_kept(dir, in.cube_res)) continue; // lower hemisphere: 0
                 out.texels[(std::size_t{face} * in.cube_res + row) * in.cube_res + col] =
                     glm::vec3(grid_sample(in.grid, in.grid_res, dir));
             }

@@ -1,8 +1,9 @@
 #version 450
 // cubemaps (thesis appendix A, Algorithm 2): one invocation per cube-map texel
 // (e = (face * res + row) * res + col, Vulkan face order, shared/gshd.h): texels whose
-// centre direction is below the horizon are 0, the others the bilinear interpolation of
-// the hemisphere grid (G or H, rgb-interleaved) at that direction.
+// centre direction is below the horizon are 0 but for the horizon gutter (shared/gshd.h
+// cube_texel_kept), the others the bilinear interpolation of the hemisphere grid (G or H,
+// rgb-interleaved) at that direction (the gutter: at the horizon point of its azimuth).
 // Reference: engine/factorization/cubemaps_cpu.cpp.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
@@ -31,7 +32,7 @@ void main() {
     uint col = rem - row * pc.cube_res;
     vec3 dir = cube_texel_dir(face, col, row, pc.cube_res);
     vec3 value = vec3(0.0f);
-    if (dir.z > 0.0f) {
+    if (cube_texel_kept(dir, pc.cube_res)) {
         GshdBilinear b = gshd_grid_bilinear(dir, pc.grid_res);
         value = gshd_bilinear_mix(b, fetch(b.i00), fetch(b.i10), fetch(b.i01), fetch(b.i11));
     }

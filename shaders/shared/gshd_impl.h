@@ -146,6 +146,18 @@ SHARED_FN GSHD_VEC3 gshd_clamp_value(GSHD_VEC3 f) {
 
 // ---- cube-map texels (thesis Algorithm 2, Vulkan face convention) -----------------
 
+// Whether texel direction `dir` (cube_texel_dir, major axis +-1) takes the grid's value: the
+// upper hemisphere (z > 0) and the horizon gutter, the row of texels just below the horizon
+// on the side faces (z > -1.5 / res: the centres at -1/res for an even res; for an odd one
+// the row at z = 0 is the last one a lookup at z >= 0 reaches, and -2/res is left out). The
+// gutter holds the grid at the horizon point of its azimuth (hemi_oct_encode takes z < 0 as
+// 0), so a bilinear lookup at a grazing h or d does not blend in the lower hemisphere's zeros
+// (ours; the thesis's Algorithm 2 zeroes the whole lower hemisphere, which halves G and H at
+// the horizon). Every other lower-hemisphere texel is 0.
+SHARED_FN bool cube_texel_kept(GSHD_VEC3 dir, uint res) {
+    return dir.z > GSHD_REAL(-1.5) / GSHD_REAL(res);
+}
+
 // Direction (not normalized) from the cube's centre through the centre of texel (col, row)
 // of `face` (0..5 = +X, -X, +Y, -Y, +Z, -Z) of a res x res face: the inverse of the
 // Vulkan spec's face selection table (sc, tc, ma).
