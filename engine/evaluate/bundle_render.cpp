@@ -34,7 +34,7 @@ render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const st
                                                     render::CubeMapRgb{bundle.cube_h->resolution, bundle.cube_h->rgb}}};
         for (const BundleFactorTerm& t : bundle.extra_terms)
             terms.push_back({render::CubeMapRgb{t.g.resolution, t.g.rgb}, render::CubeMapRgb{t.h.resolution, t.h.rgb}});
-        r.set_factorization(terms, bundle.factor_param);
+        r.set_factorization(terms, bundle.factor_param, bundle.factor_warp);
     }
     return r;
 }

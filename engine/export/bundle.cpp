@@ -35,7 +35,9 @@ constexpr const char* kExtension = "SPECULA_lafortune";
 // a bundle is written as version 1 when it has one term, so older readers still load it.
 // Version 3 adds "parametrization": "mirrored" (shared/gshd.h part 4), written only for such
 // cube-maps, which a version 1 or 2 reader would look up wrongly: it refuses version 3 instead.
-constexpr int kExtensionVersion = 3;
+// Version 4 adds "parametrization": "warped" with its "warp" (shared/gshd.h part 5), written
+// only for such cube-maps (they hold the lobe over its radial factor): older readers refuse it.
+constexpr int kExtensionVersion = 4;
 constexpr std::size_t kMaxExtraTerms = 3; // K <= 4 (render::kMaxFactorTerms)
 
 constexpr std::uint32_t kGlbMagic = 0x46546C67u;  // "glTF"
@@ -486,7 +488,10 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     const std::size_t png_view = add_view(png.data(), png.size(), 0);
 
     const bool mirrored = bundle.cube_g && bundle.factor_param == FactorParam::Mirrored;
-    json ext = {{"version", mirrored ? 3 : bundle.extra_terms.empty() ? 1 : 2}};
+    const bool warped = bundle.cube_g && bundle.factor_param == FactorParam::Warped;
+    if (warped && !bundle.lobe)
+        throw InputError(path, "SPECULA_lafortune.parametrization", "warped cube-maps without the lobe (its radial factor)");
+    json ext = {{"version", warped ? 4 : mirrored ? 3 : bundle.extra_terms.empty() ? 1 : 2}};
     if (bundle.lobe) {
         ext["lobe"] = {{"cx", vec3_json(bundle.lobe->cx)}, {"cz", vec3_json(bundle.lobe->cz)},
                        {"n", vec3_json(bundle.lobe->n)}, {"status", bundle.lobe_status}};
@@ -508,7 +513,8 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
                                         {"resolution", t.h.resolution}}}});
         ext["cubeTerms"] = std::move(terms);
     }
-    if (mirrored) ext["parametrization"] = to_string(bundle.factor_param);
+    if (mirrored || warped) ext["parametrization"] = to_string(bundle.factor_param);
+    if (warped) ext["warp"] = {bundle.factor_warp.x, bundle.factor_warp.y, bundle.factor_warp.z, bundle.factor_warp.w};
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
     const json material = {
@@ -696,11 +702,23 @@ Bundle read_bundle(const fs::path& path) {
         const std::string pf = ext_field + ".parametrization";
         const json& p = (*ext)["parametrization"];
         const std::optional<FactorParam> param = p.is_string() ? factor_param_from_string(p.get<std::string>()) : std::nullopt;
-        if (!param) throw InputError(path, pf, "not \"gshd\" or \"mirrored\"");
-        if (*param == FactorParam::Mirrored && version.get<int>() < 3)
-            throw InputError(path, pf, "mirrored in a version " + std::to_string(version.get<int>()) + " extension (needs version 3)");
+        if (!param) throw InputError(path, pf, "not \"gshd\", \"mirrored\" or \"warped\"");
+        const int needs = *param == FactorParam::Warped ? 4 : *param == FactorParam::Mirrored ? 3 : 1;
+        if (version.get<int>() < needs)
+            throw InputError(path, pf, std::string(to_string(*param)) + " in a version " + std::to_string(version.get<int>()) +
+                                           " extension (needs version " + std::to_string(needs) + ")");
         if (!ext->contains("cubeG")) throw InputError(path, pf, "a parametrization without cube-maps (cubeG, cubeH)");
+        if (*param == FactorParam::Warped && !b.lobe) throw InputError(path, pf, "warped without a lobe (its radial factor)");
         b.factor_param = *param;
+    }
+    if (ext->contains("warp") || b.factor_param == FactorParam::Warped) { // version 4
+        const std::string wf = ext_field + ".warp";
+        if (b.factor_param != FactorParam::Warped) throw InputError(path, wf, "present without \"parametrization\": \"warped\"");
+        const json& w = ext->value("warp", json());
+        if (!w.is_array() || w.size() != 4 || !std::all_of(w.begin(), w.end(), [](const json& x) { return x.is_number(); }))
+            throw InputError(path, wf, "not an array of 4 numbers (s, k_r, k_g, k_b)");
+        for (int c = 0; c < 4; ++c) b.factor_warp[c] = w[static_cast<std::size_t>(c)].get<float>();
+        if (!valid_warp(b.factor_warp)) throw InputError(path, wf, "must be (+-1, k_r, k_g, k_b) with every k in [1/64, 64]");
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) throw InputError(path, ext_field + ".info", "not an object");

@@ -49,10 +49,12 @@ struct Bundle {
     /// Terms 2..K of the factorization f ~ max(0, sum_k G_k H_k) (K - 1 entries, at most 3;
     /// needs cube_g / cube_h, which are term 1). Empty: the thesis's single term.
     std::vector<BundleFactorTerm> extra_terms;
-    /// How the cube-maps are looked up (shared/gshd.h part 4): the thesis's GSHD of (u, v), or the
-    /// mirrored GSHD of (r(u), v). Written as "parametrization" (version 3) when mirrored; a bundle
-    /// without the field is plain GSHD.
+    /// How the cube-maps are looked up (shared/gshd.h parts 4, 5): the thesis's GSHD of (u, v), the
+    /// mirrored GSHD of (r(u), v), or the warped GSHD of (w(u), v) whose terms are multiplied by
+    /// the lobe's radial factor (needs `lobe`). Written as "parametrization" (version 3 when
+    /// mirrored, 4 when warped, with "warp"); a bundle without the field is plain GSHD.
     FactorParam factor_param = FactorParam::Gshd;
+    glm::vec4 factor_warp{1.0f}; ///< (s, k_r, k_g, k_b) of FactorParam::Warped
     nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.

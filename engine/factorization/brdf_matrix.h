@@ -4,8 +4,10 @@
 // Row = cell of the h grid (res_h x res_h), column = cell of the d grid (res_d x res_d).
 // Layout, channel-planar (what the shader writes): values[(c * rows + row) * cols + col].
 // Entries outside the BRDF's domain (u or v below the horizon) are kGshdInvalid (-1).
-// `param` picks the parametrization of the pairs (shared/gshd.h part 4): the thesis's GSHD
-// of (u, v), or the mirrored GSHD of (r(u), v).
+// `param` picks the parametrization of the pairs (shared/gshd.h parts 4 and 5): the thesis's
+// GSHD of (u, v), the mirrored GSHD of (r(u), v), or the warped GSHD of (w(u), v) with the
+// warp `warp` = (s, k_r, k_g, k_b) (channel c's pairs in its own warp (s, k_c)), whose F is
+// the lobe over its radial factor |C u|^N (in [0, 1]).
 #include "core/factor_param.h"
 #include "factorization/lobe.h"
 #include "gpu/buffer.h"
@@ -25,15 +27,18 @@ struct BrdfMatrixInputs {
     uint32_t res_h = 32;
     uint32_t res_d = 32;
     FactorParam param = FactorParam::Gshd;
+    glm::vec4 warp{1.0f}; ///< (s, k_r, k_g, k_b), FactorParam::Warped only (warp_for_lobe)
 };
 
 static_assert(static_cast<uint32_t>(FactorParam::Gshd) == shared::kGshdPlain &&
-              static_cast<uint32_t>(FactorParam::Mirrored) == shared::kGshdMirrored);
+              static_cast<uint32_t>(FactorParam::Mirrored) == shared::kGshdMirrored &&
+              static_cast<uint32_t>(FactorParam::Warped) == shared::kGshdWarped);
 
 struct BrdfMatrix {
     uint32_t res_h = 0;
     uint32_t res_d = 0;
     FactorParam param = FactorParam::Gshd;
+    glm::vec4 warp{1.0f};
     std::vector<float> values; // 3 * rows() * cols()
     [[nodiscard]] std::size_t rows() const noexcept { return std::size_t{res_h} * res_h; }
     [[nodiscard]] std::size_t cols() const noexcept { return std::size_t{res_d} * res_d; }
@@ -55,10 +60,12 @@ struct BrdfMatrixPush {
     float cx[4];
     float cz[4];
     float n[4];
-    uint32_t param; // shared::kGshdPlain or kGshdMirrored
+    uint32_t param; // shared::kGshdPlain, kGshdMirrored or kGshdWarped
+    float warp_s;
+    float warp_k[3]; // per channel
 };
-static_assert(sizeof(BrdfMatrixPush) == 68 && offsetof(BrdfMatrixPush, cx) == 16 && offsetof(BrdfMatrixPush, n) == 48 &&
-              offsetof(BrdfMatrixPush, param) == 64);
+static_assert(sizeof(BrdfMatrixPush) == 84 && offsetof(BrdfMatrixPush, cx) == 16 && offsetof(BrdfMatrixPush, n) == 48 &&
+              offsetof(BrdfMatrixPush, param) == 64 && offsetof(BrdfMatrixPush, warp_k) == 72);
 
 /// The Vulkan kernel (shaders/factorization/brdf_matrix.comp). Owns its pipeline.
 class BrdfMatrixVk {

@@ -20,14 +20,15 @@ const char* to_string(FactorizationBackend backend) noexcept {
 std::optional<double> FactorizationTimings::gpu_total_ns() const {
     if (!matrix_gpu_ns || !decomposition_g_gpu_ns || !decomposition_h_gpu_ns || !cube_g_gpu_ns || !cube_h_gpu_ns)
         return std::nullopt;
-    return *matrix_gpu_ns + *decomposition_g_gpu_ns + *decomposition_h_gpu_ns + *cube_g_gpu_ns + *cube_h_gpu_ns;
+    return *matrix_gpu_ns + *decomposition_g_gpu_ns + *decomposition_h_gpu_ns + first_refine_gpu_ns.value_or(0.0) +
+           *cube_g_gpu_ns + *cube_h_gpu_ns;
 }
 
 namespace {
 
 /// K_max of the run: the forced K, or max_terms; 1 when the lobe is too high for the
 /// residual kernels' float sums (note says so).
-uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, std::string& note) {
+uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param, std::string& note) {
     if (o.terms > kMaxTerms)
         throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxTerms) + " (got " +
                     std::to_string(o.terms) + ")");
@@ -35,7 +36,7 @@ uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& 
         throw Error("factorize: max_terms must be in [1, " + std::to_string(kMaxTerms) + "]");
     if (!(o.term_target >= 0.0)) throw Error("factorize: term_target must be >= 0");
     const uint32_t k = o.terms != 0 ? o.terms : o.max_terms;
-    if (k == 1) return 1;
+    if (k == 1 || param == FactorParam::Warped) return k; // the warped F is in [0, 1]
     double height = 0.0;
     for (int c = 0; c < 3; ++c)
         height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
@@ -53,6 +54,18 @@ std::string percent(double x) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.1f%%", 100.0 * x);
     return buf;
+}
+
+/// ALS iterations refining term 1 (FactorizationOptions::first_iterations); 0 when the lobe is
+/// too high for the residual kernels' float sums (as terms_to_compute).
+uint32_t first_term_iterations(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param) {
+    const uint32_t it = o.first_iterations.value_or(param == FactorParam::Warped ? kResidualIterations : 0u);
+    if (it > 1000) throw Error("factorize: first_iterations must be in [0, 1000]");
+    if (it == 0 || param == FactorParam::Warped) return it;
+    FactorizationOptions one = o;
+    one.terms = 2;
+    std::string note;
+    return terms_to_compute(lobe, one, param, note) > 1 ? it : 0u;
 }
 
 /// Matrix errors of the first k terms for every k, then K by the rule of FactorizationOptions::terms.
@@ -135,6 +148,14 @@ ParamCandidate candidate_of(const LafortuneRgb& lobe, const Factorization& f) {
                           .direct_rms = direct_relative_rms(lobe, f, 0, kParamChoicePairs).cube};
 }
 
+/// The warp of the warped parametrization for `lobe`; throws Error naming why it has none.
+glm::vec4 required_warp(const LafortuneRgb& lobe) {
+    std::string why;
+    const std::optional<glm::vec4> w = warp_for_lobe(lobe, &why);
+    if (!w) throw Error("factorize: the warped parametrization does not fit this lobe: " + why);
+    return *w;
+}
+
 /// ParamChoice's rule: `run(param, errors)` factorizes in one parametrization (errors: F's matrix
 /// errors are needed even where the path would skip them).
 template <class Run>
@@ -148,49 +169,67 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
         c.reason = std::string("forced ") + to_string(*o.param) + " (" + param_errors(c.of(*o.param)) + ")";
         return f;
     }
-    Stopwatch both;
-    Factorization plain = run(FactorParam::Gshd, true);
-    Factorization mirrored = run(FactorParam::Mirrored, true);
+    Stopwatch all;
+    std::string no_warp;
+    std::vector<FactorParam> params{FactorParam::Gshd, FactorParam::Mirrored};
+    if (warp_for_lobe(lobe, &no_warp)) params.push_back(FactorParam::Warped);
+    std::vector<Factorization> runs;
     ParamChoice c;
-    c.candidates = {candidate_of(lobe, plain), candidate_of(lobe, mirrored)};
-    const ParamCandidate& a = c.of(FactorParam::Gshd);
-    const ParamCandidate& b = c.of(FactorParam::Mirrored);
-    const std::string errors = " (gshd " + param_errors(a) + "; mirrored " + param_errors(b) + ")";
-    if (std::abs(a.direct_rms - b.direct_rms) <= kParamTieMargin * std::max(a.direct_rms, b.direct_rms)) {
-        c.param = b.terms.count < a.terms.count ? FactorParam::Mirrored : FactorParam::Gshd;
-        c.reason = std::string("automatic: ") + to_string(c.param) + ", " +
-                   (a.terms.count == b.terms.count ? "the thesis's" : "fewer terms") +
-                   " (relative RMS against the lobe through the cube-maps within " + percent(kParamTieMargin) + ")" + errors;
-    } else {
-        c.param = b.direct_rms < a.direct_rms ? FactorParam::Mirrored : FactorParam::Gshd;
-        c.reason = std::string("automatic: ") + to_string(c.param) +
-                   ", the lower relative RMS against the lobe through the cube-maps" + errors;
+    std::string errors;
+    for (const FactorParam p : params) {
+        runs.push_back(run(p, true));
+        c.candidates[static_cast<std::size_t>(p)] = candidate_of(lobe, runs.back());
+        errors += std::string(errors.empty() ? " (" : "; ") + to_string(p) + " " + param_errors(c.of(p));
     }
-    Factorization& kept = c.param == FactorParam::Mirrored ? mirrored : plain;
-    kept.param_choice = std::move(c);
-    kept.timings.total_s = both.seconds(); // both factorizations and their errors
-    return std::move(kept);
+    errors += no_warp.empty() ? ")" : "; warped not offered: " + no_warp + ")";
+    // The least error; within the tie margin of it, the fewest terms, then the earliest in
+    // `params` (the thesis's first).
+    double best = std::numeric_limits<double>::infinity();
+    for (const FactorParam p : params) best = std::min(best, c.of(p).direct_rms);
+    std::optional<FactorParam> pick;
+    bool tie = false;
+    for (const FactorParam p : params) {
+        const ParamCandidate& x = c.of(p);
+        if (x.direct_rms > best + kParamTieMargin * best) continue;
+        if (pick) tie = true;
+        if (!pick || x.terms.count < c.of(*pick).terms.count) pick = p;
+    }
+    c.param = pick.value_or(FactorParam::Gshd);
+    c.reason = std::string("automatic: ") + to_string(c.param) +
+               (tie ? ", the fewest terms then the thesis's order among those within " + percent(kParamTieMargin) +
+                          " of the least relative RMS against the lobe through the cube-maps"
+                    : std::string(", the lower relative RMS against the lobe through the cube-maps")) +
+               errors;
+    const std::size_t kept = static_cast<std::size_t>(std::find(params.begin(), params.end(), c.param) - params.begin());
+    Factorization f = std::move(runs[kept]);
+    f.param_choice = std::move(c);
+    f.timings.total_s = all.seconds(); // every factorization and its errors
+    return f;
 }
 
 Factorization factorize_cpu_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param) {
     Factorization f;
     f.param = param;
+    if (param == FactorParam::Warped) f.warp = required_warp(lobe);
     f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     Stopwatch total;
     Stopwatch step;
-    BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param});
+    BrdfMatrix m = brdf_matrix_cpu(
+        {.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param, .warp = f.warp});
     f.timings.matrix_s = step.seconds();
     step.restart();
     f.decomposition = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
+    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0)
+        f.decomposition = refine_first_term_cpu(m, f.decomposition, it);
     f.timings.decomposition_s = step.seconds();
     step.restart();
     f.cube_g = cubemaps_cpu({.grid = f.decomposition.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g});
     f.cube_h = cubemaps_cpu({.grid = f.decomposition.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h});
     f.timings.cubemaps_s = step.seconds();
     std::string note;
-    const uint32_t kmax = terms_to_compute(lobe, options, note);
+    const uint32_t kmax = terms_to_compute(lobe, options, param, note);
     step.restart();
     std::vector<Decomposition> rest;
     if (kmax > 1)
@@ -229,15 +268,16 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
                                      bool errors) {
     Factorization f;
     f.param = param;
+    if (param == FactorParam::Warped) f.warp = required_warp(lobe);
     f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     const FactorizationResolution& r = f.resolution;
-    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param};
+    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.warp};
     brdf_matrix_validate(min);
     if (!(options.p >= 1.0f && options.p <= 64.0f)) throw Error("factorize: p must be in [1, 64]");
     std::string note;
-    const uint32_t kmax = terms_to_compute(lobe, options, note);
+    const uint32_t kmax = terms_to_compute(lobe, options, param, note);
     if (kmax > 1 && (options.iterations < 1 || options.iterations > 1000))
         throw Error("factorize: iterations must be in [1, 1000]");
     Stopwatch total;
@@ -256,6 +296,10 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     seq.barrier(gpu::Barrier::ComputeToCompute);
     m_decomposition.record(seq, matrix, g, h, r.grid_h, r.grid_d, options.p, options.weighting);
     seq.barrier(gpu::Barrier::ComputeToCompute);
+    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0) {
+        m_residual.record_refine_first(seq, matrix, g, h, r.grid_h, r.grid_d, it);
+        seq.barrier(gpu::Barrier::ComputeToCompute);
+    }
     m_cubemaps.record(seq, g, cube_g, r.grid_h, r.cube_g, "cube_g");
     m_cubemaps.record(seq, h, cube_h, r.grid_d, r.cube_h, "cube_h");
     // Terms 2..K_max read term 1's G and H and write their own parts of g and h, which the
@@ -267,12 +311,13 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
 
     f.decomposition = Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
-                                    .h = h.download<glm::vec3>(cols), .param = param};
+                                    .h = h.download<glm::vec3>(cols), .param = param, .warp = f.warp};
     f.cube_g = Cubemap{.res = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)};
     f.cube_h = Cubemap{.res = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)};
     std::optional<BrdfMatrix> m;
     if (options.keep_matrix || errors || kmax > 1)
-        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .values = matrix.download<float>(3 * rows * cols)};
+        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.warp,
+                       .values = matrix.download<float>(3 * rows * cols)};
     std::vector<Decomposition> rest;
     if (kmax > 1) {
         const std::vector<glm::vec3> ga = g.download<glm::vec3>(kmax * rows);
@@ -281,7 +326,8 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
             rest.push_back(Decomposition{.res_h = r.grid_h, .res_d = r.grid_d,
                                          .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
                                          .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols},
-                                         .param = param});
+                                         .param = param,
+                                         .warp = f.warp});
     }
     f.terms = choose_terms(m ? &*m : nullptr, f.decomposition, rest, options, note);
     rest.resize(f.terms.count - 1);
@@ -312,6 +358,7 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
         else if (t.label == "decomposition_h") f.timings.decomposition_h_gpu_ns = t.ns;
         else if (t.label == "cube_g") f.timings.cube_g_gpu_ns = t.ns;
         else if (t.label == "cube_h") f.timings.cube_h_gpu_ns = t.ns;
+        else if (t.label == "first_term_als") f.timings.first_refine_gpu_ns = t.ns;
         else if (t.label.starts_with("residual_term_") && t.ns)
             f.timings.residual_gpu_ns = f.timings.residual_gpu_ns.value_or(0.0) + *t.ns;
     }
@@ -330,7 +377,7 @@ double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* c
     for (const Decomposition* d : terms)
         if (d == nullptr || d->res_h != m.res_h || d->res_d != m.res_d || d->g.size() != m.rows() || d->h.size() != m.cols())
             throw Error("matrix_relative_rms: resolutions differ");
-        else if (d->param != m.param)
+        else if (d->param != m.param || d->warp != m.warp)
             throw Error("matrix_relative_rms: the terms and the matrix have different parametrizations");
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
@@ -355,7 +402,7 @@ double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* c
 
 double matrix_relative_rms(const BrdfMatrix& m, const Decomposition& dec) {
     if (dec.res_h != m.res_h || dec.res_d != m.res_d) throw Error("matrix_relative_rms: resolutions differ");
-    if (dec.param != m.param) throw Error("matrix_relative_rms: the terms and the matrix have different parametrizations");
+    if (dec.param != m.param || dec.warp != m.warp) throw Error("matrix_relative_rms: the terms and the matrix have different parametrizations");
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
     double err = 0.0;
@@ -378,9 +425,11 @@ namespace {
 
 /// Relative RMS against the lobe over `pairs` random (u, v) pairs, both uniform in solid
 /// angle on the upper hemisphere; `model(c)` gives the (grid, cube-map) approximations at the
-/// coordinates c of a pair in parametrization `param`.
+/// coordinates c of a pair in parametrization `param` (warp: FactorParam::Warped's), which the
+/// radial factor multiplies in the warped parametrization.
 template <class Model>
-DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, uint32_t pairs, uint32_t seed, Model&& model) {
+DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm::vec4 warp, uint32_t pairs, uint32_t seed,
+                                Model&& model) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     const double two_pi = 6.283185307179586;
@@ -394,12 +443,24 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, uin
     for (uint32_t i = 0; i < pairs; ++i) {
         const glm::dvec3 u = hemisphere();
         const glm::dvec3 v = hemisphere();
-        const auto [gg, gc] = model(shared::f64::gshd_from_uv_param(u, v, static_cast<uint32_t>(param)));
+        const auto coords = [&](int k) {
+            return shared::f64::gshd_from_uv_warped(u, v, static_cast<uint32_t>(param), glm::dvec2(channel_warp(warp, k)));
+        };
+        auto [gg, gc] = model(coords(0));
+        if (param == FactorParam::Warped) // each channel at its own coordinates
+            for (int k = 1; k < 3; ++k) {
+                const auto [g2, c2] = model(coords(k));
+                gg[k] = g2[k];
+                gc[k] = c2[k];
+            }
         for (int k = 0; k < 3; ++k) {
             const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
+            const double radial = param == FactorParam::Warped
+                                      ? std::min<double>(lafortune_radial_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
+                                      : 1.0;
             ref += f * f;
-            err_grid += (gg[k] - f) * (gg[k] - f);
-            err_cube += (gc[k] - f) * (gc[k] - f);
+            err_grid += (radial * gg[k] - f) * (radial * gg[k] - f);
+            err_cube += (radial * gc[k] - f) * (radial * gc[k] - f);
         }
     }
     DirectError out;
@@ -414,7 +475,7 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, uin
 DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const Cubemap* cube_g,
                                 const Cubemap* cube_h, uint32_t pairs, uint32_t seed) {
     const bool cubes = cube_g != nullptr && cube_h != nullptr;
-    DirectError out = sample_direct_error(lobe, dec.param, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    DirectError out = sample_direct_error(lobe, dec.param, dec.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
         const glm::dvec3 gc = cubes ? cubemap_sample(*cube_g, c.h) * cubemap_sample(*cube_h, c.d) : glm::dvec3(0.0);
         return std::pair{gg, gc};
@@ -430,7 +491,7 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f
         throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
                     std::to_string(fac.term_count()));
     // The same draws as the one-term overload; the sum of the terms is clamped at 0 as the renderer does.
-    return sample_direct_error(lobe, fac.param, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    return sample_direct_error(lobe, fac.param, fac.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         glm::dvec3 gg(0.0), gc(0.0);
         for (uint32_t k = 0; k < k_count; ++k) {
             const Decomposition& d = fac.grids(k);

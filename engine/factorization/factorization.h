@@ -11,14 +11,17 @@
 ///   f.terms.count, f.terms.reason      // K, and why (issue 5: sum of K separable terms)
 ///   f.extra[k - 2].cube_g              // terms 2..K (residual_term.h)
 ///
-/// A renderer evaluates f_s(u, v) ~ max(0, sum_k G_k(h) H_k(d)) with
-/// (h, d) = gshd_from_uv_param(u, v, f.param); K = 1 is the thesis's single term.
+/// A renderer evaluates f_s(u, v) ~ R(u) max(0, sum_k G_k(h) H_k(d)) with
+/// (h, d) = gshd_from_uv_warped(u, v, f.param, f.warp), R = 1 except in the warped
+/// parametrization (R = lafortune_radial); K = 1 is the thesis's single term.
 ///
-/// The parametrization f.param (shared/gshd.h part 4): the thesis's GSHD of (u, v), or the
-/// mirrored GSHD of (r(u), v) with r(u) = (-ux, -uy, uz). A lobe with Cx < 0 peaks about the
-/// mirror direction, and the mirrored F is exactly rank 1 when Cx = -Cz; the plain one is when
-/// Cx = +Cz. By default both are factorized and the one with the lower matrix error is kept
-/// (f.param_choice says which, why, and both errors).
+/// The parametrization f.param (shared/gshd.h parts 4 and 5): the thesis's GSHD of (u, v),
+/// the mirrored GSHD of (r(u), v) with r(u) = (-ux, -uy, uz), or the warped GSHD of (w(u), v)
+/// with F the lobe over R. A lobe with Cx < 0 peaks about the mirror direction, and the
+/// mirrored F is exactly rank 1 when Cx = -Cz; the plain one is when Cx = +Cz; the warped one
+/// for every lobe in the channel its warp fits. By default each is factorized and the one with
+/// the least error against the lobe through the cube-maps is kept (f.param_choice says which,
+/// why, and every error).
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
 #include "factorization/lobe.h"
@@ -53,6 +56,11 @@ struct FactorizationOptions {
     uint32_t max_terms = kMaxTerms;
     double term_target = kDefaultTermTarget;
     uint32_t iterations = kResidualIterations; ///< ALS iterations per residual term
+    /// ALS iterations refining term 1 (refine_first_term_cpu) after the normalized
+    /// decomposition: nullopt = kResidualIterations in the warped parametrization (exactly rank 1
+    /// there, where the normalized decomposition alone keeps ~34%), 0 (the thesis's term 1) in
+    /// the others. Left out, as the residual terms are, for a lobe over kResidualMaxValue.
+    std::optional<uint32_t> first_iterations;
     /// Parametrization of the pairs: nullopt = automatic (both factorized, ParamChoice's rule),
     /// else forced (FactorParam::Gshd is the thesis). Zero grid fields take each one's default rule.
     std::optional<FactorParam> param;
@@ -72,6 +80,7 @@ struct FactorizationTimings {
     std::optional<double> cube_g_gpu_ns;
     std::optional<double> cube_h_gpu_ns;
     std::optional<double> residual_gpu_ns; ///< all residual terms computed (nullopt for K_max = 1)
+    std::optional<double> first_refine_gpu_ns; ///< term 1's ALS refinement (nullopt without one)
     [[nodiscard]] std::optional<double> gpu_total_ns() const;
 };
 
@@ -121,13 +130,19 @@ struct ParamChoice {
     FactorParam param = FactorParam::Gshd;
     bool forced = false;
     std::string reason;
-    std::array<ParamCandidate, 2> candidates{}; ///< index = FactorParam's value; only the forced one when forced
+    /// index = FactorParam's value; only the forced one when forced, and warped only for a lobe
+    /// warp_for_lobe accepts
+    std::array<ParamCandidate, kFactorParamCount> candidates{};
     [[nodiscard]] const ParamCandidate& of(FactorParam p) const { return candidates[static_cast<std::size_t>(p)]; }
 };
 
 struct Factorization {
     FactorizationResolution resolution;
-    FactorParam param = FactorParam::Gshd; ///< how (h, d) come from (u, v) (shared/gshd.h part 4)
+    FactorParam param = FactorParam::Gshd; ///< how (h, d) come from (u, v) (shared/gshd.h parts 4, 5)
+    /// FactorParam::Warped: the warp (s, k_r, k_g, k_b) (warp_for_lobe; channel c looks up at the
+    /// coordinates of its warp (s, k_c)), and the terms approximate the lobe over its radial
+    /// factor: f ~ lafortune_radial(u) max(0, sum_k G_k H_k). (1, 1, 1, 1) otherwise.
+    glm::vec4 warp{1.0f};
     ParamChoice param_choice;
     TermChoice terms;
     float p = 2.0f;

@@ -56,6 +56,7 @@ struct Decomposition {
     std::vector<glm::vec3> g; // res_h^2 cells of the h grid, rgb
     std::vector<glm::vec3> h; // res_d^2 cells of the d grid, rgb
     FactorParam param = FactorParam::Gshd; // the decomposed matrix's: how (h, d) come from (u, v)
+    glm::vec4 warp{1.0f};            // and its warp (FactorParam::Warped)
 };
 
 /// Throws specula::Error for a missing or inconsistent matrix or p not in [1, 64].

@@ -56,7 +56,7 @@ Decomposition normalized_decomposition_cpu(const DecompositionInputs& in) {
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
     const double p = in.p;
-    Decomposition out{.res_h = m.res_h, .res_d = m.res_d, .g = {}, .h = {}, .param = m.param};
+    Decomposition out{.res_h = m.res_h, .res_d = m.res_d, .g = {}, .h = {}, .param = m.param, .warp = m.warp};
     out.g.assign(rows, glm::vec3(0.0f));
     out.h.assign(cols, glm::vec3(0.0f));
     std::vector<double> g(3 * rows, 0.0);

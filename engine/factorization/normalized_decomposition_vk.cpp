@@ -40,7 +40,7 @@ Decomposition NormalizedDecompositionVk::run(const DecompositionInputs& in) {
     record(seq, matrix, g, h, m.res_h, m.res_d, in.p, in.weighting);
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
     Decomposition out{.res_h = m.res_h, .res_d = m.res_d, .g = g.download<glm::vec3>(m.rows()),
-                      .h = h.download<glm::vec3>(m.cols()), .param = m.param};
+                      .h = h.download<glm::vec3>(m.cols()), .param = m.param, .warp = m.warp};
     m_last_gpu_ns.reset();
     double ns = 0.0;
     for (const auto& t : seq.timings()) {

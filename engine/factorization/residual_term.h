@@ -40,6 +40,14 @@ void residual_terms_validate(const ResidualTermsInputs& in);
 /// (the next term's residual uses the rounded values, as the shader does).
 [[nodiscard]] std::vector<Decomposition> residual_terms_cpu(const ResidualTermsInputs& in);
 
+/// Term 1 refined by `iterations` alternating least-squares (G, H) pairs over the valid
+/// entries of F, from its own H (warm: the normalized decomposition's): the passes above with
+/// R = F. Why: the normalized decomposition's G(h) is a norm over the row's valid entries, and
+/// the valid set changes from row to row, so on a matrix that is exactly rank 1 over its valid
+/// entries (the warped parametrization, shared/gshd.h part 5) term 1 keeps ~34% relative RMS;
+/// the least-squares fit has none. Non-negative F and a non-negative start stay non-negative.
+[[nodiscard]] Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations);
+
 struct ResidualTermPush {
     gpu::DispatchHeader dispatch;
     uint32_t rows;
@@ -57,6 +65,11 @@ public:
     /// Records terms 2..terms, each in a timing span "residual_term_<k>" (k = 2..terms).
     void record(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
                 uint32_t res_h, uint32_t res_d, uint32_t terms, uint32_t iterations) const;
+    /// Records refine_first_term_cpu's passes on term 0 of g and h (timing span "first_term_als").
+    void record_refine_first(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
+                             uint32_t res_h, uint32_t res_d, uint32_t iterations) const;
+    /// Uploads F and term 1, refines term 1 (refine_first_term_cpu), downloads it.
+    [[nodiscard]] Decomposition run_refine_first(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations);
     /// Uploads F and term 1, runs, downloads terms 2..K.
     [[nodiscard]] std::vector<Decomposition> run(const ResidualTermsInputs& in);
 

@@ -43,80 +43,94 @@ void residual_terms_validate(const ResidualTermsInputs& in) {
     if (in.iterations < 1 || in.iterations > 1000) throw Error("residual_terms: iterations must be in [1, 1000]");
 }
 
+namespace {
+
+/// Fits term k of `all` to F - sum_{j < active, j != k} G_j H_j: from the column RMS (cold) or
+/// from the term's current H (warm), then `iterations` (G, H) pairs.
+void fit_term(const BrdfMatrix& m, std::vector<Decomposition>& all, uint32_t k, uint32_t active, bool warm,
+              uint32_t iterations) {
+    const std::size_t rows = m.rows();
+    const std::size_t cols = m.cols();
+    std::vector<double> r(rows * cols); // residual of one channel; NaN marks invalid entries
+    std::vector<double> g(rows), h(cols);
+    Decomposition& t = all[k];
+    for (uint32_t c = 0; c < 3; ++c) {
+        const int ci = static_cast<int>(c);
+        for (std::size_t row = 0; row < rows; ++row)
+            for (std::size_t col = 0; col < cols; ++col) {
+                const float v = m.at(c, row, col);
+                if (v < 0.0f) {
+                    r[row * cols + col] = std::nan("");
+                    continue;
+                }
+                // Same order as the shader: F - G_0 H_0 - G_1 H_1 ..., products of floats.
+                float acc = v;
+                for (uint32_t j = 0; j < active; ++j)
+                    if (j != k) acc -= all[j].g[row][ci] * all[j].h[col][ci];
+                r[row * cols + col] = acc;
+            }
+        // The shader reads back its own float G and H between passes: round the same way.
+        if (warm) {
+            for (std::size_t col = 0; col < cols; ++col) h[col] = t.h[col][ci];
+        } else {
+            for (std::size_t col = 0; col < cols; ++col) {
+                BlockedSum2 s;
+                for (std::size_t row = 0; row < rows; ++row) {
+                    const double x = r[row * cols + col];
+                    if (std::isnan(x)) continue;
+                    s.add(x * x, 0.0);
+                }
+                h[col] = static_cast<float>(s.count > 0 ? std::sqrt(s.num() / s.count) : 0.0);
+            }
+        }
+        for (uint32_t it = 0; it < iterations; ++it) {
+            for (std::size_t row = 0; row < rows; ++row) {
+                BlockedSum2 s;
+                for (std::size_t col = 0; col < cols; ++col) {
+                    const double x = r[row * cols + col];
+                    if (std::isnan(x)) continue;
+                    s.add(x * h[col], h[col] * h[col]);
+                }
+                g[row] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
+            }
+            for (std::size_t col = 0; col < cols; ++col) {
+                BlockedSum2 s;
+                for (std::size_t row = 0; row < rows; ++row) {
+                    const double x = r[row * cols + col];
+                    if (std::isnan(x)) continue;
+                    s.add(x * g[row], g[row] * g[row]);
+                }
+                h[col] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
+            }
+        }
+        for (std::size_t row = 0; row < rows; ++row) t.g[row][ci] = static_cast<float>(g[row]);
+        for (std::size_t col = 0; col < cols; ++col) t.h[col][ci] = static_cast<float>(h[col]);
+    }
+}
+
+} // namespace
+
 std::vector<Decomposition> residual_terms_cpu(const ResidualTermsInputs& in) {
     residual_terms_validate(in);
     const BrdfMatrix& m = *in.matrix;
-    const std::size_t rows = m.rows();
-    const std::size_t cols = m.cols();
     std::vector<Decomposition> all(in.terms, Decomposition{.res_h = m.res_h, .res_d = m.res_d,
-                                                           .g = std::vector<glm::vec3>(rows, glm::vec3(0.0f)),
-                                                           .h = std::vector<glm::vec3>(cols, glm::vec3(0.0f)),
-                                                           .param = m.param});
+                                                           .g = std::vector<glm::vec3>(m.rows(), glm::vec3(0.0f)),
+                                                           .h = std::vector<glm::vec3>(m.cols(), glm::vec3(0.0f)),
+                                                           .param = m.param, .warp = m.warp});
     all[0] = *in.first;
-    std::vector<double> r(rows * cols); // residual of one channel; NaN marks invalid entries
-    std::vector<double> g(rows), h(cols);
-    // Fits term k to F - sum_{j < active, j != k} G_j H_j: from the column RMS (cold) or
-    // from the term's current H (warm), then `iterations` (G, H) pairs. Only the greedy,
-    // cold form is used: back-fitting (refitting every term to F minus all the others, warm,
-    // also term 1) was measured and gains little: pepsi K = 4 matrix RMS 0.155 greedy,
-    // 0.144 with 6 cycles of terms 2..K, 0.132 with 10 cycles including term 1.
-    const auto fit = [&](uint32_t k, uint32_t active, bool warm, uint32_t iterations) {
-        Decomposition& t = all[k];
-        for (uint32_t c = 0; c < 3; ++c) {
-            const int ci = static_cast<int>(c);
-            for (std::size_t row = 0; row < rows; ++row)
-                for (std::size_t col = 0; col < cols; ++col) {
-                    const float v = m.at(c, row, col);
-                    if (v < 0.0f) {
-                        r[row * cols + col] = std::nan("");
-                        continue;
-                    }
-                    // Same order as the shader: F - G_0 H_0 - G_1 H_1 ..., products of floats.
-                    float acc = v;
-                    for (uint32_t j = 0; j < active; ++j)
-                        if (j != k) acc -= all[j].g[row][ci] * all[j].h[col][ci];
-                    r[row * cols + col] = acc;
-                }
-            // The shader reads back its own float G and H between passes: round the same way.
-            if (warm) {
-                for (std::size_t col = 0; col < cols; ++col) h[col] = t.h[col][ci];
-            } else {
-                for (std::size_t col = 0; col < cols; ++col) {
-                    BlockedSum2 s;
-                    for (std::size_t row = 0; row < rows; ++row) {
-                        const double x = r[row * cols + col];
-                        if (std::isnan(x)) continue;
-                        s.add(x * x, 0.0);
-                    }
-                    h[col] = static_cast<float>(s.count > 0 ? std::sqrt(s.num() / s.count) : 0.0);
-                }
-            }
-            for (uint32_t it = 0; it < iterations; ++it) {
-                for (std::size_t row = 0; row < rows; ++row) {
-                    BlockedSum2 s;
-                    for (std::size_t col = 0; col < cols; ++col) {
-                        const double x = r[row * cols + col];
-                        if (std::isnan(x)) continue;
-                        s.add(x * h[col], h[col] * h[col]);
-                    }
-                    g[row] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
-                }
-                for (std::size_t col = 0; col < cols; ++col) {
-                    BlockedSum2 s;
-                    for (std::size_t row = 0; row < rows; ++row) {
-                        const double x = r[row * cols + col];
-                        if (std::isnan(x)) continue;
-                        s.add(x * g[row], g[row] * g[row]);
-                    }
-                    h[col] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
-                }
-            }
-            for (std::size_t row = 0; row < rows; ++row) t.g[row][ci] = static_cast<float>(g[row]);
-            for (std::size_t col = 0; col < cols; ++col) t.h[col][ci] = static_cast<float>(h[col]);
-        }
-    };
-    for (uint32_t k = 1; k < in.terms; ++k) fit(k, k, false, in.iterations); // greedy deflation
+    // Only the greedy, cold form is used for terms 2..K: back-fitting (refitting every term to
+    // F minus all the others, warm, also term 1) was measured and gains little: pepsi K = 4
+    // matrix RMS 0.155 greedy, 0.144 with 6 cycles of terms 2..K, 0.132 with 10 cycles
+    // including term 1 (plain GSHD; term 1 alone: refine_first_term_cpu).
+    for (uint32_t k = 1; k < in.terms; ++k) fit_term(m, all, k, k, false, in.iterations); // greedy deflation
     return {std::make_move_iterator(all.begin() + 1), std::make_move_iterator(all.end())};
+}
+
+Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations) {
+    residual_terms_validate({.matrix = &m, .first = &first, .terms = 2, .iterations = iterations});
+    std::vector<Decomposition> all{first};
+    fit_term(m, all, 0, 1, true, iterations);
+    return std::move(all[0]);
 }
 
 } // namespace specula::factorization

@@ -39,6 +39,38 @@ void ResidualTermsVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, cons
     }
 }
 
+void ResidualTermsVk::record_refine_first(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g,
+                                          const gpu::Buffer& h, uint32_t res_h, uint32_t res_d, uint32_t iterations) const {
+    const uint32_t rows = res_h * res_h;
+    const uint32_t cols = res_d * res_d;
+    seq.time_begin("first_term_als");
+    ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = 0, .pass_index = 1};
+    for (uint32_t it = 0; it < iterations; ++it) {
+        if (it > 0) seq.barrier(gpu::Barrier::ComputeToCompute);
+        push.pass_index = 1;
+        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * rows, push);
+        seq.barrier(gpu::Barrier::ComputeToCompute);
+        push.pass_index = 2;
+        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
+    }
+    seq.time_end();
+}
+
+Decomposition ResidualTermsVk::run_refine_first(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations) {
+    residual_terms_validate({.matrix = &m, .first = &first, .terms = 2, .iterations = iterations});
+    gpu::Buffer matrix = gpu::Buffer::of<float>(*m_ctx, m.values.size(), "factorization F");
+    gpu::Buffer g = gpu::Buffer::of<glm::vec3>(*m_ctx, m.rows(), "factorization G grid");
+    gpu::Buffer h = gpu::Buffer::of<glm::vec3>(*m_ctx, m.cols(), "factorization H grid");
+    matrix.upload(m.values);
+    g.upload(first.g);
+    h.upload(first.h);
+    gpu::Sequence seq(*m_ctx, 2);
+    record_refine_first(seq, matrix, g, h, m.res_h, m.res_d, iterations);
+    seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
+    return Decomposition{.res_h = m.res_h, .res_d = m.res_d, .g = g.download<glm::vec3>(m.rows()),
+                         .h = h.download<glm::vec3>(m.cols()), .param = m.param, .warp = m.warp};
+}
+
 std::vector<Decomposition> ResidualTermsVk::run(const ResidualTermsInputs& in) {
     residual_terms_validate(in);
     const BrdfMatrix& m = *in.matrix;
@@ -60,7 +92,7 @@ std::vector<Decomposition> ResidualTermsVk::run(const ResidualTermsInputs& in) {
         out.push_back(Decomposition{.res_h = m.res_h, .res_d = m.res_d,
                                     .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
                                     .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols},
-                                    .param = m.param});
+                                    .param = m.param, .warp = m.warp});
     return out;
 }
 

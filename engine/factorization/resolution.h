@@ -8,7 +8,7 @@
 //            N_d = max over channels of N |Cx + Cz| / max(|Cx|, |Cz|)
 //   and R_h R_d <= kMaxGridProduct (F must fit one storage binding: 3 R_h^2 R_d^2 floats);
 //   cube faces: R_cube = ceil(R * pi / (2 sqrt 2)) rounded up to a multiple of 8.
-// In the mirrored parametrization (shared/gshd.h part 4) the two axes swap roles (derivation
+// In the mirrored and warped parametrizations (shared/gshd.h parts 4, 5) the two axes swap roles (derivation
 // in resolution.cpp): R_h is the rule's d value ([16, 64]) and R_d resolves the peak, with
 // kMirroredPeakCellsPerHalfWidth instead of kCellsPerHalfWidth:
 //   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
@@ -31,6 +31,11 @@ struct FactorizationResolution {
 
 inline constexpr double kCellsPerHalfWidth = 2.0;
 inline constexpr double kMirroredPeakCellsPerHalfWidth = 16.0;
+/// The warped parametrization (shared/gshd.h part 5): F is exactly rank 1 per channel, so G is
+/// flat (R_h = kMinGridRes) and the whole error is H's interpolation along d, where the peak
+/// needs kWarpedPeakCellsPerHalfWidth (twice that when a channel has Cz < 0: its peak is at
+/// the d map's horizon, where a cell spans about twice the angle it spans at the pole).
+inline constexpr double kWarpedPeakCellsPerHalfWidth = 28.0;
 inline constexpr uint32_t kMinGridRes = 16;
 inline constexpr uint32_t kMaxGridResH = 128;
 inline constexpr uint32_t kMaxGridResD = 64;

@@ -124,10 +124,10 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBac
 
 json rgb(const double (&v)[3]) { return json::array({v[0], v[1], v[2]}); }
 
-/// Both parametrizations' factorizations as the choice saw them (only the forced one when forced).
+/// Every parametrization's factorization as the choice saw it (only the forced one when forced).
 json param_candidates_json(const factorization::ParamChoice& c) {
     json out = json::object();
-    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored}) {
+    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
         const factorization::ParamCandidate& k = c.of(p);
         if (!k.computed) continue;
         out[to_string(p)] = {{"grid_h", k.resolution.grid_h},
@@ -582,8 +582,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     });
 
     // 8. Factorization of the lobe into the two cube-maps (Kautz and McCool), on the grid
-    //    the planner chose from the lobe's width, in the parametrization (plain or mirrored
-    //    GSHD) whose error against the lobe is lower. Channels whose fit did not converge carry
+    //    the planner chose from the lobe's width, in the parametrization (plain, mirrored or
+    //    warped GSHD) whose error against the lobe is lowest. Channels whose fit did not converge carry
     //    no lobe (they render diffuse only, and say so).
     std::optional<LafortuneRgb> lobe;
     std::vector<std::string> lobe_status;
@@ -670,6 +670,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                 {"parametrization_reason", cubes->param_choice.reason},
                                 {"parametrization_candidates", param_candidates_json(cubes->param_choice)},
                                 {"seconds", cubes->timings.total_s}};
+        if (cubes->param == FactorParam::Warped) factorization_report["warp"] = {cubes->warp.x, cubes->warp.y, cubes->warp.z, cubes->warp.w};
         if (const auto ns = cubes->timings.gpu_total_ns()) factorization_report["gpu_ms"] = *ns * 1e-6;
         const auto add_gpu = [&](const char* label, const std::optional<double>& ns) {
             if (ns) gpu_dispatches.push_back({{"stage", "factorization"}, {"dispatch", label}, {"ms", *ns * 1e-6}});
@@ -708,6 +709,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             for (const factorization::FactorTerm& t : cubes->extra)
                 b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
             b.factor_param = cubes->param;
+            b.factor_warp = cubes->warp;
         }
         b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(config.out_dir / "object.glb", b);

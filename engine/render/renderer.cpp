@@ -189,6 +189,7 @@ struct Renderer::Impl {
     gpu::Image albedo;
     std::vector<gpu::Image> cubes_g, cubes_h; // one per term (empty before set_factorization)
     FactorParam factor_param = FactorParam::Gshd; // their parametrization: params.flags.w
+    glm::vec4 factor_warp{1.0f};            // and its warp: params.factor_warp
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
@@ -395,6 +396,7 @@ struct Renderer::Impl {
         p.lobe_n = glm::vec4(lobe.n, 0.0f);
         p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u,
                              static_cast<uint32_t>(factor_param));
+        p.factor_warp = factor_warp;
         if (frustum) {
             p.light_to_clip = glm::mat4(frustum->to_clip);
             p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
@@ -491,16 +493,19 @@ VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format
 bool Renderer::has_factorization() const noexcept { return !m_impl->cubes_g.empty(); }
 uint32_t Renderer::factorization_terms() const noexcept { return static_cast<uint32_t>(m_impl->cubes_g.size()); }
 FactorParam Renderer::factorization_param() const noexcept { return m_impl->factor_param; }
+glm::vec4 Renderer::factorization_warp() const noexcept { return m_impl->factor_warp; }
 
-void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param) {
+void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param, glm::vec4 warp) {
     const FactorTermCubes one{g, h};
-    set_factorization(std::span<const FactorTermCubes>(&one, 1), param);
+    set_factorization(std::span<const FactorTermCubes>(&one, 1), param, warp);
 }
 
-void Renderer::set_factorization(std::span<const FactorTermCubes> terms, FactorParam param) {
+void Renderer::set_factorization(std::span<const FactorTermCubes> terms, FactorParam param, glm::vec4 warp) {
     if (terms.empty() || terms.size() > kMaxFactorTerms)
         throw Error("renderer: the factorized model takes 1 to " + std::to_string(kMaxFactorTerms) + " terms (got " +
                     std::to_string(terms.size()) + ")");
+    if (param == FactorParam::Warped && !valid_warp(warp))
+        throw Error("renderer: the warped parametrization needs a warp (+-1, k_r, k_g, k_b), every k in [1/64, 64]");
     Impl& m = *m_impl;
     std::vector<gpu::Image> g, h; // all uploaded before anything is replaced
     for (std::size_t k = 0; k < terms.size(); ++k) {
@@ -512,6 +517,7 @@ void Renderer::set_factorization(std::span<const FactorTermCubes> terms, FactorP
     m.cubes_g = std::move(g);
     m.cubes_h = std::move(h);
     m.factor_param = param;
+    m.factor_warp = param == FactorParam::Warped ? warp : glm::vec4(1.0f);
     for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set})
         for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
             const std::size_t t = k < m.cubes_g.size() ? k : 0;

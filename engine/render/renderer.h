@@ -179,15 +179,20 @@ public:
 
     /// Uploads the two factorization cube-maps (G looked up by h, H by d; both may have
     /// their own resolution). Enables SpecularModel::Factorized with one term (the thesis).
-    /// `param`: the parametrization the cube-maps were made in (shared/gshd.h part 4; the
-    /// factorization's Factorization::param, a bundle's Bundle::factor_param).
-    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param = FactorParam::Gshd);
+    /// `param`: the parametrization the cube-maps were made in (shared/gshd.h parts 4, 5; the
+    /// factorization's Factorization::param, a bundle's Bundle::factor_param) and `warp` its warp
+    /// (FactorParam::Warped only: then the terms are multiplied by the radial factor of the
+    /// lobe set by set_lobe, which must be the factorized one).
+    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param = FactorParam::Gshd,
+                           glm::vec4 warp = glm::vec4(1.0f));
     /// K = terms.size() terms (1..kMaxFactorTerms), summed and clamped at 0 per channel.
     /// Each cube-map may have its own resolution.
-    void set_factorization(std::span<const FactorTermCubes> terms, FactorParam param = FactorParam::Gshd);
+    void set_factorization(std::span<const FactorTermCubes> terms, FactorParam param = FactorParam::Gshd,
+                           glm::vec4 warp = glm::vec4(1.0f));
     [[nodiscard]] bool has_factorization() const noexcept;
     [[nodiscard]] uint32_t factorization_terms() const noexcept; ///< 0 before set_factorization
     [[nodiscard]] FactorParam factorization_param() const noexcept;
+    [[nodiscard]] glm::vec4 factorization_warp() const noexcept;
 
     /// Renders one frame and reads it back. Throws Error when `settings` asks for the
     /// factorized model before set_factorization().

@@ -4,8 +4,10 @@
 // columns the cells of the d grid (res_d x res_d); element e = row * cols + col.
 // Output is channel-planar: f[c * rows * cols + e]. Entries whose (u, v) leaves the upper
 // hemisphere are kGshdInvalid; values are flushed below kGshdMinValue and clamped at
-// kGshdMaxValue. pc.param picks the parametrization (shared/gshd.h part 4: kGshdPlain, the
-// thesis's GSHD, or kGshdMirrored). Reference: engine/factorization/brdf_matrix_cpu.cpp.
+// kGshdMaxValue. pc.param picks the parametrization (shared/gshd.h parts 4 and 5: kGshdPlain,
+// the thesis's GSHD, kGshdMirrored, or kGshdWarped with channel c's warp (warp_s, warp_k[c]),
+// whose F is the lobe over its radial factor; the validity test is per channel there).
+// Reference: engine/factorization/brdf_matrix_cpu.cpp.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
@@ -22,8 +24,18 @@ layout(push_constant) uniform Push {
     vec4 cx; // rgb in xyz
     vec4 cz;
     vec4 n;
-    uint param; // kGshdPlain or kGshdMirrored
+    uint param; // kGshdPlain, kGshdMirrored or kGshdWarped
+    float warp_s;
+    float warp_k[3];
 } pc;
+
+// f / |C u|^N (shared/gshd.h part 5), in [0, 1]; 0 where C u = 0.
+float lafortune_normalized(float cx, float cz, float n, vec3 u, vec3 v) {
+    float s = cx * cx * (u.x * u.x + u.y * u.y) + cz * cz * (u.z * u.z);
+    if (!(s > 0.0)) return 0.0;
+    float base = lafortune_base(cx, cz, u, v) * inversesqrt(s);
+    return base > 0.0 ? pow(min(base, 1.0), n) : 0.0;
+}
 
 void main() {
     uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
@@ -31,10 +43,19 @@ void main() {
     uint cols = pc.res_d * pc.res_d;
     uint row = e / cols;
     uint col = e - row * cols;
-    GshdPair p = gshd_to_uv_param(gshd_grid_dir(row, pc.res_h), gshd_grid_dir(col, pc.res_d), pc.param);
+    vec3 h = gshd_grid_dir(row, pc.res_h);
+    vec3 d = gshd_grid_dir(col, pc.res_d);
     vec3 value = vec3(kGshdInvalid);
-    if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos) {
-        value = gshd_clamp_value(lafortune_eval_rgb(pc.cx.xyz, pc.cz.xyz, pc.n.xyz, p.u, p.v));
+    if (pc.param == kGshdWarped) { // each channel's pair in its own warp
+        for (uint c = 0u; c < 3u; ++c) {
+            GshdPair p = gshd_to_uv_warped(h, d, pc.param, vec2(pc.warp_s, pc.warp_k[c]));
+            if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos)
+                value[c] = gshd_clamp_value(vec3(lafortune_normalized(pc.cx[c], pc.cz[c], pc.n[c], p.u, p.v))).x;
+        }
+    } else {
+        GshdPair p = gshd_to_uv_param(h, d, pc.param);
+        if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos)
+            value = gshd_clamp_value(lafortune_eval_rgb(pc.cx.xyz, pc.cz.xyz, pc.n.xyz, p.u, p.v));
     }
     uint plane = pc.element_count;
     f[e] = value.x;

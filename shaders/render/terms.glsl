@@ -50,9 +50,22 @@ vec3 specular_analytic_term(RenderParams p, vec3 world, vec3 n, float visibility
 }
 
 // max(0, sum_k G_k(h) H_k(d)) over the first p.flags.y (1..4) terms of the Kautz-McCool
-// factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)), times V I max(0, n.u) / d^2,
-// with (h, d) in the factorization's parametrization p.flags.w (kGshdPlain: the GSHD of (u, v);
-// kGshdMirrored: of (r(u), v), shared/gshd.h part 4).
+// factorization (shared/gshd.h; K = 1 is the thesis's G(h) H(d)) at the coordinates c.
+vec3 factor_terms(RenderParams p, samplerCube g0, samplerCube g1, samplerCube g2, samplerCube g3, samplerCube h0,
+                  samplerCube h1, samplerCube h2, samplerCube h3, GshdCoords c) {
+    uint terms = p.flags.y;
+    vec3 f = texture(g0, c.h).rgb * texture(h0, c.d).rgb;
+    if (terms > 1u) f += texture(g1, c.h).rgb * texture(h1, c.d).rgb;
+    if (terms > 2u) f += texture(g2, c.h).rgb * texture(h2, c.d).rgb;
+    if (terms > 3u) f += texture(g3, c.h).rgb * texture(h3, c.d).rgb;
+    return max(f, vec3(0.0));
+}
+
+// The factorized lobe times V I max(0, n.u) / d^2, with (h, d) in the factorization's
+// parametrization p.flags.w: kGshdPlain, the GSHD of (u, v); kGshdMirrored, of (r(u), v)
+// (shared/gshd.h part 4); kGshdWarped, of (w_c(u), v) with channel c's warp
+// (p.factor_warp.x, p.factor_warp[c + 1]), a lookup per channel, and the sum times the lobe's
+// radial factor |C u|^N (part 5).
 // Four fixed sampler pairs (no descriptor indexing on lavapipe): the pass shaders declare
 // them at bindings 3..6 (G) and 7..10 (H) and pass them in.
 vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, samplerCube g2, samplerCube g3,
@@ -63,13 +76,18 @@ vec3 specular_factorized_term(RenderParams p, samplerCube g0, samplerCube g1, sa
     if (irradiance != vec3(0.0)) {
         vec3 u = to_tangent_frame(n, direction_to(world, p.light_position.xyz));
         vec3 v = to_tangent_frame(n, direction_to(world, p.eye.xyz));
-        GshdCoords c = gshd_from_uv_param(u, v, p.flags.w);
-        uint terms = p.flags.y;
-        vec3 f = texture(g0, c.h).rgb * texture(h0, c.d).rgb;
-        if (terms > 1u) f += texture(g1, c.h).rgb * texture(h1, c.d).rgb;
-        if (terms > 2u) f += texture(g2, c.h).rgb * texture(h2, c.d).rgb;
-        if (terms > 3u) f += texture(g3, c.h).rgb * texture(h3, c.d).rgb;
-        color = max(f, vec3(0.0)) * irradiance;
+        vec3 f;
+        if (p.flags.w == kGshdWarped) {
+            for (int ch = 0; ch < 3; ++ch) {
+                GshdCoords c = gshd_from_uv_warped(u, v, kGshdWarped, vec2(p.factor_warp.x, p.factor_warp[ch + 1]));
+                f[ch] = factor_terms(p, g0, g1, g2, g3, h0, h1, h2, h3, c)[ch];
+            }
+            vec3 radial = lafortune_radial_rgb(p.lobe_cx.rgb, p.lobe_cz.rgb, p.lobe_n.rgb, u);
+            f = min(radial * f, vec3(kGshdMaxValue)); // radial <= kGshdMaxValue: finite, 0 where f is
+        } else {
+            f = factor_terms(p, g0, g1, g2, g3, h0, h1, h2, h3, gshd_from_uv_param(u, v, p.flags.w));
+        }
+        color = f * irradiance;
     }
     return color;
 }

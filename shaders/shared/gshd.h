@@ -47,6 +47,27 @@
 //    kGshdPlain is the thesis's parametrization; the factorization picks one per lobe
 //    (engine/factorization/factorization.h) and the bundle records which.
 //
+// 5. The warped GSHD (ours; not in the thesis): the GSHD of the pair (w(u), v) with
+//        w(u) = norm(s ux, s uy, k uz)       s = +-1, k > 0: the warp (s, k)
+//    and F tabulating the lobe divided by its radial factor |C u|^N (C = diag(Cx, Cx, Cz);
+//    shared/lafortune.h lafortune_radial). Why: with s = sign(Cx Cz) and k = |Cz| / |Cx|,
+//        C u = sign(Cz) |C u| w(u),   so   f(u, v) = |C u|^N max(0, sign(Cz) w(u).v)^N
+//    and w(u).v = cos(2 theta_d) = 2 dz^2 - 1 is a function of the GSHD difference vector of
+//    (w(u), v) alone: f / |C u|^N (lafortune_normalized, in [0, 1]) is exactly rank 1 for
+//    every Lafortune lobe, off-specular (|Cx| != |Cz|) and Cz < 0 ones included, where parts 1
+//    and 4 are rank 1 only for Cx = +-Cz. The mirrored GSHD is the warp (-1, 1) without the
+//    radial factor. Each channel has its own k (the lobe's warp is (s, k_r, k_g, k_b), s shared;
+//    engine/core/factor_param.h warp_for_lobe): channel c's F, and its lookups when rendering,
+//    use the pair in the warp (s, k_c), so every channel is exactly rank 1 (one shared k left
+//    1.0-1.3% matrix error on the cologne and vase lobes, whose channels' k differ by 3%, which
+//    further terms did not remove). The renderer computes the coordinates once per channel and
+//    multiplies the looked-up terms by lafortune_radial per channel (render/terms.glsl): the
+//    one part of the lobe evaluated in closed form, a function of the light's elevation only.
+//    Coordinates: gshd_from_uv_warped(u, v, kGshdWarped, warp) = gshd_from_uv(w(u), v); the
+//    inverse maps u' back by w^-1(u') = norm(s u'x, s u'y, u'z / k) (w keeps the sign of u.z,
+//    so the hemisphere tests are unchanged). For kGshdPlain and kGshdMirrored these functions
+//    are gshd_from_uv_param / gshd_to_uv_param and the warp is ignored.
+//
 // Rendering (pipeline.md section 7) looks G and H up as
 //     GshdCoords c = gshd_from_uv_param(u, v, param);       // u, v in the tangent frame
 //     f ~ texture(cube_g, c.h).rgb * texture(cube_h, c.d).rgb
@@ -78,9 +99,10 @@ const float kGshdMinValue = 1.0e-30f;
 // to the total, so the float sum of K terms has a relative error <= (64 + K / 64) eps.
 const uint kGshdSumBlock = 64u;
 const uint kCubeFaces = 6u;
-// The parametrizations of part 4 (engine/core/factor_param.h FactorParam has these values).
+// The parametrizations of parts 4 and 5 (engine/core/factor_param.h FactorParam has these values).
 const uint kGshdPlain = 0u;
 const uint kGshdMirrored = 1u;
+const uint kGshdWarped = 2u;
 
 #define GSHD_REAL float
 #define GSHD_VEC2 vec2

@@ -135,6 +135,33 @@ SHARED_FN GshdPair gshd_to_uv_param(GSHD_VEC3 h, GSHD_VEC3 d, uint param) {
     return p;
 }
 
+// ---- warped GSHD (gshd.h part 5) --------------------------------------------------
+
+// w(u) = norm(s ux, s uy, k uz) with warp = (s, k), s = +-1, k > 0.
+SHARED_FN GSHD_VEC3 gshd_warp(GSHD_VEC3 u, GSHD_VEC2 warp) {
+    return normalize(GSHD_VEC3(warp.x * u.x, warp.x * u.y, warp.y * u.z));
+}
+
+// Its inverse: norm(s u'x, s u'y, u'z / k).
+SHARED_FN GSHD_VEC3 gshd_unwarp(GSHD_VEC3 w, GSHD_VEC2 warp) {
+    return normalize(GSHD_VEC3(warp.x * w.x, warp.x * w.y, w.z / warp.y));
+}
+
+// (u, v) -> (h, d) in any parametrization: kGshdWarped takes the GSHD of (w(u), v), the
+// others are gshd_from_uv_param (warp unused).
+SHARED_FN GshdCoords gshd_from_uv_warped(GSHD_VEC3 u, GSHD_VEC3 v, uint param, GSHD_VEC2 warp) {
+    if (param == kGshdWarped) return gshd_from_uv(gshd_warp(u, warp), v);
+    return gshd_from_uv_param(u, v, param);
+}
+
+// (h, d) -> (u, v), the inverse of gshd_from_uv_warped.
+SHARED_FN GshdPair gshd_to_uv_warped(GSHD_VEC3 h, GSHD_VEC3 d, uint param, GSHD_VEC2 warp) {
+    if (param != kGshdWarped) return gshd_to_uv_param(h, d, param);
+    GshdPair p = gshd_to_uv(h, d);
+    p.u = gshd_unwarp(p.u, warp);
+    return p;
+}
+
 // A sampled lobe value as F stores it: flushed below kGshdMinValue, clamped at kGshdMaxValue.
 SHARED_FN GSHD_VEC3 gshd_clamp_value(GSHD_VEC3 f) {
     GSHD_VEC3 r = min(f, GSHD_VEC3(kGshdMaxValue));

@@ -28,5 +28,18 @@ SHARED_FN vec3 lafortune_eval_rgb(vec3 cx, vec3 cz, vec3 n, vec3 u, vec3 v) {
                 lafortune_eval(cx.z, cz.z, n.z, u, v));
 }
 
+// The lobe's radial factor |C u|^N, C = diag(Cx, Cx, Cz) (shared/gshd.h part 5):
+// f(u, v) = lafortune_radial(u) * lafortune_normalized(u, v). Clamped at 3e38 (a lobe whose
+// height overflows float stays finite), 0 where C u = 0.
+SHARED_FN float lafortune_radial(float cx, float cz, float n, vec3 u) {
+    float s = cx * cx * (u.x * u.x + u.y * u.y) + cz * cz * (u.z * u.z);
+    return s > 0.0f ? min(pow(s, 0.5f * n), 3.0e38f) : 0.0f;
+}
+
+SHARED_FN vec3 lafortune_radial_rgb(vec3 cx, vec3 cz, vec3 n, vec3 u) {
+    return vec3(lafortune_radial(cx.x, cz.x, n.x, u), lafortune_radial(cx.y, cz.y, n.y, u),
+                lafortune_radial(cx.z, cz.z, n.z, u));
+}
+
 SPECULA_SHARED_END
 #endif

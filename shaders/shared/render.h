@@ -29,11 +29,13 @@ struct RenderParams {
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
                           // y: factorized terms K (1..4, render/terms.glsl);
                           // z: 1 = the deferred shading pass adds the specular term;
-                          // w: the factorization's parametrization, kGshdPlain or kGshdMirrored (shared/gshd.h)
+                          // w: the factorization's parametrization, kGshdPlain, kGshdMirrored or kGshdWarped
+                          // (shared/gshd.h)
     mat4 light_to_clip;   // the shadow map's projection * view (light at light_position)
     vec4 shadow;          // x: 1 = sample the shadow map, 0 = no shadows (V = 1);
                           // y: world size of one map texel per unit of distance from the light;
                           // z: normal offset in texels at grazing light; w: constant normal offset in texels
+    vec4 factor_warp;     // the warp (s, k_r, k_g, k_b) of kGshdWarped (shared/gshd.h part 5); 1 otherwise
 };
 
 // One vertex of the non-indexed triangle list (vertex input binding 0).
@@ -72,7 +74,7 @@ SHARED_FN vec3 direction_to(vec3 p, vec3 q) {
 SPECULA_SHARED_END
 
 #ifdef __cplusplus
-static_assert(sizeof(specula::shared::RenderParams) == 256, "std430 size of RenderParams");
+static_assert(sizeof(specula::shared::RenderParams) == 272, "std430 size of RenderParams");
 static_assert(sizeof(specula::shared::RenderVertex) == 32, "std430 stride of RenderVertex");
 #endif
 

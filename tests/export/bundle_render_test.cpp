@@ -18,13 +18,15 @@ using test::VulkanTest;
 render::CubeMapRgb to_render(const BundleCubeMap& c) { return {c.resolution, c.rgb}; }
 
 TEST_F(VulkanTest, BundleRendersLikeTheInMemoryPieces) {
-    for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored}) {
+    for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
         const test::BundlePieces p = test::make_pieces(12, 20);
         const BundleCubeMap g = test::random_cube(8, 11), h = test::random_cube(16, 12);
         Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
         b.cube_g = g;
         b.cube_h = h;
         b.factor_param = param;
+        const glm::vec4 warp = param == FactorParam::Warped ? warp_for_lobe(p.lobe).value() : glm::vec4(1.0f);
+        b.factor_warp = warp;
         test::TempDir dir("bundle-render");
         write_bundle(dir / "r.glb", b);
         const Bundle r = read_bundle(dir / "r.glb");
@@ -33,9 +35,9 @@ TEST_F(VulkanTest, BundleRendersLikeTheInMemoryPieces) {
         const std::vector<glm::vec2> uv = corner_uvs(r.mesh);
 
         render::Renderer mem(ctx(), {.mesh = &p.mesh, .corner_uv = p.atlas.corner_uv, .albedo = &p.albedo, .lobe = p.lobe});
-        mem.set_factorization(to_render(g), to_render(h), param);
+        mem.set_factorization(to_render(g), to_render(h), param, warp);
         render::Renderer disk(ctx(), {.mesh = &r.mesh, .corner_uv = uv, .albedo = &r.albedo, .lobe = *r.lobe});
-        disk.set_factorization(to_render(*r.cube_g), to_render(*r.cube_h), r.factor_param);
+        disk.set_factorization(to_render(*r.cube_g), to_render(*r.cube_h), r.factor_param, r.factor_warp);
 
         const Camera cam(Intrinsics{96, 80, 110.0, 110.0, 47.0, 41.0},
                          look_at_camera_to_world({0.4, 0.9, 2.6}, {0, 0, 0}, {0, 1, 0}));

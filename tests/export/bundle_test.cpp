@@ -170,6 +170,21 @@ TEST(Bundle, RoundTripWithTheMirroredParametrization) {
         write_bundle(dir / "again.glb", r);
         EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
     }
+    // Warped (shared/gshd.h part 5): version 4, the parametrization and its warp, bit for bit.
+    b.extra_terms.clear();
+    b.factor_param = FactorParam::Warped;
+    b.factor_warp = glm::vec4(-1.0f, 0.4661f, 0.473f, 0.48f);
+    write_bundle(dir / "warped.glb", b);
+    const json warped = test::glb_json(dir / "warped.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
+    EXPECT_EQ(warped["version"], 4);
+    EXPECT_EQ(warped["parametrization"], "warped");
+    EXPECT_EQ(warped["warp"].size(), 4u);
+    const Bundle rw = read_bundle(dir / "warped.glb");
+    EXPECT_EQ(rw.factor_param, FactorParam::Warped);
+    EXPECT_EQ(rw.factor_warp, b.factor_warp);
+    Bundle no_lobe = b;
+    no_lobe.lobe.reset(); // the radial factor needs the lobe
+    EXPECT_THROW(write_bundle(dir / "bad.glb", no_lobe), InputError);
     // Without cube-maps the parametrization means nothing and is not written.
     b.cube_g.reset();
     b.cube_h.reset();
@@ -304,9 +319,34 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeG");
     expect_field(d, ext + ".cubeG");
     d = good;
-    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 4;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 5;
     expect_field(d, ext + ".version");
-    // The parametrization: "gshd" or "mirrored", mirrored only in version 3, with cube-maps.
+    // The parametrization: "gshd", "mirrored" (version 3) or "warped" (version 4, with its warp
+    // and the lobe), with cube-maps.
+    d = good;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 3;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = "warped";
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({-1, 0.5, 0.5, 0.5});
+    expect_field(d, ext + ".parametrization"); // needs version 4
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 4;
+    write_bundle(file, b);
+    test::rewrite_glb_json(file, d);
+    EXPECT_NO_THROW((void)read_bundle(file)); // well formed
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({-1, 0.5, 0.5});
+    expect_field(d, ext + ".warp");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({0.5, 0.5, 0.5, 0.5});
+    expect_field(d, ext + ".warp");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({1, 0.5, 0.0, 0.5});
+    expect_field(d, ext + ".warp");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("warp");
+    expect_field(d, ext + ".warp");
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({-1, 0.5, 0.5, 0.5});
+    d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("lobe"); // the radial factor needs it
+    expect_field(d, ext + ".parametrization");
+    d = good;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 4;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["warp"] = json::array({-1, 0.5, 0.5, 0.5});
+    expect_field(d, ext + ".warp"); // without "parametrization": "warped"
     d = good;
     d["materials"][0]["extensions"]["SPECULA_lafortune"]["parametrization"] = "mirrored";
     expect_field(d, ext + ".parametrization");

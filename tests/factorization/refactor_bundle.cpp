@@ -1,7 +1,7 @@
 // Re-factorize a bundle's lobe (not a test; run by hand): the same bundle with the cube-maps of
 // another parametrization or grid, so `specula evaluate --specular factorized` compares
 // factorizations of one lobe without reconstructing again.
-//   refactor_bundle IN.glb OUT.glb [--param auto|gshd|mirrored] [--grid H,D] [--terms K]
+//   refactor_bundle IN.glb OUT.glb [--param auto|gshd|mirrored|warped] [--grid H,D] [--cube G,H] [--terms K]
 // Prints the factorization's choices (parametrization, grids, K) and errors.
 #include "export/bundle.h"
 #include "factorization/factorization.h"
@@ -15,7 +15,7 @@ using namespace specula::factorization;
 
 int main(int argc, char** argv) try {
     if (argc < 3) {
-        std::fprintf(stderr, "usage: refactor_bundle IN.glb OUT.glb [--param auto|gshd|mirrored] [--grid H,D] [--terms K]\n");
+        std::fprintf(stderr, "usage: refactor_bundle IN.glb OUT.glb [--param auto|gshd|mirrored|warped] [--grid H,D] [--cube G,H] [--terms K]\n");
         return 2;
     }
     FactorizationOptions o;
@@ -28,6 +28,10 @@ int main(int argc, char** argv) try {
             const std::size_t comma = v.find(',');
             o.grid_h = static_cast<uint32_t>(std::stoul(v.substr(0, comma)));
             o.grid_d = comma == std::string::npos ? o.grid_h : static_cast<uint32_t>(std::stoul(v.substr(comma + 1)));
+        } else if (std::strcmp(argv[i], "--cube") == 0) {
+            const std::size_t comma = v.find(',');
+            o.cube_g = static_cast<uint32_t>(std::stoul(v.substr(0, comma)));
+            o.cube_h = comma == std::string::npos ? o.cube_g : static_cast<uint32_t>(std::stoul(v.substr(comma + 1)));
         } else if (std::strcmp(argv[i], "--terms") == 0) {
             o.terms = static_cast<uint32_t>(std::stoul(v));
         } else {
@@ -47,6 +51,7 @@ int main(int argc, char** argv) try {
     b.extra_terms.clear();
     for (const FactorTerm& t : f.extra) b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
     b.factor_param = f.param;
+    b.factor_warp = f.warp;
     write_bundle(argv[2], b);
     std::printf("%s: %s, h %u x d %u (cube faces %u, %u), K = %u; against the lobe through the cube-maps %.4f\n  %s\n  %s\n",
                 argv[2], to_string(f.param), f.resolution.grid_h, f.resolution.grid_d, f.resolution.cube_g,

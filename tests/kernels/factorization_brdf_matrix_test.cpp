@@ -1,6 +1,7 @@
-// brdf_matrix: CPU reference (double) vs Vulkan (float) conformance, in both
-// parametrizations (shared/gshd.h parts 1 and 4: the mirror r(u) only negates two components,
-// exactly, so the same bounds hold).
+// brdf_matrix: CPU reference (double) vs Vulkan (float) conformance, in all three
+// parametrizations (shared/gshd.h parts 1, 4 and 5: the mirror r(u) only negates two components,
+// exactly, so the same bounds hold; the warped one's pairs are per channel and its F is the
+// lobe over its radial factor, below).
 //
 // Tolerance, per entry, from a float error analysis of the shader's steps:
 // - the GSHD directions (decode, normalize, Gram-Schmidt, cross, u = .., v = 2 (u.h) h - u)
@@ -14,6 +15,9 @@
 // kGshdMinValue / kGshdMaxValue clamping, monotone). A near-mirror lobe (N = 1000) is
 // allowed ~1% at its peak: the float base's own rounding, amplified N times, not slack.
 // Validity (u.z, v.z > kGshdMinCos) may differ only within 1e-6 of the threshold.
+// Warped: b is the base over |C u| (in [-1, 1]), with each channel's pair from its own warp;
+// the warp's normalize and unwarp, and the base's inversesqrt, add a few eps32 each:
+//     db = kSafety * 48 eps32.
 #include "factorization/brdf_matrix.h"
 #include "vulkan_env.h"
 
@@ -47,7 +51,9 @@ class BrdfMatrixConformance : public test::VulkanTest, public ::testing::WithPar
 
 TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
     const Case& c = GetParam();
-    const BrdfMatrixInputs in{.lobe = c.lobe, .res_h = c.res_h, .res_d = c.res_d, .param = c.param};
+    const bool warped = c.param == FactorParam::Warped;
+    const glm::vec4 warp = warped ? warp_for_lobe(c.lobe).value() : glm::vec4(1.0f);
+    const BrdfMatrixInputs in{.lobe = c.lobe, .res_h = c.res_h, .res_d = c.res_d, .param = c.param, .warp = warp};
     const BrdfMatrix ref = brdf_matrix_cpu(in);
     BrdfMatrixVk kernel(ctx());
     const BrdfMatrix vk = kernel.run(in);
@@ -61,8 +67,9 @@ TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
         const glm::dvec3 h = shared::f64::gshd_grid_dir(static_cast<uint32_t>(row), c.res_h);
         for (std::size_t col = 0; col < cols; ++col) {
             const glm::dvec3 d = shared::f64::gshd_grid_dir(static_cast<uint32_t>(col), c.res_d);
-            const auto p = shared::f64::gshd_to_uv_param(h, d, static_cast<uint32_t>(c.param));
             for (uint32_t ch = 0; ch < 3; ++ch) {
+                const auto p = shared::f64::gshd_to_uv_warped(h, d, static_cast<uint32_t>(c.param),
+                                                              glm::dvec2(channel_warp(warp, static_cast<int>(ch))));
                 const float fr = ref.at(ch, row, col);
                 const float fv = vk.at(ch, row, col);
                 ASSERT_TRUE(std::isfinite(fv));
@@ -80,8 +87,12 @@ TEST_P(BrdfMatrixConformance, VulkanMatchesReference) {
                 ++valid;
                 const double cx = c.lobe.cx[static_cast<int>(ch)], cz = c.lobe.cz[static_cast<int>(ch)];
                 const double n = c.lobe.n[static_cast<int>(ch)];
-                const double b = cx * (p.u.x * p.v.x + p.u.y * p.v.y) + cz * p.u.z * p.v.z;
-                const double db = kSafety * 32.0 * kEps32 * (std::abs(cx) + std::abs(cz));
+                double b = cx * (p.u.x * p.v.x + p.u.y * p.v.y) + cz * p.u.z * p.v.z;
+                double db = kSafety * 32.0 * kEps32 * (std::abs(cx) + std::abs(cz));
+                if (warped) {
+                    b /= std::sqrt(cx * cx * (p.u.x * p.u.x + p.u.y * p.u.y) + cz * cz * p.u.z * p.u.z);
+                    db = kSafety * 48.0 * kEps32;
+                }
                 const double lb = b > 0.0 ? std::abs(std::log2(b)) : 0.0;
                 const double r = kSafety * (n * (std::ldexp(1.0, -21) + 3.0 * kEps32 * lb) * std::log(2.0) +
                                             (4.0 + 3.0 * n * lb) * kEps32);
@@ -115,7 +126,15 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"mirror_n1000_mirrored", gray(-1.0f, 1.0f, 1000.0f), 17, 9, FactorParam::Mirrored},
                       Case{"rgb_mixed_mirrored",
                            LafortuneRgb{{-0.9f, -1.2f, 1.0f}, {0.8f, 0.5f, 1.0f}, {5.0f, 20.0f, 100.0f}}, 10, 10,
-                           FactorParam::Mirrored}),
+                           FactorParam::Mirrored},
+                      Case{"vase_rgb_warped",
+                           LafortuneRgb{{-1.2127f, -1.2050f, -1.1980f}, {0.5653f, 0.5700f, 0.5750f}, {20.36f, 20.0f, 19.7f}},
+                           16, 24, FactorParam::Warped},
+                      Case{"woodenpot_warped", gray(-1.4299f, -0.7763f, 9.74f), 12, 16, FactorParam::Warped},
+                      Case{"mirror_n1000_warped", gray(-1.0f, 1.0f, 1000.0f), 9, 17, FactorParam::Warped},
+                      Case{"retro_mixed_warped", LafortuneRgb{{0.9f, 1.1f, 0.5f}, {0.8f, 0.7f, 2.0f}, {12.0f, 8.0f, 30.0f}},
+                           10, 10, FactorParam::Warped},
+                      Case{"overflowing_height_warped", gray(-1.5f, 1.5f, 10000.0f), 8, 8, FactorParam::Warped}),
     [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
 
 } // namespace

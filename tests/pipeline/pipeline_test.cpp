@@ -374,14 +374,17 @@ TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     const double n = d["detail"]["max_exponent"].get<double>();
     EXPECT_GT(n, 100.0); // a narrow lobe was fitted (truth 300)
     const nlohmann::json& f = r.report["factorization"];
-    const double k = f["parametrization"] == "mirrored" ? factorization::kMirroredPeakCellsPerHalfWidth
-                                                        : factorization::kCellsPerHalfWidth;
+    const double k = f["parametrization"] == "warped"     ? factorization::kWarpedPeakCellsPerHalfWidth
+                     : f["parametrization"] == "mirrored" ? factorization::kMirroredPeakCellsPerHalfWidth
+                                                          : factorization::kCellsPerHalfWidth;
     const int expected = std::clamp(static_cast<int>(std::ceil(k * std::sqrt(n))), 16, 128);
     const int expected_plain = std::clamp(static_cast<int>(std::ceil(2.0 * std::sqrt(n))), 16, 128);
-    EXPECT_EQ(f["parametrization"], "mirrored") << f["parametrization_reason"];
+    EXPECT_EQ(f["parametrization"], "warped") << f["parametrization_reason"];
     EXPECT_FALSE(f["parametrization_forced"].get<bool>());
-    EXPECT_TRUE(f["parametrization_candidates"].contains("gshd") && f["parametrization_candidates"].contains("mirrored"));
-    const char* peak = f["parametrization"] == "mirrored" ? "grid_d" : "grid_h";
+    EXPECT_TRUE(f["parametrization_candidates"].contains("gshd") && f["parametrization_candidates"].contains("mirrored") &&
+                f["parametrization_candidates"].contains("warped"));
+    EXPECT_EQ(f["warp"].size(), 4u);
+    const char* peak = f["parametrization"] == "gshd" ? "grid_h" : "grid_d";
     EXPECT_EQ(d["detail"][peak].get<int>(), expected);
     EXPECT_GT(d["detail"][peak].get<int>(), 16);
     EXPECT_EQ(f[peak].get<int>(), expected); // the grid the factorization used

@@ -615,21 +615,28 @@ double masked_psnr(const Frame& a, const Frame& ref) {
 // 38.8 to 46.0 dB: the can's lobe, |Cx| > Cz, keeps 15% matrix RMS at K = 4. In the mirrored
 // GSHD (shared/gshd.h part 4), which the automatic choice keeps for this lobe: K = 3 on its
 // default grids (h 16 x d 51) 57.1 to 63.3 dB (on 16 x 16 grids 47.4 to 48.1 dB: the rest was
-// interpolation between cells); the same cube-maps looked up as plain GSHD 29 to 32 dB. Asserted
+// interpolation between cells); the same cube-maps looked up as plain GSHD 29 to 32 dB. In the
+// warped GSHD (part 5), which the automatic choice keeps: K = 1 (exactly rank 1 per channel) on
+// its default grids (h 16 x d 93), times the lobe's radial factor: 76.1 to 76.3 dB. Asserted
 // (worst view): plain automatic K at least 5 dB better than K = 1 and >= 38 dB; mirrored at least
-// 15 dB better than plain and >= 55 dB; mirrored cube-maps looked up as plain worse than plain K = 1.
+// 15 dB better than plain and >= 55 dB; warped at least 10 dB better than mirrored and >= 70 dB; mirrored cube-maps looked up as plain
+// worse than plain K = 1, and warped ones looked up without the radial factor (as mirrored) worse
+// than plain K = 1.
 TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     const synth::Preset preset = synth::make_preset("can");
     const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
     const factorization::Factorization f = factorization::factorize_cpu(lobe, {.param = FactorParam::Gshd});
-    const factorization::Factorization fm = factorization::factorize_cpu(lobe, {});
-    ASSERT_EQ(fm.param, FactorParam::Mirrored) << fm.param_choice.reason;
+    const factorization::Factorization fm = factorization::factorize_cpu(lobe, {.param = FactorParam::Mirrored});
+    const factorization::Factorization fw = factorization::factorize_cpu(lobe, {});
+    ASSERT_EQ(fw.param, FactorParam::Warped) << fw.param_choice.reason;
     const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
     Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
     const std::vector<FactorTermCubes> all = render_terms(f, f.term_count());
     const std::vector<FactorTermCubes> one = render_terms(f, 1);
     const std::vector<FactorTermCubes> mirrored = render_terms(fm, fm.term_count());
+    const std::vector<FactorTermCubes> warped = render_terms(fw, fw.term_count());
     double worst_one = 999.0, worst_all = 999.0, worst_mirrored = 999.0, worst_wrong = 999.0;
+    double worst_warped = 999.0, worst_warped_wrong = 999.0;
     for (int view = 0; view < 5; ++view) {
         const double a = 0.4 + 1.2 * view;
         const glm::dvec3 eye(2.4 * std::cos(a), 0.9 + 0.2 * view, 2.4 * std::sin(a));
@@ -646,13 +653,19 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
         const double pm = masked_psnr(r.render(cam, light, factorized), analytic);
         r.set_factorization(std::span<const FactorTermCubes>(mirrored), FactorParam::Gshd); // looked up as if plain
         const double pw = masked_psnr(r.render(cam, light, factorized), analytic);
+        r.set_factorization(std::span<const FactorTermCubes>(warped), fw.param, fw.warp);
+        const double pwa = masked_psnr(r.render(cam, light, factorized), analytic);
+        r.set_factorization(std::span<const FactorTermCubes>(warped), FactorParam::Mirrored); // no warp, no radial factor
+        const double pww = masked_psnr(r.render(cam, light, factorized), analytic);
         std::printf("view %d: factorized vs analytic masked PSNR: gshd K = 1 %.2f dB, K = %u %.2f dB; mirrored K = %u "
-                    "%.2f dB (looked up as gshd: %.2f dB)\n",
-                    view, p1, f.term_count(), pk, fm.term_count(), pm, pw);
+                    "%.2f dB (looked up as gshd: %.2f dB); warped K = %u %.2f dB (looked up as mirrored: %.2f dB)\n",
+                    view, p1, f.term_count(), pk, fm.term_count(), pm, pw, fw.term_count(), pwa, pww);
         worst_one = std::min(worst_one, p1);
         worst_all = std::min(worst_all, pk);
         worst_mirrored = std::min(worst_mirrored, pm);
         worst_wrong = std::min(worst_wrong, pw);
+        worst_warped = std::min(worst_warped, pwa);
+        worst_warped_wrong = std::min(worst_warped_wrong, pww);
     }
     std::printf("worst view: gshd K = 1 %.2f dB, K = %u %.2f dB (%s); mirrored K = %u %.2f dB (%s)\n", worst_one,
                 f.term_count(), worst_all, f.terms.reason.c_str(), fm.term_count(), worst_mirrored,
@@ -663,6 +676,10 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     EXPECT_GE(worst_mirrored, worst_all + 15.0);
     EXPECT_GE(worst_mirrored, 55.0);
     EXPECT_LT(worst_wrong, worst_one); // the renderer must apply the bundle's parametrization
+    std::printf("worst view: warped K = %u %.2f dB (%s)\n", fw.term_count(), worst_warped, fw.resolution.reason.c_str());
+    EXPECT_GE(worst_warped, worst_mirrored + 10.0);
+    EXPECT_GE(worst_warped, 70.0);
+    EXPECT_LT(worst_warped_wrong, worst_one);
 }
 
 /// Passes::Fused sums the same two terms (render/terms.glsl) in one fragment shader that

@@ -138,8 +138,10 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--factor-param", args->factor_param,
                     "Parametrization of the factorization's cube-maps: gshd (the thesis's half/difference vectors of the\n"
                     "light and view), mirrored (those of the light's mirror direction and the view: near separable for a\n"
-                    "lobe about the mirror direction, Cx < 0), or auto (both, the one of lower error against the lobe)")
-        ->check(CLI::IsMember({"auto", "gshd", "mirrored"}))
+                    "lobe about the mirror direction, Cx < 0), warped (those of a direction scaled by the lobe's Cx and Cz,\n"
+                    "the cube-maps holding the lobe over its closed-form radial factor |C u|^N: separable for any Lafortune\n"
+                    "lobe), or auto (each that fits the lobe, the one of least error against the lobe)")
+        ->check(CLI::IsMember({"auto", "gshd", "mirrored", "warped"}))
         ->capture_default_str();
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
