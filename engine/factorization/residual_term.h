@@ -74,6 +74,9 @@ public:
     [[nodiscard]] std::vector<Decomposition> run(const ResidualTermsInputs& in);
 
 private:
+    /// `iterations` (G, H) pass pairs on term `term`, each pass after a compute->compute barrier.
+    void record_als(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
+                    uint32_t rows, uint32_t cols, uint32_t term, uint32_t iterations) const;
     gpu::Context* m_ctx;
     gpu::ComputePipeline m_pipeline;
 };

@@ -18,22 +18,28 @@ ResidualTermsVk::ResidualTermsVk(gpu::Context& ctx, uint32_t workgroup_size)
                                                .push_constant_bytes = sizeof(ResidualTermPush),
                                                .workgroup_size = workgroup_size}) {}
 
+void ResidualTermsVk::record_als(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
+                                 uint32_t rows, uint32_t cols, uint32_t term, uint32_t iterations) const {
+    ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = term, .pass_index = 1};
+    for (uint32_t it = 0; it < iterations; ++it) {
+        seq.barrier(gpu::Barrier::ComputeToCompute);
+        push.pass_index = 1;
+        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * rows, push);
+        seq.barrier(gpu::Barrier::ComputeToCompute);
+        push.pass_index = 2;
+        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
+    }
+}
+
 void ResidualTermsVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
                              uint32_t res_h, uint32_t res_d, uint32_t terms, uint32_t iterations) const {
     const uint32_t rows = res_h * res_h;
     const uint32_t cols = res_d * res_d;
     for (uint32_t k = 1; k < terms; ++k) {
         seq.time_begin("residual_term_" + std::to_string(k + 1));
-        ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = k, .pass_index = 0};
+        const ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = k, .pass_index = 0};
         seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
-        for (uint32_t it = 0; it < iterations; ++it) {
-            seq.barrier(gpu::Barrier::ComputeToCompute);
-            push.pass_index = 1;
-            seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * rows, push);
-            seq.barrier(gpu::Barrier::ComputeToCompute);
-            push.pass_index = 2;
-            seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
-        }
+        record_als(seq, matrix, g, h, rows, cols, k, iterations);
         seq.time_end();
         seq.barrier(gpu::Barrier::ComputeToCompute);
     }
@@ -44,15 +50,7 @@ void ResidualTermsVk::record_refine_first(gpu::Sequence& seq, const gpu::Buffer&
     const uint32_t rows = res_h * res_h;
     const uint32_t cols = res_d * res_d;
     seq.time_begin("first_term_als");
-    ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = 0, .pass_index = 1};
-    for (uint32_t it = 0; it < iterations; ++it) {
-        if (it > 0) seq.barrier(gpu::Barrier::ComputeToCompute);
-        push.pass_index = 1;
-        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * rows, push);
-        seq.barrier(gpu::Barrier::ComputeToCompute);
-        push.pass_index = 2;
-        seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
-    }
+    record_als(seq, matrix, g, h, rows, cols, 0, iterations);
     seq.time_end();
 }
 

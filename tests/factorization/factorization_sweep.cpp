@@ -1,6 +1,8 @@
 // Factorization sweep (not a test): approximation error and time against grid and
 // cube-map resolution for the thesis's four lobes (table 5.2) and a near-mirror lobe.
-//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--cpu] [--lobe NAME]
+//   factorization_sweep [--quick] [--pairs N] [--terms [--grid R] [--grid-d R_d]] [--warped] [--cpu] [--lobe NAME]
+// --warped: only the warped parametrization's table (shared/gshd.h part 5: one term, h 16),
+// error and time against the d grid and the H cube-map's resolution.
 // Errors: "matrix" = relative RMS of G H against F over the valid entries; "direct" =
 // relative RMS of G(h) H(d) against the lobe for uniformly random (u, v) pairs, with G and H
 // interpolated from the grids ("grid") or from the cube-maps ("cube"). Times: the CPU
@@ -39,6 +41,7 @@ int main(int argc, char** argv) try {
     bool quick = false;
     bool terms_only = false;
     bool cpu_only = false;
+    bool warped_only = false;
     uint32_t iterations = kResidualIterations;
     uint32_t grid = 0;   // 0: default resolutions
     uint32_t grid_d = 0; // --terms: the d grid, when not --grid's
@@ -52,6 +55,7 @@ int main(int argc, char** argv) try {
         else if (std::strcmp(argv[i], "--grid-d") == 0 && i + 1 < argc) grid_d = static_cast<uint32_t>(std::stoul(argv[++i]));
         else if (std::strcmp(argv[i], "--lobe") == 0 && i + 1 < argc) only = argv[++i];
         else if (std::strcmp(argv[i], "--cpu") == 0) cpu_only = true;
+        else if (std::strcmp(argv[i], "--warped") == 0) warped_only = true;
         else if (std::strcmp(argv[i], "--pairs") == 0 && i + 1 < argc) pairs = static_cast<uint32_t>(std::stoul(argv[++i]));
     }
     std::vector<NamedLobe> lobes = {
@@ -76,24 +80,62 @@ int main(int argc, char** argv) try {
     }
     std::printf("direct error over %u random (u, v) pairs\n\n", pairs);
 
+    // One factorization on the CPU with its direct error, and the Vulkan path's wall time and
+    // GPU time (all dispatches, or the residual terms' only).
+    struct Measured {
+        Factorization c;
+        DirectError ed;
+        std::string vk_ms = "n/a", vk_gpu = "n/a";
+    };
+    const auto measure = [&](const LafortuneRgb& lobe, const FactorizationOptions& o, bool residual_gpu) {
+        Measured m{.c = factorize_cpu(lobe, o), .ed = {}};
+        m.ed = direct_relative_rms(lobe, m.c, 0, pairs);
+        if (vk) {
+            const Factorization g = vk->run(lobe, o);
+            m.vk_ms = ms(g.timings.total_s * 1e9);
+            m.vk_gpu = ms(residual_gpu ? g.timings.residual_gpu_ns : g.timings.gpu_total_ns());
+        }
+        return m;
+    };
+
+    // The warped parametrization: F is rank 1 per channel, so the error is H's interpolation
+    // along d (the grid, then the cube-map) and the time is F's size (3 R_h^2 R_d^2 floats).
+    std::printf("## Warped parametrization: error and time against the d grid and H cube-map (R_h = 16, K = 1)\n\n");
+    std::printf("| lobe | R_d | H cube | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan gpu ms |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|\n");
+    for (const auto& l : lobes) {
+        if (!warp_for_lobe(l.lobe)) continue;
+        const FactorizationResolution def = default_resolution(l.lobe, FactorParam::Warped);
+        for (const uint32_t rd : {32u, 64u, def.grid_d, 128u})
+            for (const uint32_t cube : {0u, 2 * cube_res_for_grid(rd)}) {
+                const FactorizationOptions o{.grid_h = 16, .grid_d = rd, .cube_h = cube, .keep_matrix = true, .terms = 1,
+                                             .param = FactorParam::Warped};
+                const Measured m = measure(l.lobe, o, false);
+                std::printf("| %s | %u%s | %u | %.2g | %.4f | %.4f | %.1f | %s | %s |\n", l.name, rd,
+                            rd == def.grid_d ? " (default)" : "", m.c.resolution.cube_h, m.c.terms.matrix_rms.back(),
+                            m.ed.grid, m.ed.cube, m.c.timings.total_s * 1e3, m.vk_ms.c_str(), m.vk_gpu.c_str());
+                std::fflush(stdout);
+            }
+    }
+    if (warped_only) return 0;
+    std::printf("\n");
+
     // Issue 5: error against the number of separable terms K, default resolutions.
-    // Both parametrizations (shared/gshd.h part 4), then the automatic choice's reason.
+    // Every parametrization (shared/gshd.h parts 4, 5), then the automatic choice's reason.
     std::printf("## Error against the number of terms K (grid %u, 0 = default resolutions; %u iterations)\n\n", grid, iterations);
     std::printf("| lobe | param | R_h | R_d | K | matrix rel RMS | direct (grid) | direct (cube) | cpu ms | vulkan ms | vulkan residual gpu ms |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : lobes) {
-        for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored})
+        for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped})
         for (uint32_t k = 1; k <= kMaxTerms; ++k) {
+            if (param == FactorParam::Warped && (k > 1 || !warp_for_lobe(l.lobe))) continue; // one term: rank 1
             const FactorizationOptions o{.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .keep_matrix = true, .terms = k, .iterations = iterations,
                                          .param = param};
-            const Factorization c = factorize_cpu(l.lobe, o);
-            const DirectError ed = direct_relative_rms(l.lobe, c, 0, pairs);
-            std::string vk_ms = "n/a", vk_gpu = "n/a";
-            if (vk) {
-                const Factorization g = vk->run(l.lobe, o);
-                vk_ms = ms(g.timings.total_s * 1e9);
-                vk_gpu = ms(g.timings.residual_gpu_ns);
-            }
+            const Measured m = measure(l.lobe, o, true);
+            const Factorization& c = m.c;
+            const DirectError& ed = m.ed;
+            const std::string& vk_ms = m.vk_ms;
+            const std::string& vk_gpu = m.vk_gpu;
             std::printf("| %s | %s | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s | %s |\n", l.name, to_string(param), c.resolution.grid_h,
                         c.resolution.grid_d, k, c.terms.matrix_rms.back(), ed.grid, ed.cube, c.timings.total_s * 1e3,
                         vk_ms.c_str(), vk_gpu.c_str());

@@ -546,7 +546,9 @@ TEST(WarpedGshd, AutomaticChoiceKeepsWarpedForThePresets) {
         EXPECT_EQ(f.param, FactorParam::Warped) << l.name << ": " << f.param_choice.reason;
         for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
             EXPECT_TRUE(f.param_choice.of(p).computed);
-            if (p != FactorParam::Warped) EXPECT_LT(f.param_choice.of(FactorParam::Warped).direct_rms, f.param_choice.of(p).direct_rms);
+            if (p != FactorParam::Warped) {
+                EXPECT_LT(f.param_choice.of(FactorParam::Warped).direct_rms, f.param_choice.of(p).direct_rms);
+            }
         }
         EXPECT_EQ(f.decomposition.param, f.param);
         EXPECT_EQ(f.decomposition.warp, f.warp);

@@ -122,7 +122,9 @@ TEST_F(ResidualTermKernel, FirstTermRefinementMatchesReference) {
         EXPECT_LE(worst, kTolerance) << name;
         EXPECT_LT(after_ref, before) << name;
         EXPECT_NEAR(after_vk, after_ref, 1e-4) << name;
-        if (param == FactorParam::Warped) EXPECT_LT(after_vk, 1e-3) << name;
+        if (param == FactorParam::Warped) {
+            EXPECT_LT(after_vk, 1e-3) << name;
+        }
     }
 }
 
