@@ -36,7 +36,12 @@ uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& 
         throw Error("factorize: max_terms must be in [1, " + std::to_string(kMaxTerms) + "]");
     if (!(o.term_target >= 0.0)) throw Error("factorize: term_target must be >= 0");
     const uint32_t k = o.terms != 0 ? o.terms : o.max_terms;
-    if (k == 1 || param == FactorParam::Warped) return k; // the warped F is in [0, 1]
+    if (k == 1) return 1;
+    if (param == FactorParam::Warped) { // F in [0, 1]: no overflow; rank 1 per channel
+        if (o.terms != 0) return k;
+        note = "the warped F is rank 1 per channel: one term";
+        return 1;
+    }
     double height = 0.0;
     for (int c = 0; c < 3; ++c)
         height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
@@ -171,23 +176,40 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
     }
     Stopwatch all;
     std::string no_warp;
-    std::vector<FactorParam> params{FactorParam::Gshd, FactorParam::Mirrored};
-    if (warp_for_lobe(lobe, &no_warp)) params.push_back(FactorParam::Warped);
-    std::vector<Factorization> runs;
     ParamChoice c;
+    std::vector<Factorization> runs;
+    std::vector<FactorParam> params;
     std::string errors;
-    for (const FactorParam p : params) {
+    const auto add = [&](FactorParam p) {
+        params.push_back(p);
         runs.push_back(run(p, true));
         c.candidates[static_cast<std::size_t>(p)] = candidate_of(lobe, runs.back());
         errors += std::string(errors.empty() ? " (" : "; ") + to_string(p) + " " + param_errors(c.of(p));
+    };
+    // The warped parametrization first, where it fits the lobe: good enough, it is kept and the
+    // others are left out (their residual terms on the larger grids cost seconds).
+    if (warp_for_lobe(lobe, &no_warp)) {
+        add(FactorParam::Warped);
+        if (c.of(FactorParam::Warped).direct_rms <= kWarpedGoodEnough) {
+            c.param = FactorParam::Warped;
+            c.reason = "automatic: warped, its relative RMS against the lobe through the cube-maps within " +
+                       percent(kWarpedGoodEnough) + errors + "); the thesis's GSHD and the mirrored one left out";
+            Factorization f = std::move(runs.back());
+            f.param_choice = std::move(c);
+            f.timings.total_s = all.seconds();
+            return f;
+        }
     }
+    add(FactorParam::Gshd);
+    add(FactorParam::Mirrored);
     errors += no_warp.empty() ? ")" : "; warped not offered: " + no_warp + ")";
-    // The least error; within the tie margin of it, the fewest terms, then the earliest in
-    // `params` (the thesis's first).
+    // The least error; within the tie margin of it, the fewest terms, then the thesis's GSHD,
+    // the mirrored one, the warped one.
     double best = std::numeric_limits<double>::infinity();
     for (const FactorParam p : params) best = std::min(best, c.of(p).direct_rms);
     std::optional<FactorParam> pick;
     bool tie = false;
+    std::sort(params.begin(), params.end());
     for (const FactorParam p : params) {
         const ParamCandidate& x = c.of(p);
         if (x.direct_rms > best + kParamTieMargin * best) continue;
@@ -200,8 +222,8 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
                           " of the least relative RMS against the lobe through the cube-maps"
                     : std::string(", the lower relative RMS against the lobe through the cube-maps")) +
                errors;
-    const std::size_t kept = static_cast<std::size_t>(std::find(params.begin(), params.end(), c.param) - params.begin());
-    Factorization f = std::move(runs[kept]);
+    const auto kept = std::find_if(runs.begin(), runs.end(), [&](const Factorization& r) { return r.param == c.param; });
+    Factorization f = std::move(*kept);
     f.param_choice = std::move(c);
     f.timings.total_s = all.seconds(); // every factorization and its errors
     return f;

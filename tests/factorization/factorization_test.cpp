@@ -239,8 +239,10 @@ TEST(FactorizationTerms, ErrorDecreasesWithKOnThePresetLobes) {
 // The automatic rule: the fewest terms whose matrix relative RMS meets the target, else the
 // K of least error; the reason says which.
 TEST(FactorizationTerms, AutomaticKMeetsTheTargetOrSaysItCannot) {
+    // The mirrored parametrization: the warped one, which the automatic choice keeps for these
+    // lobes, is rank 1 and takes one term without trying more (HugeLobeKeepsOneTerm).
     for (const PresetLobe& l : kPresetLobes) {
-        const Factorization f = factorize_cpu(l.lobe, {});
+        const Factorization f = factorize_cpu(l.lobe, {.param = FactorParam::Mirrored});
         const TermChoice& t = f.terms;
         ASSERT_EQ(t.matrix_rms.size(), kMaxTerms) << l.name;
         EXPECT_FALSE(t.forced);
@@ -278,6 +280,7 @@ TEST(FactorizationTerms, HugeLobeKeepsOneTerm) {
     }
     const Factorization w = factorize_cpu(huge, {.grid_h = 8, .grid_d = 8, .param = FactorParam::Warped});
     EXPECT_EQ(w.term_count(), 1u) << w.terms.reason;
+    EXPECT_NE(w.terms.reason.find("rank 1 per channel: one term"), std::string::npos) << w.terms.reason;
     EXPECT_LT(w.terms.matrix_rms[0], 1e-5);
     EXPECT_TRUE(all_finite(w));
 }
@@ -422,15 +425,10 @@ TEST(MirroredGshd, ImprovesTheCanLobe) {
     EXPECT_LE(b.terms.count, a.terms.count);
     // The errors of what is rendered, from the factorization itself.
     EXPECT_NEAR(direct_relative_rms(can, mirrored, 0, kParamChoicePairs).cube, b.direct_rms, 1e-12);
-    // The automatic choice weighs all three and keeps the warped one (tests below).
+    // The automatic choice keeps the warped one (tests below).
     const Factorization chosen = factorize_cpu(can, {});
     EXPECT_EQ(chosen.param, FactorParam::Warped) << chosen.param_choice.reason;
     EXPECT_FALSE(chosen.param_choice.forced);
-    EXPECT_NE(chosen.param_choice.reason.find("gshd K=4"), std::string::npos) << chosen.param_choice.reason;
-    EXPECT_NE(chosen.param_choice.reason.find("mirrored K=3"), std::string::npos) << chosen.param_choice.reason;
-    EXPECT_NE(chosen.param_choice.reason.find("warped K=1"), std::string::npos) << chosen.param_choice.reason;
-    EXPECT_DOUBLE_EQ(chosen.param_choice.of(FactorParam::Gshd).direct_rms, a.direct_rms);
-    EXPECT_DOUBLE_EQ(chosen.param_choice.of(FactorParam::Mirrored).direct_rms, b.direct_rms);
 }
 
 // Between the thesis's GSHD and the mirrored one, the choice follows the sign of Cx (the
@@ -537,25 +535,33 @@ TEST(WarpedGshd, EveryLafortuneLobeIsRankOnePerChannel) {
     }
 }
 
-// The automatic choice keeps the warped parametrization for every preset lobe (its error
-// against the lobe through the cube-maps is the least, with one term) and says why with all
-// three errors; a lobe it does not fit (Cx = 0) is not offered it, and the reason says so.
+// The automatic choice keeps the warped parametrization for every preset lobe without
+// factorizing the other two (its error against the lobe through the cube-maps is within
+// kWarpedGoodEnough, with one term), and says why; a lobe whose warped error is above that
+// (the N = 300 mirror: its d grid is capped at 128 cells, 485 by the rule) gets all three and
+// the least error, still warped; a lobe it does not fit (Cx = 0) is not offered it, and the
+// reason says so.
 TEST(WarpedGshd, AutomaticChoiceKeepsWarpedForThePresets) {
     for (const PresetLobe& l : kPresetLobes) {
         const Factorization f = factorize_cpu(l.lobe, {});
         EXPECT_EQ(f.param, FactorParam::Warped) << l.name << ": " << f.param_choice.reason;
-        for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
-            EXPECT_TRUE(f.param_choice.of(p).computed);
-            if (p != FactorParam::Warped) {
-                EXPECT_LT(f.param_choice.of(FactorParam::Warped).direct_rms, f.param_choice.of(p).direct_rms);
+        const double e = f.param_choice.of(FactorParam::Warped).direct_rms;
+        const bool good = e <= kWarpedGoodEnough;
+        std::printf("%s: %s\n", l.name, f.param_choice.reason.c_str());
+        EXPECT_EQ(good, l.lobe.n.x < 100.0f) << l.name << " " << e; // measured 0.2% to 0.4%; mirror300 5.3%
+        for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored}) {
+            EXPECT_EQ(f.param_choice.of(p).computed, !good) << l.name;
+            if (!good) {
+                EXPECT_LT(e, f.param_choice.of(p).direct_rms) << l.name;
             }
+        }
+        if (good) {
+            EXPECT_NE(f.param_choice.reason.find("left out"), std::string::npos) << f.param_choice.reason;
         }
         EXPECT_EQ(f.decomposition.param, f.param);
         EXPECT_EQ(f.decomposition.warp, f.warp);
         EXPECT_EQ(f.term_count(), 1u);
-        // Measured 0.2% to 0.4% for the four presets; the N = 300 lobe 5.3% (its d grid is capped
-        // at 128 cells, 485 by the rule: interpolation).
-        EXPECT_LT(f.param_choice.of(FactorParam::Warped).direct_rms, l.lobe.n.x < 100.0f ? 0.01 : 0.08) << l.name;
+        EXPECT_LT(e, l.lobe.n.x < 100.0f ? 0.01 : 0.08) << l.name;
     }
     const Factorization flat = factorize_cpu(gray(0.0f, 1.0f, 8.0f), {.grid_h = 8, .grid_d = 8});
     EXPECT_EQ(flat.param, FactorParam::Gshd) << flat.param_choice.reason;

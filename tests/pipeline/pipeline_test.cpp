@@ -381,14 +381,15 @@ TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     const int expected_plain = std::clamp(static_cast<int>(std::ceil(2.0 * std::sqrt(n))), 16, 128);
     EXPECT_EQ(f["parametrization"], "warped") << f["parametrization_reason"];
     EXPECT_FALSE(f["parametrization_forced"].get<bool>());
-    EXPECT_TRUE(f["parametrization_candidates"].contains("gshd") && f["parametrization_candidates"].contains("mirrored") &&
-                f["parametrization_candidates"].contains("warped"));
+    EXPECT_TRUE(f["parametrization_candidates"].contains("warped"));
     EXPECT_EQ(f["warp"].size(), 4u);
     const char* peak = f["parametrization"] == "gshd" ? "grid_h" : "grid_d";
     EXPECT_EQ(d["detail"][peak].get<int>(), expected);
     EXPECT_GT(d["detail"][peak].get<int>(), 16);
     EXPECT_EQ(f[peak].get<int>(), expected); // the grid the factorization used
-    EXPECT_EQ(f["parametrization_candidates"]["gshd"]["grid_h"].get<int>(), expected_plain);
+    if (f["parametrization_candidates"].contains("gshd")) { // computed when the warped error is above 1%
+        EXPECT_EQ(f["parametrization_candidates"]["gshd"]["grid_h"].get<int>(), expected_plain);
+    }
     EXPECT_EQ(d["detail"]["auto_grid_h"].get<int>(), expected_plain); // the planner's rule is the plain one's
     ASSERT_TRUE(d["avoided_seconds"].is_number());
     EXPECT_GT(d["avoided_seconds"].get<double>(), 0.0);
