@@ -30,6 +30,7 @@ DiffuseScene make_scene(const SceneOptions& o) {
     const Stopwatch sw;
     DiffuseScene s;
     s.preset = synth::make_preset(o.preset, o.lambertian);
+    if (o.edit_preset) o.edit_preset(s.preset);
     synth::RigOptions ro;
     ro.size = o.size;
     ro.views = o.views;
@@ -82,31 +83,45 @@ DiffuseScene make_scene(const SceneOptions& o) {
         c.views.push_back(std::move(view));
     }
 
-    std::vector<Camera> cameras;
-    for (const View& v : c.views) cameras.push_back(v.camera);
+    build_scene_stages(s, o.texels_per_pixel, o.force_rays);
+    s.seconds = sw.seconds();
+    return s;
+}
+
+void build_scene_stages(DiffuseScene& s, double texels_per_pixel, bool force_rays) {
+    const Capture& c = s.capture;
+    std::vector<Camera> cameras; // the views with train frames, as reconstruct sizes the atlas
+    for (const View& v : c.views)
+        if (std::any_of(v.frames.begin(), v.frames.end(), [&](std::size_t f) { return c.desc.frames[f].split == Split::Train; }))
+            cameras.push_back(v.camera);
     AtlasOptions ao;
-    ao.texels_per_pixel = o.texels_per_pixel;
+    ao.texels_per_pixel = texels_per_pixel;
     s.atlas = build_atlas(c.mesh, cameras, ao);
     s.particles = build_particles(c.mesh, s.atlas);
     const RayScene scene(c.mesh);
     const VisibilityInputs vi = visibility_inputs(c);
     VisibilityOptions vo;
-    vo.force_rays = o.force_rays;
+    vo.force_rays = force_rays;
     vo.frame_view = vi.frame_view;
     s.visibility = compute_visibility(s.particles.particles, c.mesh, scene, vi.views, vi.lights, vo);
     s.truth.resize(s.particles.particles.size());
     for (std::size_t p = 0; p < s.truth.size(); ++p)
         s.truth[p] = synth::sample_albedo(s.preset.material.albedo_texture, particle_uv(c.mesh, s.particles.particles[p]));
-    s.seconds = sw.seconds();
-    return s;
 }
 
 AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out, const std::vector<std::uint8_t>& select) {
+    std::vector<glm::vec3> estimate(out.particles.size());
+    for (std::size_t p = 0; p < estimate.size(); ++p) estimate[p] = out.albedo(p);
+    return albedo_error(estimate, scene.truth, select);
+}
+
+AlbedoError albedo_error(std::span<const glm::vec3> estimate, std::span<const glm::vec3> truth,
+                         const std::vector<std::uint8_t>& select) {
     AlbedoError e;
     double sum = 0.0;
-    for (std::size_t p = 0; p < scene.truth.size(); ++p) {
+    for (std::size_t p = 0; p < truth.size(); ++p) {
         if (!select[p]) continue;
-        const glm::vec3 d = out.albedo(p) - scene.truth[p];
+        const glm::vec3 d = estimate[p] - truth[p];
         sum += double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
         e.max_abs = std::max<double>(e.max_abs, std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)}));
         ++e.count;
@@ -141,6 +156,70 @@ ShadowedTexelError shadowed_texel_error(const DiffuseScene& scene, const Lambert
     e.median_abs = abs_err[mid];
     e.signed_mean = signed_sum / double(abs_err.size());
     e.rmse = std::sqrt(sq / double(abs_err.size()));
+    return e;
+}
+
+std::vector<glm::vec3> texel_box_truth(const DiffuseScene& scene, int samples) {
+    const Mesh& mesh = scene.capture.mesh;
+    const Image& tex = scene.preset.material.albedo_texture;
+    std::vector<glm::vec3> out(scene.particles.particles.size());
+    for (std::size_t p = 0; p < out.size(); ++p) {
+        const Particle& part = scene.particles.particles[p];
+        const glm::uvec3 t = mesh.triangles[part.triangle];
+        // Atlas texel offset d -> barycentric offset M^-1 d -> uv offset U M^-1 d.
+        const glm::dvec2 c0 = scene.atlas.corner_texel(part.triangle, 0);
+        const glm::dmat2 m(scene.atlas.corner_texel(part.triangle, 1) - c0, scene.atlas.corner_texel(part.triangle, 2) - c0);
+        const glm::dmat2 u(glm::dvec2(mesh.texcoords[t.y] - mesh.texcoords[t.x]), glm::dvec2(mesh.texcoords[t.z] - mesh.texcoords[t.x]));
+        const glm::dmat2 j = u * glm::inverse(m);
+        const glm::dvec2 centre(particle_uv(mesh, part));
+        glm::dvec3 sum(0.0);
+        for (int y = 0; y < samples; ++y)
+            for (int x = 0; x < samples; ++x) {
+                const glm::dvec2 d((x + 0.5) / samples - 0.5, (y + 0.5) / samples - 0.5);
+                sum += glm::dvec3(synth::sample_albedo(tex, glm::vec2(centre + j * d)));
+            }
+        out[p] = glm::vec3(sum / double(samples * samples));
+    }
+    return out;
+}
+
+AlbedoError surface_error(const DiffuseScene& scene, const Image& texture, const std::vector<std::uint8_t>& select,
+                          int samples) {
+    const Mesh& mesh = scene.capture.mesh;
+    const Image& tex = scene.preset.material.albedo_texture;
+    const auto bilinear = [&](glm::dvec2 q) {
+        const double fx = q.x - 0.5, fy = q.y - 0.5;
+        const int x0 = static_cast<int>(std::floor(fx)), y0 = static_cast<int>(std::floor(fy));
+        const double ax = fx - x0, ay = fy - y0;
+        glm::dvec3 v(0.0);
+        for (int k = 0; k < 4; ++k) {
+            const int x = std::clamp(x0 + (k & 1), 0, texture.width - 1), y = std::clamp(y0 + (k >> 1), 0, texture.height - 1);
+            const double w = ((k & 1) ? ax : 1.0 - ax) * ((k >> 1) ? ay : 1.0 - ay);
+            for (int c = 0; c < 3; ++c) v[c] += w * texture.at(x, y, c);
+        }
+        return v;
+    };
+    AlbedoError e;
+    double sum = 0.0, n = 0.0;
+    for (std::size_t p = 0; p < scene.particles.particles.size(); ++p) {
+        if (!select[p]) continue;
+        const Particle& part = scene.particles.particles[p];
+        const glm::uvec3 t = mesh.triangles[part.triangle];
+        ++e.count;
+        for (int j = 0; j < samples; ++j)
+            for (int i = 0; i < samples; ++i) {
+                const glm::dvec2 q(part.texel_x() + (i + 0.5) / samples, part.texel_y() + (j + 0.5) / samples);
+                const glm::dvec2 st = scene.atlas.patch_bary(part.triangle, q);
+                if (st.x < 0.0 || st.y < 0.0 || st.x + st.y > 1.0) continue;
+                const glm::vec2 uv = float(1.0 - st.x - st.y) * mesh.texcoords[t.x] + float(st.x) * mesh.texcoords[t.y] +
+                                     float(st.y) * mesh.texcoords[t.z];
+                const glm::dvec3 d = bilinear(q) - glm::dvec3(synth::sample_albedo(tex, uv));
+                sum += glm::dot(d, d);
+                n += 3.0;
+                e.max_abs = std::max({e.max_abs, std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+            }
+    }
+    e.rmse = n > 0.0 ? std::sqrt(sum / n) : 0.0;
     return e;
 }
 

@@ -7,6 +7,8 @@
 #include "geometry/atlas.h"
 #include "synth/synth.h"
 
+#include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,6 +26,7 @@ struct SceneOptions {
     double texels_per_pixel = 1.0;
     bool force_rays = false;
     std::vector<double> light_angles_deg; // empty: the rig default
+    std::function<void(synth::Preset&)> edit_preset; // applied before rendering (another texture)
 };
 
 struct DiffuseScene {
@@ -43,6 +46,12 @@ struct DiffuseScene {
 
 [[nodiscard]] DiffuseScene make_scene(const SceneOptions& options);
 
+/// The stages after the images, for `s.capture` (rendered by make_scene, or loaded from a
+/// `specula synth` folder) of `s.preset`: the atlas sized by the views with train frames (as
+/// reconstruct sizes it, so its texels are those of reconstruct's albedo.exr), particles,
+/// visibility, truth.
+void build_scene_stages(DiffuseScene& s, double texels_per_pixel = 1.0, bool force_rays = false);
+
 /// The scene the kernel conformance tests share (glossy cologne, 96 px, 6 views, png8,
 /// exposure 2: highlights and clipping exercise every rejection path). Built once per binary.
 [[nodiscard]] const DiffuseScene& conformance_scene();
@@ -54,6 +63,9 @@ struct AlbedoError {
     std::size_t count = 0;
 };
 [[nodiscard]] AlbedoError albedo_error(const DiffuseScene& scene, const LambertOutputs& out,
+                                       const std::vector<std::uint8_t>& select);
+/// The same for any per-particle estimate against any per-particle truth.
+[[nodiscard]] AlbedoError albedo_error(std::span<const glm::vec3> estimate, std::span<const glm::vec3> truth,
                                        const std::vector<std::uint8_t>& select);
 
 /// The error on "texels shadowed in some frames" (issue 3: no baked shadows): particles in
@@ -68,6 +80,22 @@ struct ShadowedTexelError {
 };
 [[nodiscard]] ShadowedTexelError shadowed_texel_error(const DiffuseScene& scene, const LambertOutputs& out,
                                                       const std::vector<std::uint8_t>& select);
+
+/// The truth box-filtered over each particle's atlas texel: the preset's texture averaged over
+/// the parallelogram that one texel square of the particle's patch covers in texture space
+/// (the patch's affine map, atlas.h), centred on the particle's uv (a gutter texel's clamped
+/// point), from `samples` x `samples` bilinear lookups. The mean value of the albedo over the
+/// surface the texel stands for, the value a mipmap level holds (see seen_texels.cpp).
+[[nodiscard]] std::vector<glm::vec3> texel_box_truth(const DiffuseScene& scene, int samples = 8);
+
+/// The albedo an atlas texture shows against the truth, over the surface the texels in
+/// `select` cover: at `samples` x `samples` points of each texel square that lie inside its
+/// triangle's patch (the points a renderer reads for that triangle), the texture's bilinear
+/// value there (core/image.h texel convention) against the preset's albedo at the same
+/// surface point. Unlike albedo_error, which compares texel centres, this scores the albedo
+/// as a function, between texel centres too.
+[[nodiscard]] AlbedoError surface_error(const DiffuseScene& scene, const Image& texture,
+                                        const std::vector<std::uint8_t>& select, int samples = 4);
 
 /// Particles whose truth the images resolve: every texture texel within `radius_pixels`
 /// image pixels (converted to texels with the triangle's footprint in the view that sees the

@@ -7,7 +7,8 @@
 // no solve can recover the texture value: the error is the images' resampling, not the
 // solve's. The accuracy figures are therefore asserted over "resolved" texels, whose truth is
 // flat within 1.5 image pixels of the view that sees them best (flat_truth, diffuse_scene.h),
-// and the RMSE over all seen texels is printed beside them.
+// and the RMSE over all seen texels is printed beside them. Over every seen texel, issue 3's
+// criterion is asserted on a uniform albedo (UniformLambertianMeetsTheCriterionOverSeenTexels).
 #include "diffuse_scene.h"
 
 #include "diffuse/albedo_texture.h"
@@ -115,6 +116,48 @@ TEST_P(DiffuseSolve, LambertianRecoversAlbedo) {
             EXPECT_LT(angles[angles.size() / 2], 1.0);
         }
     }
+}
+
+// Issue 3's criterion as written: a purely Lambertian object gives RMSE < 0.5% of full scale
+// over EVERY seen texel (every particle the solve gives a value: gutters, texels only grazing
+// views see, texels shadowed in some frames; none left out as unresolved). The object is the
+// knot (self-shadowing, self-occluding; 5% of its seen texels have no view with n.v >= 0.3)
+// with a uniform albedo, 256 px, 8 views x 6 lights: the error is then the solve's own
+// (irradiance, shadows, occlusion, view choice, gutters), none of it the images resampling a
+// texture finer than their pixels. Measured 0.394% (best view); with the shadows baked in
+// (every frame lit) 21%, which the test checks too.
+// Where the criterion is not met (tests/diffuse/seen_texels.cpp, README.md "How the albedo is
+// sharpened"): the presets' own textures (at 512 px, 20 views: 0.65% to 2.77%), whose detail
+// is finer than a texel: the atlas cannot hold it (the exact truth written into it is 0.36% to
+// 2.27% off between texel centres); and a uniform albedo on the can, cologne and vase at this
+// size (0.76%, 1.31%, 1.51% with 12 views): the solve divides the bilinear mix of 4 pixels by
+// the irradiance at the particle alone, biased where the normal turns within the taps (the
+// can's rim, the vase's lip and foot) and more so where a grazing view stretches them. Given
+// each tap the irradiance of the surface its pixel sees (a simulation, one Embree ray per
+// tap), the can scores 0.005%, the vase 0.065% and the knot 0.18% (256 px, 12 views).
+TEST_P(DiffuseSolve, UniformLambertianMeetsTheCriterionOverSeenTexels) {
+    static const DiffuseScene s = test::make_scene(
+        {.preset = "knot", .lambertian = true, .size = 256, .views = 8, .edit_preset = [](synth::Preset& p) {
+             std::fill(p.material.albedo_texture.pixels.begin(), p.material.albedo_texture.pixels.end(), 0.5f);
+         }});
+    LambertOutputs out = run(s.inputs(), {});
+    expect_sane(out);
+    const auto seen = ok_mask(out);
+    const auto e = test::albedo_error(s, out, seen);
+    out.choice = ViewChoice::Robust;
+    const auto e_rob = test::albedo_error(s, out, seen);
+    EXPECT_GT(out.summary.rejected_shadow, 0u);
+    EXPECT_GT(e.count, s.truth.size() * 9 / 10);
+    // The same capture with the shadows baked in: the measure sees it.
+    DiffuseScene baked = s;
+    std::fill(baked.visibility.lit.begin(), baked.visibility.lit.end(), ~0u);
+    const LambertOutputs out_baked = run(baked.inputs(), {});
+    const auto e_baked = test::albedo_error(baked, out_baked, ok_mask(out_baked));
+    std::printf("knot, uniform albedo: RMSE over %zu seen texels (of %zu) %.3f%% (max %.3f), robust %.3f%%; shadows baked in %.2f%%\n",
+                e.count, s.truth.size(), 100 * e.rmse, e.max_abs, 100 * e_rob.rmse, 100 * e_baked.rmse);
+    EXPECT_LT(e.rmse, 0.005);
+    EXPECT_LT(e_rob.rmse, 0.005);
+    EXPECT_GT(e_baked.rmse, 0.05);
 }
 
 // The strongest lobe of the presets (cologne: Cz = 1.12, N = 18), png8, exposure 2 so that
