@@ -405,10 +405,17 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     b.cube_h = test::random_cube(8, 2);
     b.extra_terms = {{test::random_cube(8, 3), test::random_cube(8, 4)}}; // version 2, cubeTerms
     TempDir dir("bundle");
-    for (const int kind : {0, 1, 2}) { // lobe; lobe, mirrored (version 3); diffuse only
+    for (const int kind : {0, 1, 2, 3}) { // lobe; mirrored (version 3); warped (version 4); diffuse only
         if (kind == 1) b.factor_param = FactorParam::Mirrored;
-        if (kind == 2) b.lobe.reset();
-        const auto file = dir / (kind == 0 ? "lobe.glb" : kind == 1 ? "mirrored.glb" : "diffuse.glb");
+        if (kind == 2) {
+            b.factor_param = FactorParam::Warped;
+            b.factor_warp = warp_for_lobe(*b.lobe).value();
+        }
+        if (kind == 3) {
+            b.factor_param = FactorParam::Gshd;
+            b.lobe.reset();
+        }
+        const auto file = dir / (kind == 0 ? "lobe.glb" : kind == 1 ? "mirrored.glb" : kind == 2 ? "warped.glb" : "diffuse.glb");
         write_bundle(file, b);
         const std::string cmd = "SPECULA_GLTF_VALIDATOR_PATHS='" + std::string(SPECULA_NODE_MODULES_DIR) +
                                 "' node '" + std::string(SPECULA_GLTF_VALIDATE_JS) + "' '" +
