@@ -33,9 +33,10 @@ BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in) {
     for (std::size_t row = 0; row < rows; ++row) {
         const glm::dvec3 h = f64::gshd_grid_dir(static_cast<uint32_t>(row), in.res_h);
         for (std::size_t col = 0; col < cols; ++col) {
-            // Each channel's pair: in its own warp (the same pair for every channel otherwise).
+            // Each channel's pair in its own warp (warped); one pair for every channel otherwise.
+            f64::GshdPair p = f64::gshd_to_uv_param(h, dgrid[col], warped ? shared::kGshdPlain : param);
             for (int c = 0; c < 3; ++c) {
-                const f64::GshdPair p = f64::gshd_to_uv_warped(h, dgrid[col], param, glm::dvec2(channel_warp(in.warp, c)));
+                if (warped) p = f64::gshd_to_uv_warped(h, dgrid[col], param, glm::dvec2(channel_warp(in.warp, c)));
                 if (!(p.u.z > shared::kGshdMinCos && p.v.z > shared::kGshdMinCos)) continue;
                 const double f = warped ? lafortune_normalized_f64(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v)
                                         : lafortune_eval_f64(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v);

@@ -26,8 +26,21 @@ std::optional<double> FactorizationTimings::gpu_total_ns() const {
 
 namespace {
 
+/// Whether the residual kernels' float sums of products of F with G and H stay finite: the
+/// lobe's height max(|Cx|, |Cz|)^N is at most kResidualMaxValue (F is the lobe itself in the
+/// plain and mirrored parametrizations; the warped F is in [0, 1] and always fits).
+bool residual_sums_fit(const LafortuneRgb& lobe, FactorParam param) {
+    if (param == FactorParam::Warped) return true;
+    double height = 0.0;
+    for (int c = 0; c < 3; ++c)
+        height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
+                                                    std::abs(static_cast<double>(lobe.cz[c]))),
+                                           static_cast<double>(lobe.n[c])));
+    return height <= kResidualMaxValue;
+}
+
 /// K_max of the run: the forced K, or max_terms; 1 when the lobe is too high for the
-/// residual kernels' float sums (note says so).
+/// residual kernels' float sums, or unforced in the warped parametrization (note says why).
 uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param, std::string& note) {
     if (o.terms > kMaxTerms)
         throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxTerms) + " (got " +
@@ -37,17 +50,11 @@ uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& 
     if (!(o.term_target >= 0.0)) throw Error("factorize: term_target must be >= 0");
     const uint32_t k = o.terms != 0 ? o.terms : o.max_terms;
     if (k == 1) return 1;
-    if (param == FactorParam::Warped) { // F in [0, 1]: no overflow; rank 1 per channel
-        if (o.terms != 0) return k;
+    if (param == FactorParam::Warped && o.terms == 0) {
         note = "the warped F is rank 1 per channel: one term";
         return 1;
     }
-    double height = 0.0;
-    for (int c = 0; c < 3; ++c)
-        height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
-                                                    std::abs(static_cast<double>(lobe.cz[c]))),
-                                           static_cast<double>(lobe.n[c])));
-    if (!(height <= kResidualMaxValue)) {
+    if (!residual_sums_fit(lobe, param)) {
         note = "the lobe's height max(|Cx|, |Cz|)^N exceeds " + std::to_string(kResidualMaxValue) +
                " (float sums of the residual kernels could overflow): one term only";
         return 1;
@@ -66,11 +73,7 @@ std::string percent(double x) {
 uint32_t first_term_iterations(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param) {
     const uint32_t it = o.first_iterations.value_or(param == FactorParam::Warped ? kResidualIterations : 0u);
     if (it > 1000) throw Error("factorize: first_iterations must be in [0, 1000]");
-    if (it == 0 || param == FactorParam::Warped) return it;
-    FactorizationOptions one = o;
-    one.terms = 2;
-    std::string note;
-    return terms_to_compute(lobe, one, param, note) > 1 ? it : 0u;
+    return residual_sums_fit(lobe, param) ? it : 0u;
 }
 
 /// Matrix errors of the first k terms for every k, then K by the rule of FactorizationOptions::terms.

@@ -609,8 +609,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             const auto backend = config.backend == LambertBackend::Vulkan ? factorization::FactorizationBackend::Vulkan
                                                                           : factorization::FactorizationBackend::Cpu;
             factorization::FactorizationOptions fo;
-            // The planner's grid is the plain GSHD's; the mirrored one swaps the axes of the same
-            // rule (factorization/resolution.h), so unforced axes are left to each parametrization.
+            // The planner's grid is the plain GSHD's; the mirrored and warped ones put the peak
+            // along d (factorization/resolution.h), so unforced axes are left to each parametrization.
             fo.grid_h = config.factorization_grid_h;
             fo.grid_d = config.factorization_grid_d;
             fo.param = config.factor_param;

@@ -29,13 +29,6 @@ layout(push_constant) uniform Push {
     float warp_k[3];
 } pc;
 
-// f / |C u|^N (shared/gshd.h part 5), in [0, 1]; 0 where C u = 0.
-float lafortune_normalized(float cx, float cz, float n, vec3 u, vec3 v) {
-    float s = cx * cx * (u.x * u.x + u.y * u.y) + cz * cz * (u.z * u.z);
-    if (!(s > 0.0)) return 0.0;
-    float base = lafortune_base(cx, cz, u, v) * inversesqrt(s);
-    return base > 0.0 ? pow(min(base, 1.0), n) : 0.0;
-}
 
 void main() {
     uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);

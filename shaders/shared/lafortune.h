@@ -36,6 +36,16 @@ SHARED_FN float lafortune_radial(float cx, float cz, float n, vec3 u) {
     return s > 0.0f ? min(pow(s, 0.5f * n), 3.0e38f) : 0.0f;
 }
 
+// f / |C u|^N = max(0, (C u / |C u|).v)^N in [0, 1]: what F tabulates in the warped
+// parametrization (shared/gshd.h part 5; the CPU reference's double twin is
+// engine/factorization/lobe.h lafortune_normalized_f64). 0 where C u = 0.
+SHARED_FN float lafortune_normalized(float cx, float cz, float n, vec3 u, vec3 v) {
+    float s = cx * cx * (u.x * u.x + u.y * u.y) + cz * cz * (u.z * u.z);
+    if (!(s > 0.0f)) return 0.0f;
+    float base = lafortune_base(cx, cz, u, v) * inversesqrt(s);
+    return base > 0.0f ? pow(min(base, 1.0f), n) : 0.0f;
+}
+
 SHARED_FN vec3 lafortune_radial_rgb(vec3 cx, vec3 cz, vec3 n, vec3 u) {
     return vec3(lafortune_radial(cx.x, cz.x, n.x, u), lafortune_radial(cx.y, cz.y, n.y, u),
                 lafortune_radial(cx.z, cz.z, n.z, u));

@@ -346,8 +346,9 @@ TEST(Planner, LambertianLeavesSpecularOutAndForcingItChangesLittle) {
 
 // Planner, near-mirror lobe: the factorization grid follows the fitted lobe's width
 // (factorization/resolution.h: R = ceil(k sqrt(N)), clamped to [16, 128], along h in the plain
-// GSHD (k = 2), along d in the mirrored one (k = 16), which the automatic choice keeps for this
-// lobe), so a lobe of N ~ 300 gets a finer grid than the 16 a broad lobe gets. --specular on: at 128 px the
+// GSHD (k = 2), along d in the mirrored one (k = 16) and the warped one (k = 28), which the
+// automatic choice keeps for this lobe), so a lobe of N ~ 300 gets a finer grid than the 16 a
+// broad lobe gets. --specular on: at 128 px the
 // energy test alone does not see so small a highlight (about 3 noise variances).
 TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     test::TempDir dir("plan");
