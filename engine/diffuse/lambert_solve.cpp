@@ -48,8 +48,18 @@ void lambert_validate(const LambertInputs& in) {
     if (vis.frame_count != in.lights.size() || in.images.size() != in.lights.size())
         throw Error("lambert_solve: visibility has " + std::to_string(vis.frame_count) + " frames, inputs " +
                     std::to_string(in.lights.size()) + " lights and " + std::to_string(in.images.size()) + " images");
+    if (!vis.surfaces.empty() && vis.surfaces.size() != in.views.size())
+        throw Error("lambert_solve: visibility has " + std::to_string(vis.surfaces.size()) + " surface maps for " +
+                    std::to_string(in.views.size()) + " views");
     for (std::size_t v = 0; v < in.views.size(); ++v) {
         const LambertView& view = in.views[v];
+        if (!vis.surfaces.empty()) {
+            const SurfaceMap& m = vis.surfaces[v];
+            const Intrinsics& k = view.camera.intrinsics;
+            if (m.width != k.w || m.height != k.h || m.words.size() != std::size_t(k.w) * std::size_t(k.h) * 4)
+                throw Error("lambert_solve: view " + std::to_string(v) + ": surface map is " + std::to_string(m.width) + "x" +
+                            std::to_string(m.height) + ", image " + std::to_string(k.w) + "x" + std::to_string(k.h));
+        }
         if (view.frames.size() > shared::kLambertMaxFramesPerView)
             throw Error("lambert_solve: view " + std::to_string(v) + " has " + std::to_string(view.frames.size()) +
                         " train frames, more than the " + std::to_string(shared::kLambertMaxFramesPerView) + " supported");

@@ -62,6 +62,10 @@ struct LambertOptions {
     /// Known specular lobe (joint estimate): its light f_s E is subtracted from every sample
     /// before the solve (shared/lambert.h). Zero (the default): the thesis's solve.
     LafortuneRgb lobe{};
+    /// Per-tap irradiance (shared/lambert.h): scale each bilinear tap by the irradiance of the
+    /// surface its pixel shows, from the visibility's surface maps (when it has them; without
+    /// them, or false, the taps are mixed as they are: the thesis's sampling).
+    bool tap_irradiance = true;
     /// Vulkan: upper bound on the bytes of the batched bindings, images and pair results
     /// (0 = maxStorageBufferRange); tests lower it. Particles and lit masks take one binding each.
     std::uint64_t max_binding_bytes = 0;

@@ -4,6 +4,7 @@
 // Results are rounded to the float layouts the GPU writes.
 #include "diffuse/lambert_solve.h"
 #include "diffuse/lambert_solve_detail.h"
+#include "diffuse/view_batches.h"
 
 #include "core/error.h"
 #include "core/timer.h"
@@ -35,6 +36,9 @@ glm::dvec3 pixel(const FrameImage& im, int x, int y) {
 
 bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
+// Tap i of 4 (00, 10, 01, 11), as lambert_tap_index in lambert_sample.glsl.
+glm::ivec2 tap(const f64::LambertTaps& t, int i) { return {(i & 1) == 0 ? t.x0 : t.x1, (i & 2) == 0 ? t.y0 : t.y1}; }
+
 double lower_median(std::vector<double> v) { // rank (n - 1) / 2 in ascending order
     const std::size_t k = (v.size() - 1) / 2;
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
@@ -64,6 +68,50 @@ double weighted_lower_median(const std::vector<std::pair<double, std::uint32_t>>
 
 namespace detail {
 
+SampleRead lambert_read_sample(const FrameImage& im, const f64::LambertTaps& t, const SurfaceMap* surface,
+                               const glm::dvec3& light, double e_particle, double min_cos) {
+    SampleRead r;
+    const std::size_t w = static_cast<std::size_t>(im.color.width);
+    glm::dvec3 c[4];
+    std::uint32_t fl = 0;
+    bool finite = true;
+    for (int i = 0; i < 4; ++i) {
+        const glm::ivec2 q = tap(t, i);
+        c[i] = pixel(im, q.x, q.y);
+        fl |= im.flags[std::size_t(q.y) * w + std::size_t(q.x)];
+        finite = finite && finite3(c[i]);
+    }
+    if ((fl & (shared::kLambertPixMissing | shared::kLambertPixOutside)) || !finite) {
+        r.status = SampleStatus::Missing;
+        return r;
+    }
+    const double sat = static_cast<double>(std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
+    bool clip = (fl & shared::kLambertPixClipped) != 0;
+    for (const auto& v : c) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
+    if (clip) {
+        r.status = SampleStatus::Clipped;
+        return r;
+    }
+    if (surface != nullptr) {
+        for (int i = 0; i < 4; ++i) {
+            const glm::ivec2 q = tap(t, i);
+            glm::vec3 x, nt;
+            if (!surface->at(q.x, q.y, x, nt)) {
+                r.status = SampleStatus::Missing;
+                return r;
+            }
+            const double g = f64::lambert_tap_gain(glm::dvec3(x), glm::dvec3(nt), light, e_particle, min_cos);
+            if (g < 0.0) {
+                r.status = SampleStatus::Grazing;
+                return r;
+            }
+            c[i] *= g;
+        }
+    }
+    r.c = f64::lambert_bilinear(t, c[0], c[1], c[2], c[3]);
+    return r;
+}
+
 shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const LambertOptions& o, std::uint32_t particle,
                                            std::uint32_t view_index) {
     const Particle& part = in.particles[particle];
@@ -89,7 +137,7 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
     r.normal = glm::vec4(glm::vec3(n), 0.0f);
     std::uint32_t shadow = 0, clipped = 0, missing = 0, grazing = 0;
     std::vector<Sample> samples;
-    const std::size_t w = static_cast<std::size_t>(k.w);
+    const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
     for (std::uint32_t f : view.frames) {
         if (!vis.lights(particle, f)) { ++shadow; continue; }
         const PointLight& light = in.lights[f];
@@ -98,17 +146,12 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         const glm::dvec3 u = L / std::sqrt(d2);
         const double cosl = glm::dot(n, u);
         if (!(cosl >= static_cast<double>(o.min_light_cos))) { ++grazing; continue; }
-        const FrameImage& im = in.images[f];
-        const std::uint32_t fl = im.flags[std::size_t(t.y0) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y0) * w + std::size_t(t.x1)] |
-                                 im.flags[std::size_t(t.y1) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y1) * w + std::size_t(t.x1)];
-        const glm::dvec3 px[4] = {pixel(im, t.x0, t.y0), pixel(im, t.x1, t.y0), pixel(im, t.x0, t.y1), pixel(im, t.x1, t.y1)};
-        bool finite = true;
-        for (const auto& v : px) finite = finite && finite3(v);
-        if ((fl & (shared::kLambertPixMissing | shared::kLambertPixOutside)) || !finite) { ++missing; continue; }
-        const double sat = static_cast<double>(std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
-        bool clip = (fl & shared::kLambertPixClipped) != 0;
-        for (const auto& v : px) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
-        if (clip) { ++clipped; continue; }
+        const SampleRead read = lambert_read_sample(in.images[f], t, surfaces != nullptr ? &(*surfaces)[view_index] : nullptr,
+                                                    glm::dvec3(glm::vec3(light.position)), cosl / d2,
+                                                    static_cast<double>(o.min_light_cos));
+        if (read.status == SampleStatus::Missing) { ++missing; continue; }
+        if (read.status == SampleStatus::Clipped) { ++clipped; continue; }
+        if (read.status == SampleStatus::Grazing) { ++grazing; continue; }
         Sample s;
         s.i = glm::dvec3(glm::vec3(light.intensity));
         s.e = s.i * (cosl / d2);
@@ -117,7 +160,7 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         glm::dvec3 spec(0.0);
         for (int c = 0; c < 3; ++c)
             spec[c] = f64::lambert_lobe(double(o.lobe.cx[c]), double(o.lobe.cz[c]), double(o.lobe.n[c]), la, lb);
-        s.c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]) - spec * s.e;
+        s.c = read.c - spec * s.e;
         s.a = u / d2;
         samples.push_back(s);
     }

@@ -4,6 +4,17 @@
 
 namespace specula::detail {
 
+/// One sample as shaders/shared/lambert_sample.glsl reads it, in double: the 4 bilinear
+/// taps of `im`, their flags, finiteness and saturation, and with `surface` (the view's
+/// surface map, or null) each tap's irradiance gain toward e_particle = n.u / d^2.
+enum class SampleStatus { Ok, Missing, Clipped, Grazing };
+struct SampleRead {
+    glm::dvec3 c{0.0};
+    SampleStatus status = SampleStatus::Ok;
+};
+[[nodiscard]] SampleRead lambert_read_sample(const FrameImage& im, const shared::f64::LambertTaps& t, const SurfaceMap* surface,
+                                             const glm::dvec3& light, double e_particle, double min_cos);
+
 /// The pair step of one (particle, view) in double.
 [[nodiscard]] shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const LambertOptions& o,
                                                          std::uint32_t particle, std::uint32_t view);

@@ -123,7 +123,8 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
         }
     }
     // View batches whose images fit one binding (diffuse/view_batches.h).
-    const std::vector<ViewBatch> batches = plan_view_batches(in, limit, "lambert_solve");
+    const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
+    const std::vector<ViewBatch> batches = plan_view_batches(in, surfaces, limit, "lambert_solve");
     out.summary.pair_chunks = static_cast<std::uint32_t>(chunks.size());
 
     gpu::Buffer particles_buf = gpu::Buffer::of<Particle>(ctx, count, "lambert particles");
@@ -151,7 +152,7 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
     PackedViewBatch packed;
     for (const ViewBatch& b : batches) {
         // Views, frames and pixels of the batch.
-        pack_view_batch(in, b, packed);
+        pack_view_batch(in, surfaces, b, packed);
         const auto& views = packed.views;
         const auto& frames = packed.frames;
         const auto& pixel_words = packed.pixel_words;

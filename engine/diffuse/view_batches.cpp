@@ -7,7 +7,13 @@
 
 namespace specula {
 
-std::vector<ViewBatch> plan_view_batches(const LambertInputs& in, std::uint64_t binding_bytes, const std::string& who) {
+const std::vector<SurfaceMap>* tap_surfaces(const LambertInputs& in, bool wanted) {
+    if (!wanted || in.visibility == nullptr || in.visibility->surfaces.empty()) return nullptr;
+    return &in.visibility->surfaces;
+}
+
+std::vector<ViewBatch> plan_view_batches(const LambertInputs& in, const std::vector<SurfaceMap>* surfaces,
+                                         std::uint64_t binding_bytes, const std::string& who) {
     const std::uint32_t view_count = static_cast<std::uint32_t>(in.views.size());
     std::vector<ViewBatch> batches;
     for (std::uint32_t first = 0; first < view_count;) {
@@ -15,7 +21,8 @@ std::vector<ViewBatch> plan_view_batches(const LambertInputs& in, std::uint64_t 
         std::uint64_t px = 0;
         while (last < view_count) {
             const Intrinsics& k = in.views[last].camera.intrinsics;
-            const std::uint64_t view_px = std::uint64_t(k.w) * std::uint64_t(k.h) * in.views[last].frames.size();
+            const std::uint64_t view_px =
+                std::uint64_t(k.w) * std::uint64_t(k.h) * (in.views[last].frames.size() + (surfaces != nullptr ? 1 : 0));
             if ((px + view_px) * kBytesPerPackedPixel > binding_bytes) break;
             px += view_px;
             ++last;
@@ -28,7 +35,8 @@ std::vector<ViewBatch> plan_view_batches(const LambertInputs& in, std::uint64_t 
     return batches;
 }
 
-void pack_view_batch(const LambertInputs& in, const ViewBatch& batch, PackedViewBatch& out) {
+void pack_view_batch(const LambertInputs& in, const std::vector<SurfaceMap>* surfaces, const ViewBatch& batch,
+                     PackedViewBatch& out) {
     out.views.clear();
     out.frames.clear();
     out.pixel_words.assign(batch.pixels * 4, 0u);
@@ -66,6 +74,13 @@ void pack_view_batch(const LambertInputs& in, const ViewBatch& batch, PackedView
             }
             pixel_at += n;
             ++batch_frames;
+        }
+        out.views.back().surface_offset = shared::kLambertNoSurface;
+        if (surfaces != nullptr) {
+            const SurfaceMap& m = (*surfaces)[v];
+            out.views.back().surface_offset = static_cast<std::uint32_t>(pixel_at);
+            std::memcpy(out.pixel_words.data() + pixel_at * 4, m.words.data(), m.words.size() * sizeof(std::uint32_t));
+            pixel_at += m.words.size() / 4;
         }
     }
 }

@@ -397,7 +397,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         plan.add(std::move(d));
         result.left_out.push_back({"specular fit, factorization and specular pass (residual samples too)", "--specular off"});
     } else {
-        const ResidualOptions residual_options{.min_light_cos = lambert.min_light_cos, .max_binding_bytes = 0,
+        const ResidualOptions residual_options{.min_light_cos = lambert.min_light_cos, .tap_irradiance = lambert.tap_irradiance, .max_binding_bytes = 0,
                                                .max_albedo_spread = 0.02f};
         ResidualSamples rs = run_stage(result, "residual samples", [&] {
             return on_backend("residual samples",

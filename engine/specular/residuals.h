@@ -36,6 +36,8 @@ using ResidualSample = shared::ResidualSample;
 
 struct ResidualOptions {
     float min_light_cos = 0.1f; ///< drop n.u below this (the diffuse solve's min_light_cos)
+    /// Per-tap irradiance as in the diffuse solve (LambertOptions::tap_irradiance): keep the two equal.
+    bool tap_irradiance = true;
     /// Vulkan: upper bound on the bytes of one images or samples binding (0 = maxStorageBufferRange); tests lower it.
     std::uint64_t max_binding_bytes = 0;
     /// Particles whose best-view and robust (all-view) albedo differ by more than this,

@@ -5,6 +5,8 @@
 #include "specular/residuals.h"
 
 #include "core/error.h"
+#include "diffuse/lambert_solve_detail.h"
+#include "diffuse/view_batches.h"
 #include "core/timer.h"
 
 #include <cmath>
@@ -15,13 +17,6 @@ namespace {
 
 namespace f64 = shared::f64;
 constexpr double kPi = 3.14159265358979323846;
-
-glm::dvec3 pixel(const FrameImage& im, int x, int y) {
-    const float* p = &im.color.pixels[im.color.index(x, y)];
-    return {p[0], p[1], p[2]};
-}
-
-bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
 // shared::to_tangent_frame in double (same helper switch).
 glm::dvec3 to_tangent_frame(const glm::dvec3& n, const glm::dvec3& w) {
@@ -46,6 +41,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     ResidualSamples out;
     ResidualCounts& cnt = out.counts;
     const double min_cos = static_cast<double>(o.min_light_cos);
+    const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
     for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
         const LambertView& view = in.views[vi];
         if (view.frames.empty()) continue;
@@ -54,7 +50,6 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
         const glm::dvec4 kf(glm::vec4(static_cast<float>(k.fl_x), static_cast<float>(k.fl_y), static_cast<float>(k.cx),
                                       static_cast<float>(k.cy)));
         const glm::dvec3 center(glm::vec3(view.camera.center()));
-        const std::size_t w = static_cast<std::size_t>(k.w);
         for (std::uint32_t p = 0; p < in.particles.size(); ++p) {
             if (!vis.sees(p, vi)) continue;
             cnt.candidates += view.frames.size();
@@ -84,26 +79,22 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                     ++cnt.dropped_grazing;
                     continue;
                 }
-                const FrameImage& im = in.images[f];
-                const std::uint32_t fl =
-                    im.flags[std::size_t(t.y0) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y0) * w + std::size_t(t.x1)] |
-                    im.flags[std::size_t(t.y1) * w + std::size_t(t.x0)] | im.flags[std::size_t(t.y1) * w + std::size_t(t.x1)];
-                const glm::dvec3 px[4] = {pixel(im, t.x0, t.y0), pixel(im, t.x1, t.y0), pixel(im, t.x0, t.y1),
-                                          pixel(im, t.x1, t.y1)};
-                bool finite = true;
-                for (const auto& v : px) finite = finite && finite3(v);
-                if ((fl & (shared::kLambertPixMissing | shared::kLambertPixOutside)) || !finite) {
+                const detail::SampleRead read =
+                    detail::lambert_read_sample(in.images[f], t, surfaces != nullptr ? &(*surfaces)[vi] : nullptr,
+                                                glm::dvec3(glm::vec3(light.position)), cosl / d2, min_cos);
+                if (read.status == detail::SampleStatus::Missing) {
                     ++cnt.dropped_missing;
                     continue;
                 }
-                const double sat = static_cast<double>(std::isfinite(im.saturation) ? im.saturation : 3.0e38f);
-                bool clip = (fl & shared::kLambertPixClipped) != 0;
-                for (const auto& v : px) clip = clip || v.x >= sat || v.y >= sat || v.z >= sat;
-                if (clip) {
+                if (read.status == detail::SampleStatus::Clipped) {
                     ++cnt.dropped_clipped;
                     continue;
                 }
-                const glm::dvec3 c = f64::lambert_bilinear(t, px[0], px[1], px[2], px[3]);
+                if (read.status == detail::SampleStatus::Grazing) {
+                    ++cnt.dropped_grazing;
+                    continue;
+                }
+                const glm::dvec3 c = read.c;
                 const glm::dvec3 E = glm::dvec3(glm::vec3(light.intensity)) * (std::max(0.0, cosl) / d2);
                 const glm::dvec3 r = c - rpi * E;
                 const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);

@@ -88,7 +88,8 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
     rpi_buf.upload(rpi);
 
     // View batches whose images fit one binding (diffuse/view_batches.h).
-    const std::vector<ViewBatch> batches = plan_view_batches(in, limit, "residual_samples");
+    const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
+    const std::vector<ViewBatch> batches = plan_view_batches(in, surfaces, limit, "residual_samples");
     out.view_batches = static_cast<std::uint32_t>(batches.size());
 
     double gpu_ns = 0.0;
@@ -120,7 +121,7 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
         }
         if (keys.empty()) continue;
 
-        pack_view_batch(in, b, packed);
+        pack_view_batch(in, surfaces, b, packed);
         const auto& views = packed.views;
         const auto& frames = packed.frames;
         const auto& pixel_words = packed.pixel_words;

@@ -2,11 +2,15 @@
 
 #include "core/error.h"
 #include "core/timer.h"
+#include "shared/lambert.h"
+
+#include <glm/gtc/packing.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <limits>
 #include <mutex>
@@ -28,11 +32,13 @@ struct ThreadCounts {
 
 constexpr float kNoHit = std::numeric_limits<float>::infinity();
 
-// What the ray through each pixel center hits first: distance and triangle (t == kNoHit on a
-// miss). 8 bytes a pixel; the shadow map recomputes the barycentrics where it needs them.
+// What the ray through each pixel center hits first: distance, triangle and Embree's
+// barycentrics (t == kNoHit on a miss).
 struct PixelHit {
     float t = kNoHit;
     std::uint32_t triangle = 0;
+    float u = 0.0f;
+    float v = 0.0f;
 };
 
 std::vector<PixelHit> depth_map(const RayScene& scene, const Camera& cam, unsigned threads) {
@@ -45,7 +51,7 @@ std::vector<PixelHit> depth_map(const RayScene& scene, const Camera& cam, unsign
             for (int x = 0; x < w; ++x) {
                 const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
                 if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit))
-                    depth[std::size_t(y) * w + x] = {hit->t, hit->triangle};
+                    depth[std::size_t(y) * w + x] = {hit->t, hit->triangle, hit->u, hit->v};
             }
     };
     std::vector<std::thread> pool;
@@ -157,12 +163,54 @@ bool footprint_on_surface(const Camera& cam, const std::vector<PixelHit>& depth,
     return true;
 }
 
+SurfaceMap surface_map(const Mesh& mesh, const Camera& cam, const std::vector<PixelHit>& depth) {
+    SurfaceMap m;
+    m.width = cam.intrinsics.w;
+    m.height = cam.intrinsics.h;
+    m.words.assign(depth.size() * 4, 0u);
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+        std::uint32_t* out = &m.words[4 * i];
+        if (depth[i].t == kNoHit) {
+            out[3] = shared::kLambertNoHit;
+            continue;
+        }
+        const SurfacePoint sp = surface_point(mesh, depth[i].triangle, glm::dvec2(depth[i].u, depth[i].v));
+        pack_surface_pixel(sp.position, sp.normal, out);
+        ++m.hits;
+    }
+    return m;
+}
+
 struct Target {
     bool is_view;
     std::uint32_t index;
 };
 
 } // namespace
+
+void pack_surface_pixel(const glm::vec3& position, const glm::vec3& normal, std::uint32_t* words) {
+    std::memcpy(words, &position, 12);
+    // Octahedral: project onto |x| + |y| + |z| = 1, fold the lower half over the diagonals.
+    const float l1 = std::abs(normal.x) + std::abs(normal.y) + std::abs(normal.z);
+    glm::vec2 e = l1 > 0.0f ? glm::vec2(normal.x, normal.y) / l1 : glm::vec2(0.0f);
+    if (normal.z < 0.0f) {
+        const glm::vec2 folded = 1.0f - glm::abs(glm::vec2(e.y, e.x));
+        e = glm::vec2(e.x >= 0.0f ? folded.x : -folded.x, e.y >= 0.0f ? folded.y : -folded.y);
+    }
+    words[3] = glm::packSnorm2x16(e);
+}
+
+glm::vec3 unpack_surface_normal(std::uint32_t word) {
+    return glm::vec3(shared::lambert_oct_decode(glm::unpackSnorm2x16(word)));
+}
+
+bool SurfaceMap::at(int x, int y, glm::vec3& position, glm::vec3& normal) const {
+    const std::uint32_t* p = &words[4 * (std::size_t(y) * std::size_t(width) + std::size_t(x))];
+    if (p[3] == shared::kLambertNoHit) return false;
+    std::memcpy(&position, p, 12);
+    normal = unpack_surface_normal(p[3]);
+    return true;
+}
 
 Visibility compute_visibility(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
                               std::span<const VisibilityView> views, std::span<const PointLight> lights,
@@ -210,10 +258,11 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     // (On a convex mesh a tap off the particle's surface can only be background, which the
     // capture's mask already flags.)
     const bool footprint_test = options.footprint_test && !st.convexity.convex && !options.skip_rays;
-    std::vector<std::vector<PixelHit>> depth(footprint_test ? views.size() : 0);
+    std::vector<std::vector<PixelHit>> depth(footprint_test || options.surface_maps ? views.size() : 0);
     for (std::size_t v = 0; v < depth.size(); ++v) {
         depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));
         st.depth_rays += depth[v].size();
+        if (options.surface_maps) vis.surfaces.push_back(surface_map(mesh, views[v].camera, depth[v]));
     }
     const bool tap_shadows = footprint_test && !options.frame_view.empty();
     if (tap_shadows && options.frame_view.size() != lights.size())
@@ -394,9 +443,10 @@ std::string describe(const VisibilityStats& s) {
                   static_cast<unsigned long long>(s.rays_avoided));
     std::string out = buf;
     if (s.depth_rays > 0)
+        out += "  depth rays (surface maps, footprint test): " + std::to_string(s.depth_rays) + "\n";
+    if (s.footprint_rejected > 0)
         out += "  footprint test: " + std::to_string(s.footprint_rejected) +
-               " (particle, view) pairs dropped (a bilinear tap shows another surface); " + std::to_string(s.depth_rays) +
-               " depth rays\n";
+               " (particle, view) pairs dropped (a bilinear tap shows another surface)\n";
     if (s.shadow_map_rays > 0)
         out += "  shadow-edge test: " + std::to_string(s.shadow_edge_rejected) +
                " (particle, frame) pairs unlit (a bilinear tap is dark: in a cast shadow or facing away from the light); " + std::to_string(s.shadow_map_rays) +

@@ -69,6 +69,10 @@ struct VisibilityOptions {
     /// seen side of its face, as the synthetic renderer shades it) or one shadow ray from it
     /// is occluded (cast only for the facing ones).
     std::span<const std::uint32_t> frame_view;
+    /// Keep each view's surface map (SurfaceMap: what the ray through each pixel centre hits),
+    /// for the per-tap irradiance of the diffuse solve and the residual samples
+    /// (shared/lambert.h). Its rays are the footprint test's depth rays where that test runs.
+    bool surface_maps = true;
 };
 
 inline constexpr float kFootprintMinCos = 0.2f;
@@ -82,7 +86,7 @@ struct VisibilityStats {
     std::uint64_t rays_cast = 0;     ///< occlusion rays traced
     std::uint64_t rays_occluded = 0; ///< of those, how many hit something
     std::uint64_t rays_avoided = 0;  ///< rays the convexity test made unnecessary
-    std::uint64_t depth_rays = 0;    ///< primary rays of the per-view depth maps (footprint test)
+    std::uint64_t depth_rays = 0;    ///< primary rays of the per-view depth maps (footprint test, surface maps)
     std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     std::uint64_t shadow_map_rays = 0;    ///< shadow rays of the per-frame pixel shadow maps
     std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap is dark (cast shadow or facing away)
@@ -91,6 +95,24 @@ struct VisibilityStats {
     unsigned threads = 0;
     double seconds = 0.0;
 };
+
+/// What one view's pixels show: per pixel (row-major, w x h), the point the ray through its
+/// centre hits first and the interpolated normal there (eq. 3.3, as surface_point computes it
+/// for the particles), packed as shared/lambert.h lays out surface maps (4 words a pixel:
+/// position float bits, octahedral snorm16 normal; kLambertNoHit where the ray misses).
+struct SurfaceMap {
+    int width = 0;
+    int height = 0;
+    std::vector<std::uint32_t> words; ///< 4 per pixel
+    std::uint64_t hits = 0;           ///< pixels that show the surface
+
+    /// Pixel (x, y): false on a miss, else its position and unit normal.
+    [[nodiscard]] bool at(int x, int y, glm::vec3& position, glm::vec3& normal) const;
+};
+
+/// The 4 words of a surface-map pixel (shared/lambert.h) and back.
+void pack_surface_pixel(const glm::vec3& position, const glm::vec3& normal, std::uint32_t* words);
+[[nodiscard]] glm::vec3 unpack_surface_normal(std::uint32_t word);
 
 struct Visibility {
     std::uint32_t particle_count = 0;
@@ -101,6 +123,7 @@ struct Visibility {
     std::vector<std::uint32_t> seen;     ///< particle_count * view_words
     std::vector<std::uint32_t> lit;      ///< particle_count * frame_words
     std::vector<std::int32_t> best_view; ///< particle_count
+    std::vector<SurfaceMap> surfaces;    ///< per view when VisibilityOptions::surface_maps, else empty
     VisibilityStats stats;
 
     [[nodiscard]] bool sees(std::size_t particle, std::size_t view) const {

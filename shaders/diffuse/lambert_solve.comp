@@ -1,7 +1,8 @@
 #version 450
 // lambert_solve, pair step: one invocation per (particle, view) pair of the current view
 // batch. Samples every train frame of the view at the particle's projection (bilinear),
-// rejects shadowed, grazing, missing, clipped and highlight samples, and solves albedo or
+// scales each tap to the particle's irradiance (view surface map), rejects shadowed, grazing,
+// missing, clipped and highlight samples, and solves albedo or
 // photometric mode (method and thresholds: shared/lambert.h; reference:
 // engine/diffuse/lambert_solve_cpu.cpp, which follows this step for step).
 #extension GL_GOOGLE_include_directive : require
@@ -27,6 +28,8 @@ layout(std430, set = 0, binding = 4) readonly buffer Pixels { uvec4 pixels[]; };
 layout(std430, set = 0, binding = 5) readonly buffer Keys { LambertPairKey keys[]; };
 layout(std430, set = 0, binding = 6) writeonly buffer Results { LambertPairResult results[]; };
 
+#include "shared/lambert_sample.glsl"
+
 layout(push_constant) uniform Push {
     SPECULA_DISPATCH_HEADER
     uint frame_words;
@@ -41,10 +44,6 @@ layout(push_constant) uniform Push {
 } pc;
 
 const float kPi = 3.14159265358979323846;
-
-bool finite3(vec3 v) {
-    return abs(v.x) <= 3.0e38 && abs(v.y) <= 3.0e38 && abs(v.z) <= 3.0e38;
-}
 
 void main() {
     uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
@@ -88,21 +87,11 @@ void main() {
         vec3 u = L / sqrt(d2);
         float cosl = dot(n, u);
         if (!(cosl >= pc.min_light_cos)) { ++grazing; continue; }
-        uint base = fr.pixel_offset;
-        uvec4 p00 = pixels[base + uint(t.y0 * w + t.x0)];
-        uvec4 p10 = pixels[base + uint(t.y0 * w + t.x1)];
-        uvec4 p01 = pixels[base + uint(t.y1 * w + t.x0)];
-        uvec4 p11 = pixels[base + uint(t.y1 * w + t.x1)];
-        vec3 c00 = uintBitsToFloat(p00.xyz);
-        vec3 c10 = uintBitsToFloat(p10.xyz);
-        vec3 c01 = uintBitsToFloat(p01.xyz);
-        vec3 c11 = uintBitsToFloat(p11.xyz);
-        uint fl = p00.w | p10.w | p01.w | p11.w;
-        bool finite = finite3(c00) && finite3(c10) && finite3(c01) && finite3(c11);
-        if ((fl & (kLambertPixMissing | kLambertPixOutside)) != 0u || !finite) { ++missing; continue; }
-        float sat = fr.light.w;
-        vec3 mx = max(max(c00, c10), max(c01, c11));
-        if ((fl & kLambertPixClipped) != 0u || mx.x >= sat || mx.y >= sat || mx.z >= sat) { ++clipped; continue; }
+        LambertSample smp = lambert_read_sample(t, w, fr.pixel_offset, fr.light.w, view.surface_offset, fr.light.xyz,
+                                                cosl / d2, pc.min_light_cos);
+        if (smp.status == kLambertSampleMissing) { ++missing; continue; }
+        if (smp.status == kLambertSampleClipped) { ++clipped; continue; }
+        if (smp.status == kLambertSampleGrazing) { ++grazing; continue; }
         si[ns] = fr.intensity.xyz;
         se[ns] = fr.intensity.xyz * (cosl / d2);
         float lb = cosl * nv;
@@ -110,7 +99,7 @@ void main() {
         vec3 spec = vec3(lambert_lobe(pc.lobe[0], pc.lobe[3], pc.lobe[6], la, lb),
                          lambert_lobe(pc.lobe[1], pc.lobe[4], pc.lobe[7], la, lb),
                          lambert_lobe(pc.lobe[2], pc.lobe[5], pc.lobe[8], la, lb));
-        sc[ns] = lambert_bilinear(t, c00, c10, c01, c11) - spec * se[ns];
+        sc[ns] = smp.c - spec * se[ns];
         sa[ns] = u / d2;
         ses[ns] = se[ns].x + se[ns].y + se[ns].z;
         sq[ns] = (sc[ns].x + sc[ns].y + sc[ns].z) / ses[ns];

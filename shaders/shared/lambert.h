@@ -13,6 +13,11 @@
 //   clipped    any tap has any channel at or above saturation (or a kClipped* flag): the whole
 //              sample goes, not only that channel: a channel clips where a highlight adds
 //              light, so the other channels of that sample carry the highlight too,
+//   (tap surface: when the views have surface maps (visibility.h), each tap's pixel value is
+//              first scaled by gain_j = E(particle) / E(tap surface), so the 4 taps are brought to
+//              the particle's irradiance before they are mixed; a sample whose tap shows no
+//              surface is `missing`, one whose tap surface gets n.u below min_light_cos is
+//              `grazing`; see "Per-tap irradiance" below)
 //   highlight  robust fit (the specular term only adds light), on the channel sums
 //              cs_i = c_r + c_g + c_b and Es_i = E_r + E_g + E_b, ratio q_i = cs_i / Es_i:
 //                est_0 = lower median of q_i over the remaining samples
@@ -23,6 +28,18 @@
 //                        `iterations` times, stops when the kept set does not change)
 //              defaults tau = 0.1, k_sigma = 3 x 0.004 (k = 3 times the noise sigma of
 //              full scale 1.0; 0.004 is about one 8-bit sRGB step at mid grey).
+// Per-tap irradiance (an addition to the thesis). The sample is a bilinear mix of 4 pixels,
+// and each pixel shows its own surface point x_j with its own normal n_j, lit by
+// E_j = I max(0, n_j.u_j) / d_j^2. Dividing the mix by the particle's E alone is biased
+// wherever E changes across the taps faster than linearly: where the normal turns within
+// a pixel (a rim, a lip, a crease) and where a grazing view stretches a pixel over the
+// surface. With the view's surface map (per pixel: the position and interpolated normal
+// that the ray through its centre hits; visibility.h) each tap's value is scaled by
+//     gain_j = (n.u / d^2) / (n_j.u_j / d_j^2)
+// (the intensity cancels) before the bilinear mix: for a Lambertian surface each scaled tap
+// is (rho_j / pi) E, so the mix is the mix of the taps' albedos, lit like the particle.
+// The specular residuals (shared/residuals.h) apply the same gains, so the lobe fit sees the
+// samples the albedo came from.
 // Known lobe (joint estimate, an addition to the thesis): when a Lafortune lobe is given
 // (the previous round's fit), its light f_s(u_i, v) E_i is subtracted from every sample
 // before the highlight test and the solve, so the albedo no longer absorbs the part of a
@@ -74,7 +91,13 @@ const uint kLambertNoSample = 4u;      // seen, but no view kept a sample: albed
 const uint kLambertNotSeen = 8u;       // no view sees the particle: albedo 0 (inpainted later)
 const uint kLambertViewsRejected = 16u; // some views were outliers against the cross-view median
 
-// One view of a batch (std430, 96 bytes).
+// Surface maps (visibility.h): 4 words per pixel, the hit position's float bits (xyz) and
+// its interpolated unit normal, octahedral, packed as 2 x snorm16 (packSnorm2x16). A pixel
+// whose ray hits nothing holds kLambertNoHit in the 4th word (packSnorm2x16 never writes
+// -32768, so no normal packs to it).
+const uint kLambertNoHit = 0x80008000u;
+const uint kLambertNoSurface = 0xFFFFFFFFu; // LambertViewGpu::surface_offset: the view has no surface map
+// One view of a batch (std430, 112 bytes).
 struct LambertViewGpu {
     vec4 w2c0; // rows of world_to_camera (float)
     vec4 w2c1;
@@ -85,6 +108,10 @@ struct LambertViewGpu {
     uint height;
     uint frame_first; // into the batch's frame array
     uint frame_count;
+    uint surface_offset; // first pixel of the view's surface map in the batch's pixel buffer, or kLambertNoSurface
+    uint pad0;
+    uint pad1;
+    uint pad2;
 };
 
 // One frame of a batch (std430, 48 bytes).
@@ -151,7 +178,7 @@ SHARED_FN uint lambert_byte(uint packed, uint i) {
 SPECULA_SHARED_END
 
 #ifdef __cplusplus
-static_assert(sizeof(specula::shared::LambertViewGpu) == 96);
+static_assert(sizeof(specula::shared::LambertViewGpu) == 112);
 static_assert(sizeof(specula::shared::LambertFrameGpu) == 48);
 static_assert(sizeof(specula::shared::LambertPairKey) == 12);
 static_assert(sizeof(specula::shared::LambertPairResult) == 48);

@@ -67,3 +67,26 @@ SHARED_FN LAMBERT_REAL lambert_lobe(LAMBERT_REAL cx, LAMBERT_REAL cz, LAMBERT_RE
     LAMBERT_REAL base = cx * a + cz * b;
     return base > LAMBERT_REAL(0.0) ? pow(base, n) : LAMBERT_REAL(0.0);
 }
+
+// Octahedral decoding of a unit normal (lambert.h surface maps): e in [-1, 1]^2 as
+// unpackSnorm2x16 returns it.
+SHARED_FN LAMBERT_VEC3 lambert_oct_decode(LAMBERT_VEC2 e) {
+    LAMBERT_VEC3 n = LAMBERT_VEC3(e.x, e.y, LAMBERT_REAL(1.0) - abs(e.x) - abs(e.y));
+    LAMBERT_REAL t = max(-n.z, LAMBERT_REAL(0.0));
+    n.x += n.x >= LAMBERT_REAL(0.0) ? -t : t;
+    n.y += n.y >= LAMBERT_REAL(0.0) ? -t : t;
+    return normalize(n);
+}
+
+// Per-tap irradiance (lambert.h): the gain that brings a tap whose pixel shows surface point
+// x with unit normal nt to the particle's irradiance factor e_particle = n.u / d^2, for the
+// light at `light`. Negative when the tap's surface gets n.u below min_cos (the sample is
+// then dropped as grazing: its gain would amplify the pixel's noise without bound).
+SHARED_FN LAMBERT_REAL lambert_tap_gain(LAMBERT_VEC3 x, LAMBERT_VEC3 nt, LAMBERT_VEC3 light, LAMBERT_REAL e_particle,
+                                        LAMBERT_REAL min_cos) {
+    LAMBERT_VEC3 L = light - x;
+    LAMBERT_REAL d2 = dot(L, L);
+    LAMBERT_REAL c = dot(nt, L) / sqrt(d2);
+    if (!(c >= min_cos)) return LAMBERT_REAL(-1.0);
+    return e_particle * d2 / c;
+}

@@ -4,7 +4,9 @@
 // For particle p (diffuse solution rho, status kLambertOk), view j that sees it, and
 // train frame i of view j whose light reaches p (visibility `lit` bit):
 //     E_i = I_i max(0, n.u_i) / d_i^2               irradiance factor (per channel)
-//     r_i = c_i - (rho / pi) E_i                    residual (c_i: bilinear pixel value)
+//     r_i = c_i - (rho / pi) E_i                    residual (c_i: bilinear pixel value, each
+//                                                   tap scaled to the particle's irradiance
+//                                                   as the diffuse solve does, shared/lambert.h)
 //     f_s = r_i / E_i = r_i d_i^2 / (I_i n.u_i)     specular BRDF sample
 // The thesis's "r = c / d^2" is a slip (pipeline.md section 4): undoing the falloff
 // multiplies by d^2, and the cosine and the intensity divide.
@@ -12,8 +14,9 @@
 //
 // Dropped (status, counted per reason):
 //   grazing  n.u < min_light_cos (the diffuse solve's threshold, default 0.1): f_s = r / E
-//            amplifies the image noise by 1 / E without bound as n.u -> 0,
-//   missing  a bilinear tap is kMissing / kOutsideMask or not finite,
+//            amplifies the image noise by 1 / E without bound as n.u -> 0; also when a tap's
+//            surface (surface map) gets n.u below it,
+//   missing  a bilinear tap is kMissing / kOutsideMask, not finite, or shows no surface,
 //   clipped  a tap has a channel at or above saturation (or a kClipped flag): the value is
 //            only a lower bound (the diffuse solve drops the whole sample the same way).
 // (Shadowed frames, lit bit clear, and particles without a diffuse solution get no slot:

@@ -4,7 +4,7 @@
 // counted them, so slots are consecutive from key.slot), filled with the specular BRDF
 // sample or a drop status. Method: shared/residuals.h; reference:
 // engine/specular/residuals_cpu.cpp. Bilinear taps and flags as in the diffuse solve
-// (shared/lambert.h), so both stages read the same pixel value.
+// and per-tap irradiance gains (shared/lambert.h), so both stages read the same pixel value.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/lambert.h"
@@ -35,9 +35,7 @@ layout(push_constant) uniform Push {
     float min_light_cos;
 } pc;
 
-bool finite3(vec3 v) {
-    return abs(v.x) <= 3.0e38 && abs(v.y) <= 3.0e38 && abs(v.z) <= 3.0e38;
-}
+#include "shared/lambert_sample.glsl"
 
 void main() {
     uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
@@ -76,30 +74,16 @@ void main() {
             samples[slot++] = s;
             continue;
         }
-        uint base = fr.pixel_offset;
-        uvec4 p00 = pixels[base + uint(t.y0 * w + t.x0)];
-        uvec4 p10 = pixels[base + uint(t.y0 * w + t.x1)];
-        uvec4 p01 = pixels[base + uint(t.y1 * w + t.x0)];
-        uvec4 p11 = pixels[base + uint(t.y1 * w + t.x1)];
-        vec3 c00 = uintBitsToFloat(p00.xyz);
-        vec3 c10 = uintBitsToFloat(p10.xyz);
-        vec3 c01 = uintBitsToFloat(p01.xyz);
-        vec3 c11 = uintBitsToFloat(p11.xyz);
-        uint fl = p00.w | p10.w | p01.w | p11.w;
-        bool finite = finite3(c00) && finite3(c10) && finite3(c01) && finite3(c11);
-        if ((fl & (kLambertPixMissing | kLambertPixOutside)) != 0u || !finite) {
-            s.status = kResidualMissing;
+        LambertSample smp = lambert_read_sample(t, w, fr.pixel_offset, fr.light.w, view.surface_offset, fr.light.xyz,
+                                                cosl / d2, pc.min_light_cos);
+        if (smp.status != kLambertSampleOk) {
+            s.status = smp.status == kLambertSampleMissing   ? kResidualMissing
+                       : smp.status == kLambertSampleClipped ? kResidualClipped
+                                                             : kResidualGrazing;
             samples[slot++] = s;
             continue;
         }
-        float sat = fr.light.w;
-        vec3 mx = max(max(c00, c10), max(c01, c11));
-        if ((fl & kLambertPixClipped) != 0u || mx.x >= sat || mx.y >= sat || mx.z >= sat) {
-            s.status = kResidualClipped;
-            samples[slot++] = s;
-            continue;
-        }
-        vec3 c = lambert_bilinear(t, c00, c10, c01, c11);
+        vec3 c = smp.c;
         vec3 E = residual_irradiance(fr.intensity.xyz, cosl, d2);
         float ebar = (E.x + E.y + E.z) / 3.0;
         s.f = residual_brdf(c, rpi, E);

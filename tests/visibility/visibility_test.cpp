@@ -69,6 +69,7 @@ TEST(Visibility, FootprintTestDropsFloorTexelsWhoseBilinearTapsReachTheBox) {
     const Scene s(test::plane_with_box(), cams);
     VisibilityOptions plain;
     plain.footprint_test = false;
+    plain.surface_maps = false;
     const Visibility without = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {}, plain);
     const Visibility with = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), {});
     EXPECT_EQ(without.stats.depth_rays, 0u);
