@@ -107,6 +107,7 @@ struct LambertSummary {
     std::uint64_t used = 0, rejected_shadow = 0, rejected_clipped = 0, rejected_missing = 0, rejected_grazing = 0,
                   rejected_highlight = 0, rejected_view = 0,
                   rejected_low = 0; ///< shadow edges: far below the fit
+    bool tap_irradiance = false;  ///< the taps were scaled by their surfaces' irradiance (LambertOptions::tap_irradiance and surface maps)
     double mean_normal_angle_deg = 0.0; ///< photometric, over ok particles whose best view solved photometrically
     double seconds = 0.0;         ///< wall clock of the whole solve (upload, dispatch, download)
     std::optional<double> gpu_ms; ///< sum of the dispatches' GPU time (Vulkan with timestamps)

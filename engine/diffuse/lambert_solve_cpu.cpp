@@ -330,6 +330,7 @@ LambertOutputs lambert_solve_cpu(const LambertInputs& in, const LambertOptions& 
     }
     out.summary.seconds = sw.seconds();
     summarize(out);
+    out.summary.tap_irradiance = tap_surfaces(in, options.tap_irradiance) != nullptr;
     return out;
 }
 

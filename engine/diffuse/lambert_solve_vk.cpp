@@ -221,6 +221,7 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
     }
     out.summary.seconds = sw.seconds();
     summarize(out);
+    out.summary.tap_irradiance = surfaces != nullptr;
     return out;
 }
 

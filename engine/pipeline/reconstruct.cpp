@@ -73,6 +73,7 @@ json visibility_json(const VisibilityStats& s) {
             {"rays_occluded", s.rays_occluded},
             {"rays_avoided", s.rays_avoided},
             {"depth_rays", s.depth_rays},
+            {"surface_maps", s.surface_maps},
             {"footprint_rejected_pairs", s.footprint_rejected},
             {"shadow_map_rays", s.shadow_map_rays},
             {"shadow_edge_rejected_pairs", s.shadow_edge_rejected},
@@ -87,6 +88,7 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBac
     json j = {{"backend", to_string(backend)},
               {"mode", to_string(o.mode)},
               {"view_choice", o.choice == ViewChoice::BestView ? "best_view" : "robust"},
+              {"tap_irradiance", s.tap_irradiance},
               {"particles", s.particles},
               {"pairs", s.pairs},
               {"ok", s.ok},
@@ -303,8 +305,13 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                   VisibilityOptions{.threads = config.threads,
                                                     .force_rays = cast_rays,
                                                     .skip_rays = !cast_rays,
-                                                    .frame_view = vis_inputs.frame_view});
+                                                    .frame_view = vis_inputs.frame_view,
+                                                    .surface_maps = config.lambert.tap_irradiance});
     });
+    if (!config.lambert.tap_irradiance)
+        result.left_out.push_back({"per-tap irradiance (surface maps)",
+                                   "--tap-irradiance off: each sample mixes its 4 pixels as they are (the thesis's sampling), "
+                                   "biased where the normal turns within a pixel"});
     {
         PlanDecision& d = *plan.find("occlusion_rays");
         d.detail["rays_cast"] = visibility.stats.rays_cast;

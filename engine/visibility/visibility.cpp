@@ -264,6 +264,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.depth_rays += depth[v].size();
         if (options.surface_maps) vis.surfaces.push_back(surface_map(mesh, views[v].camera, depth[v]));
     }
+    st.surface_maps = vis.surfaces.size();
     const bool tap_shadows = footprint_test && !options.frame_view.empty();
     if (tap_shadows && options.frame_view.size() != lights.size())
         throw Error("visibility: frame_view has " + std::to_string(options.frame_view.size()) + " entries for " +
@@ -443,7 +444,8 @@ std::string describe(const VisibilityStats& s) {
                   static_cast<unsigned long long>(s.rays_avoided));
     std::string out = buf;
     if (s.depth_rays > 0)
-        out += "  depth rays (surface maps, footprint test): " + std::to_string(s.depth_rays) + "\n";
+        out += "  depth rays (surface maps of " + std::to_string(s.surface_maps) + " views, footprint test): " +
+               std::to_string(s.depth_rays) + "\n";
     if (s.footprint_rejected > 0)
         out += "  footprint test: " + std::to_string(s.footprint_rejected) +
                " (particle, view) pairs dropped (a bilinear tap shows another surface)\n";

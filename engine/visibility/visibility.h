@@ -87,6 +87,7 @@ struct VisibilityStats {
     std::uint64_t rays_occluded = 0; ///< of those, how many hit something
     std::uint64_t rays_avoided = 0;  ///< rays the convexity test made unnecessary
     std::uint64_t depth_rays = 0;    ///< primary rays of the per-view depth maps (footprint test, surface maps)
+    std::size_t surface_maps = 0;    ///< views with a surface map (per-tap irradiance)
     std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     std::uint64_t shadow_map_rays = 0;    ///< shadow rays of the per-frame pixel shadow maps
     std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap is dark (cast shadow or facing away)

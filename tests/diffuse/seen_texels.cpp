@@ -1,6 +1,6 @@
 // Albedo error over every seen texel of a Lambertian synthetic capture (issue 3: "RMSE under
 // 0.5% of full scale over seen texels"), and where it lives (run by hand, not a test):
-//   seen_texels CAPTURE PRESET [OUT ...]
+//   seen_texels CAPTURE PRESET[@V] [OUT ...]      (@V: uniform albedo V, synth --albedo-value V,V,V)
 // CAPTURE: `specula synth --preset PRESET --lambertian --out CAPTURE`; each OUT: `specula
 // reconstruct CAPTURE -o OUT` (its albedo.exr, read at the particles' texels). The tool
 // rebuilds what reconstruct builds (the atlas from the train views with default options, the
@@ -28,6 +28,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 using namespace specula;
@@ -84,7 +85,16 @@ int main(int argc, char** argv) try {
         return 2;
     }
     test::DiffuseScene scene;
-    scene.preset = synth::make_preset(argv[2], true);
+    // PRESET@V: the preset's mesh with a uniform albedo V (`specula synth --preset PRESET
+    // --lambertian --albedo-value V,V,V`).
+    std::string preset_name = argv[2];
+    std::optional<float> uniform;
+    if (const auto at = preset_name.find('@'); at != std::string::npos) {
+        uniform = std::stof(preset_name.substr(at + 1));
+        preset_name.resize(at);
+    }
+    scene.preset = synth::make_preset(preset_name, true);
+    if (uniform) std::fill(scene.preset.material.albedo_texture.pixels.begin(), scene.preset.material.albedo_texture.pixels.end(), *uniform);
     scene.capture = load_capture(argv[1]);
     if (scene.capture.mesh.triangles != scene.preset.mesh.triangles || scene.capture.mesh.texcoords.size() != scene.preset.mesh.texcoords.size())
         throw std::runtime_error(std::string("the capture's mesh is not preset ") + argv[2] + "'s");

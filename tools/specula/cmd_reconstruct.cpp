@@ -19,6 +19,7 @@ struct ReconstructArgs {
     std::string backend = "vulkan";
     std::string mode = "auto";
     std::string occlusion_rays = "auto";
+    std::string tap_irradiance = "on";
     bool force_occlusion_rays = false;
     std::vector<std::uint32_t> grid;
     std::string views = "best";
@@ -36,6 +37,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.occlusion_rays = args.occlusion_rays == "on" || args.force_occlusion_rays ? Toggle::On
                        : args.occlusion_rays == "off"                          ? Toggle::Off
                                                                                : Toggle::Auto;
+    c.lambert.tap_irradiance = args.tap_irradiance == "on";
     if (args.force_occlusion_rays && args.occlusion_rays == "off")
         throw UsageError("--force-occlusion-rays contradicts --occlusion-rays off");
     if (!args.grid.empty()) {
@@ -128,6 +130,12 @@ void add_reconstruct_command(CLI::App& app) {
                     "auto: Embree occlusion rays only where the mesh can occlude itself (not convex); on: always (the\n"
                     "report gives their measured cost); off: never (biased where the mesh shadows or hides itself)")
         ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--tap-irradiance", args->tap_irradiance,
+                    "on: scale each of a sample's 4 bilinear pixels to the particle's irradiance, from what the ray\n"
+                    "through each pixel hits (one depth ray per pixel of every view); off: mix them as they are (the\n"
+                    "thesis's sampling: biased where the normal turns within a pixel, e.g. rims, lips, creases)")
+        ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     cmd->add_flag("--force-occlusion-rays", args->force_occlusion_rays, "The same as --occlusion-rays on");
     cmd->add_option("--factorization-grid", args->grid,
