@@ -46,19 +46,25 @@ TEST_F(LambertSolveConformance, VulkanMatchesCpuReference) {
     // The two modes, and albedo mode with the scene's true lobe subtracted (the joint
     // estimate's later rounds; float pow(base, N) adds ~N eps32 relative to the lobe term,
     // within the same tolerance).
+    // Each with per-tap irradiance (the default: the views' surface maps), and albedo mode once
+    // without it (the thesis's sampling).
     struct Config {
         LambertMode mode;
         bool lobe;
+        bool taps = true;
     };
+    ASSERT_EQ(s.visibility.surfaces.size(), in.views.size());
     for (const Config cfg : {Config{LambertMode::Albedo, false}, Config{LambertMode::Photometric, false},
-                             Config{LambertMode::Albedo, true}}) {
+                             Config{LambertMode::Albedo, true}, Config{LambertMode::Albedo, false, false}}) {
         const LambertMode mode = cfg.mode;
-        LambertOptions o{.mode = mode};
+        LambertOptions o{.mode = mode, .tap_irradiance = cfg.taps};
         if (cfg.lobe) o.lobe = s.preset.material.lobe;
         ASSERT_FALSE(s.preset.material.lobe.is_zero());
         const LambertOutputs ref = lambert_solve_cpu(in, o);
         const LambertOutputs vk = kernel.run(in, o);
         ASSERT_EQ(vk.particles.size(), ref.particles.size());
+        EXPECT_EQ(ref.summary.tap_irradiance, cfg.taps);
+        EXPECT_EQ(vk.summary.tap_irradiance, cfg.taps);
         const double abs_tol = mode == LambertMode::Albedo ? 1e-4 : 1e-3;
         const double rel_tol = mode == LambertMode::Albedo ? 1e-4 : 4e-3;
         std::size_t flips = 0, compared = 0;
@@ -90,9 +96,9 @@ TEST_F(LambertSolveConformance, VulkanMatchesCpuReference) {
                 ASSERT_LE(da, 0.05) << "particle " << p;
             }
         }
-        std::printf("%s%s: %zu particles (%zu ok, %zu fallback, %zu no sample, %zu not seen in the reference); decisions "
+        std::printf("%s%s%s: %zu particles (%zu ok, %zu fallback, %zu no sample, %zu not seen in the reference); decisions "
                     "differ on %zu; worst value error / tolerance %.3g, worst angle difference %.3g deg; GPU %.2f ms\n",
-                    to_string(mode), cfg.lobe ? " (true lobe subtracted)" : "", ref.particles.size(), ref.summary.ok, ref.summary.fallback, ref.summary.no_sample,
+                    to_string(mode), cfg.lobe ? " (true lobe subtracted)" : "", cfg.taps ? "" : " (taps as they are)", ref.particles.size(), ref.summary.ok, ref.summary.fallback, ref.summary.no_sample,
                     ref.summary.not_seen, flips, worst, worst_angle, vk.summary.gpu_ms.value_or(-1.0));
         EXPECT_LE(flips, (ref.summary.ok + ref.summary.no_sample) / 200);
         EXPECT_GT(ref.summary.rejected_clipped, 0u);

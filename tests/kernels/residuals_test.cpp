@@ -86,13 +86,18 @@ TEST_F(ResidualsConformance, VulkanMatchesCpuReference) {
     expect_same_counts(ref.counts, vk.counts);
     expect_same_samples(ref, vk);
     EXPECT_EQ(vk.view_batches, 1u);
+    // The thesis's sampling (no per-tap irradiance) agrees too.
+    const ResidualSamples ref_plain = residual_samples_cpu(in, diffuse(), {.tap_irradiance = false});
+    const ResidualSamples vk_plain = kernel.run(in, diffuse(), {.tap_irradiance = false});
+    expect_same_counts(ref_plain.counts, vk_plain.counts);
+    expect_same_samples(ref_plain, vk_plain);
 }
 
 TEST_F(ResidualsConformance, BatchedAndChunkedUnderASmallBindingLimit) {
     const LambertInputs in = scene().inputs();
     const ResidualSamples ref = residual_samples_cpu(in, diffuse(), {});
     ResidualsVk kernel(ctx());
-    // One view's images (6 frames of 96^2 x 16 bytes = 864 KiB) per batch, ~20k slots per chunk.
+    // One view's images and surface map (7 x 96^2 x 16 bytes = 1008 KiB) per batch, ~20k slots per chunk.
     const ResidualSamples vk = kernel.run(in, diffuse(), {.max_binding_bytes = 1u << 20});
     EXPECT_GE(vk.view_batches, 6u);
     EXPECT_GT(vk.chunks, vk.view_batches);
