@@ -12,7 +12,8 @@ namespace specula {
 
 AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, const Atlas& atlas,
                                  std::span<const Particle> particles, const LambertInputs& inputs, const LambertOutputs& solve,
-                                 const LafortuneRgb& lobe, std::uint32_t rounds, const SolveFn& solve_fn) {
+                                 const LafortuneRgb& lobe, std::uint32_t rounds, const SolveFn& solve_fn,
+                                 const AlbedoRefineOptions& options) {
     const std::size_t n = particles.size();
     if (solve.particles.size() != n) throw Error("refine_albedo: the solve has " + std::to_string(solve.particles.size()) +
                                                  " particles, " + std::to_string(n) + " given");
@@ -30,6 +31,22 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
         target[p] = glm::vec3(r.albedo_robust);
         has_target[p] = out.valid[p] && r.albedo_robust.w > 0.0f ? 1 : 0;
     }
+    // w_p: the best view's cosine n.v, ramped from grazing_cos (0) to resolved_cos (1).
+    std::vector<float> weight(n, 1.0f);
+    if (options.resolved_cos > 0.0f || options.grazing_cos > 0.0f) {
+        const double lo = options.grazing_cos, hi = std::max(options.resolved_cos, options.grazing_cos + 1e-6f);
+        for (std::size_t p = 0; p < n; ++p) {
+            const std::uint32_t v = solve.particles[p].best_view;
+            if (!has_target[p] || v >= inputs.views.size()) continue;
+            const glm::dvec3 to_camera = glm::normalize(inputs.views[v].camera.center() - glm::dvec3(particles[p].p()));
+            const double cos_v = glm::dot(glm::dvec3(particles[p].n()), to_camera);
+            weight[p] = static_cast<float>(std::clamp((cos_v - lo) / (hi - lo), 0.0, 1.0));
+        }
+    }
+    const std::vector<glm::vec3> initial = out.albedo; // A_0
+    std::vector<float> last_correction(n, 0.0f);       // |w (S(captured) - S(R(A)))| of the previous round
+    std::vector<std::uint8_t> stopped(n, 0);
+    std::size_t stopped_count = 0;
 
     for (std::uint32_t round = 0; round < rounds; ++round) {
         AlbedoRefineRound rr;
@@ -56,7 +73,7 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
             }
         rr.render_seconds = render_watch.seconds();
 
-        // S(R(A)), then A += S(captured) - S(R(A)) where both exist.
+        // S(R(A)), then A += s [w (S(captured) - S(R(A))) - lambda (A - A_0)] where both exist.
         const Stopwatch solve_watch;
         LambertInputs rendered = inputs;
         rendered.images = images;
@@ -66,11 +83,25 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
         for (std::size_t p = 0; p < n; ++p) {
             const LambertParticleResult& r = again.particles[p];
             if (!has_target[p] || !(r.status & shared::kLambertOk) || !(r.albedo_robust.w > 0.0f)) continue;
-            const glm::vec3 delta = target[p] - glm::vec3(r.albedo_robust);
-            out.albedo[p] = glm::max(out.albedo[p] + delta, glm::vec3(0.0f));
-            change += (std::abs(delta.x) + std::abs(delta.y) + std::abs(delta.z)) / 3.0;
             ++rr.corrected;
+            if (stopped[p]) continue;
+            const glm::vec3 correction = weight[p] * (target[p] - glm::vec3(r.albedo_robust));
+            const float size = glm::length(correction);
+            // Growing correction: the particle diverges (a mode the solve of the renders barely
+            // sees). 1e-4: below that, rounding, not growth.
+            if (options.stop_growing && round > 0 && size > last_correction[p] + 1e-4f) {
+                stopped[p] = 1;
+                ++stopped_count;
+                continue;
+            }
+            last_correction[p] = size;
+            const glm::vec3 next = glm::max(
+                out.albedo[p] + options.step * (correction - options.prior * (out.albedo[p] - initial[p])), glm::vec3(0.0f));
+            const glm::vec3 delta = next - out.albedo[p];
+            out.albedo[p] = next;
+            change += (std::abs(delta.x) + std::abs(delta.y) + std::abs(delta.z)) / 3.0;
         }
+        rr.stopped = stopped_count;
         rr.mean_abs_change = rr.corrected > 0 ? change / static_cast<double>(rr.corrected) : 0.0;
         out.rounds.push_back(rr);
     }
