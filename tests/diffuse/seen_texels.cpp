@@ -142,6 +142,24 @@ int main(int argc, char** argv) try {
         report(choice == ViewChoice::BestView ? "solve, best view" : "solve, robust", estimate, texture(estimate), scene, box,
                seen, splits);
     }
+    // The worst texels of the best-view solve, to tell a texture edge from a geometric failure.
+    std::vector<std::pair<float, std::size_t>> worst;
+    for (std::size_t p = 0; p < seen.size(); ++p) {
+        if (!seen[p]) continue;
+        const glm::vec3 d = glm::abs(glm::vec3(solve.particles[p].albedo_best) - scene.truth[p]);
+        worst.push_back({std::max({d.x, d.y, d.z}), p});
+    }
+    const std::size_t shown = std::min<std::size_t>(8, worst.size());
+    std::partial_sort(worst.begin(), worst.begin() + static_cast<std::ptrdiff_t>(shown), worst.end(), std::greater<>());
+    for (std::size_t i = 0; i < shown; ++i) {
+        const std::size_t p = worst[i].second;
+        const LambertParticleResult& r = solve.particles[p];
+        const glm::vec3 t = scene.truth[p], b = box[p], e = glm::vec3(r.albedo_best);
+        std::printf("worst %zu: particle %zu%s, best view %u (cos %.3f), %u views, %u samples; truth (%.3f %.3f %.3f) box "
+                    "(%.3f %.3f %.3f) best (%.3f %.3f %.3f) robust (%.3f %.3f %.3f)\n",
+                    i, p, scene.particles.particles[p].is_gutter() ? " (gutter)" : "", r.best_view, best_cos(p), r.views, r.used,
+                    t.x, t.y, t.z, b.x, b.y, b.z, e.x, e.y, e.z, r.albedo_robust.x, r.albedo_robust.y, r.albedo_robust.z);
+    }
     for (int i = 3; i < argc; ++i) {
         const std::filesystem::path file = std::filesystem::path(argv[i]) / "albedo.exr";
         const Image atlas = read_image(file, ColorSpace::Linear);
