@@ -87,9 +87,10 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
             if (stopped[p]) continue;
             const glm::vec3 correction = weight[p] * (target[p] - glm::vec3(r.albedo_robust));
             const float size = glm::length(correction);
-            // Growing correction: the particle diverges (a mode the solve of the renders barely
-            // sees). 1e-4: below that, rounding, not growth.
-            if (options.stop_growing && round > 0 && size > last_correction[p] + 1e-4f) {
+            // A correction that does not shrink by 10%: the particle diverges, or the solve of the
+            // renders barely sees it and each round would add the same step again (albedo_refine.h).
+            // 1e-4: below that, rounding.
+            if (options.stop_growing && round > 0 && size > 0.9f * last_correction[p] + 1e-4f) {
                 stopped[p] = 1;
                 ++stopped_count;
                 continue;

@@ -47,8 +47,10 @@
 ///           lambda) / (1 + lambda): lambda = 0 the renderer-optimal (overshooting) albedo,
 ///           lambda = 1 the texel-centre truth t;
 ///   s       a step < 1: with lambda the iteration converges for every mode of K in [0, 1];
-///   stop    a particle whose correction grows from one round to the next (|delta_k| >
-///           |delta_{k-1}|) is diverging: it keeps its value from then on.
+///   stop    a particle whose correction does not shrink by 10% from one round to the next
+///           (|delta_k| > 0.9 |delta_{k-1}|) is diverging, or sits in a mode the solve of the
+///           renders barely passes (its correction stays, and each round would add it again up
+///           to 1/lambda times over): it keeps its value from then on.
 /// Defaults (s 0.7, lambda 0.3, ramp 0.3 -> 0.6, stop on): see README.md "How the albedo is
 /// sharpened" for the trade-off between the rendered error and the texel-centre error.
 /// Options{.step = 1, .prior = 0, .grazing_cos = -1, .resolved_cos = -1, .stop_growing =
@@ -81,7 +83,7 @@ struct AlbedoRefineOptions {
     float prior = 0.3f;          ///< lambda, toward the solve's albedo
     float grazing_cos = 0.3f;    ///< best view n.v at or below: w = 0 (both <= 0: w = 1 everywhere)
     float resolved_cos = 0.6f;   ///< at or above: w = 1
-    bool stop_growing = true;    ///< freeze a particle whose correction grows round to round
+    bool stop_growing = true;    ///< freeze a particle whose correction does not shrink round to round
 };
 
 struct AlbedoRefineRound {

@@ -65,14 +65,13 @@ TEST_F(AlbedoRefine, TexelValuesDoNotDriftOverRounds) {
     EXPECT_GT(undamped.rounds[2].rmse, 1.1 * undamped.rounds[0].rmse);
     EXPECT_GT(undamped.rounds[2].max_abs, undamped.rounds[0].max_abs + 0.2);
     EXPECT_GT(undamped.rounds[2].rmse - undamped.rounds[1].rmse, 0.01);
-    // Damped: the largest error grows far less than undamped (measured with per-tap irradiance
-    // in the solve: 0.67 -> 0.80 -> 0.90, undamped 0.67 -> 1.51 -> 2.35), the rounds after the
-    // first two barely move the RMSE, and it stays within 8% of the solve's.
-    for (int i = 1; i < 3; ++i) {
-        EXPECT_LE(damped.rounds[i].max_abs - damped.rounds[0].max_abs,
-                  0.35 * (undamped.rounds[i].max_abs - undamped.rounds[0].max_abs)) << 2 * i << " rounds";
-        EXPECT_LE(damped.rounds[i].rmse, 1.08 * damped.rounds[0].rmse) << 2 * i << " rounds";
-    }
+    // Damped: the first rounds sharpen edge texels (the largest error 0.67 -> 0.80, undamped
+    // 0.67 -> 1.51), then nothing drifts: rounds 3-4 move the largest error by under 0.05 (0.80
+    // -> 0.80; undamped 1.51 -> 2.35), the RMSE barely moves, and it stays within 8% of the solve's.
+    EXPECT_LE(damped.rounds[1].max_abs - damped.rounds[0].max_abs,
+              0.35 * (undamped.rounds[1].max_abs - undamped.rounds[0].max_abs));
+    EXPECT_LE(damped.rounds[2].max_abs, damped.rounds[1].max_abs + 0.05);
+    for (int i = 1; i < 3; ++i) EXPECT_LE(damped.rounds[i].rmse, 1.08 * damped.rounds[0].rmse) << 2 * i << " rounds";
     EXPECT_LT(damped.rounds[2].rmse - damped.rounds[1].rmse, 0.005);
 }
 
