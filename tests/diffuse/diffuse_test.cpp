@@ -20,6 +20,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
+#include <string>
 #include <unistd.h>
 #include <algorithm>
 #include <filesystem>
@@ -161,11 +163,15 @@ TEST_P(DiffuseSolve, UniformLambertianMeetsTheCriterionOverSeenTexels) {
 // thesis's sampling) divides by the particle's irradiance alone and is biased there; each tap
 // scaled to the particle's irradiance from the view's surface map (shared/lambert.h) is not.
 TEST_P(DiffuseSolve, TapIrradianceMeetsTheCriterionOnCurvedRims) {
+    static std::map<std::string, DiffuseScene> scenes; // built once for both backends
     for (const char* preset : {"can", "cologne", "vase"}) {
-        const DiffuseScene s = test::make_scene(
-            {.preset = preset, .lambertian = true, .size = 256, .views = 12, .edit_preset = [](synth::Preset& p) {
-                 std::fill(p.material.albedo_texture.pixels.begin(), p.material.albedo_texture.pixels.end(), 0.5f);
-             }});
+        if (!scenes.count(preset))
+            scenes.emplace(preset, test::make_scene({.preset = preset, .lambertian = true, .size = 256, .views = 12,
+                                                     .edit_preset = [](synth::Preset& p) {
+                                                         std::fill(p.material.albedo_texture.pixels.begin(),
+                                                                   p.material.albedo_texture.pixels.end(), 0.5f);
+                                                     }}));
+        const DiffuseScene& s = scenes.at(preset);
         ASSERT_EQ(s.visibility.surfaces.size(), s.capture.views.size());
         const LambertOutputs with = run(s.inputs(), {});
         const LambertOutputs without = run(s.inputs(), {.tap_irradiance = false});
