@@ -36,7 +36,6 @@ double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
 } // namespace
 
-const char* to_string(MetricsBackend backend) noexcept { return backend == MetricsBackend::Cpu ? "cpu" : "vulkan"; }
 
 std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_frames_per_split) {
     std::vector<std::size_t> out;
@@ -96,7 +95,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     const Stopwatch setup;
     BundleRenderer renderer(ctx, bundle, options.bundle_name);
     std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
-    if (options.metrics_backend == MetricsBackend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
+    if (options.metrics_backend == Backend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
     result.timings.setup_s = setup.seconds();
     if (options.render.mode != render::Mode::Diffuse && !renderer.has_lobe())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");

@@ -14,6 +14,7 @@
 #include "gpu/buffer.h"
 #include "gpu/pipeline.h"
 #include "gpu/sequence.h"
+#include "shared/factorization.h"
 #include "shared/gshd.h"
 
 #include <glm/glm.hpp>
@@ -51,13 +52,6 @@ void cubemap_validate(const CubemapInputs& in);
 
 /// Bilinear lookup of a hemisphere grid along w (shared/gshd.h gshd_grid_bilinear, in double).
 [[nodiscard]] glm::dvec3 grid_sample(std::span<const glm::vec3> grid, uint32_t grid_res, glm::dvec3 w);
-
-struct CubemapPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t grid_res;
-    uint32_t cube_res;
-};
-static_assert(sizeof(CubemapPush) == 16);
 
 /// The Vulkan kernel (shaders/factorization/cubemaps.comp).
 class CubemapsVk {

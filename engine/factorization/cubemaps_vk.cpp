@@ -12,12 +12,12 @@ CubemapsVk::CubemapsVk(gpu::Context& ctx, uint32_t workgroup_size)
       m_pipeline(ctx, gpu::ComputePipelineDesc{.name = "cubemaps",
                                                .spirv = factorization_cubemaps_comp,
                                                .storage_buffers = 2,
-                                               .push_constant_bytes = sizeof(CubemapPush),
+                                               .push_constant_bytes = sizeof(shared::CubemapPush),
                                                .workgroup_size = workgroup_size}) {}
 
 void CubemapsVk::record(gpu::Sequence& seq, const gpu::Buffer& grid, const gpu::Buffer& cube, uint32_t grid_res,
                         uint32_t cube_res, std::string_view label) const {
-    const CubemapPush push{.dispatch = {}, .grid_res = grid_res, .cube_res = cube_res};
+    const shared::CubemapPush push{.dispatch = {}, .grid_res = grid_res, .cube_res = cube_res};
     seq.dispatch_1d(m_pipeline, {grid, cube}, 6 * cube_res * cube_res, push, label);
 }
 

@@ -13,10 +13,6 @@
 
 namespace specula::factorization {
 
-const char* to_string(FactorizationBackend backend) noexcept {
-    return backend == FactorizationBackend::Cpu ? "cpu" : "vulkan";
-}
-
 std::optional<double> FactorizationTimings::gpu_total_ns() const {
     if (!matrix_gpu_ns || !decomposition_g_gpu_ns || !decomposition_h_gpu_ns || !cube_g_gpu_ns || !cube_h_gpu_ns)
         return std::nullopt;
@@ -390,9 +386,9 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     return f;
 }
 
-Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorizationBackend backend,
+Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options, Backend backend,
                         gpu::Context* ctx) {
-    if (backend == FactorizationBackend::Cpu) return factorize_cpu(lobe, options);
+    if (backend == Backend::Cpu) return factorize_cpu(lobe, options);
     if (ctx == nullptr) throw Error("factorize: the Vulkan backend needs a gpu::Context");
     return FactorizeVk(*ctx).run(lobe, options);
 }
@@ -479,9 +475,9 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm
                 gc[k] = c2[k];
             }
         for (int k = 0; k < 3; ++k) {
-            const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
+            const double f = std::min<double>(shared::f64::lafortune_eval(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
             const double radial = param == FactorParam::Warped
-                                      ? std::min<double>(lafortune_radial_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
+                                      ? std::min<double>(shared::f64::lafortune_radial(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
                                       : 1.0;
             ref += f * f;
             err_grid += (radial * gg[k] - f) * (radial * gg[k] - f);

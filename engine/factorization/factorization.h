@@ -5,7 +5,7 @@
 /// normalized decomposition F ~ G(h) H(d) (normalized_decomposition), and G and H
 /// resampled into two cube-maps (cubemaps). Math shared with the shaders: shared/gshd.h.
 ///
-///   auto f = factorize(lobe, {}, FactorizationBackend::Vulkan, &ctx);
+///   auto f = factorize(lobe, {}, Backend::Vulkan, &ctx);
 ///   f.cube_g.texels, f.cube_h.texels   // 6 x res x res rgb, Vulkan face order
 ///   f.resolution.reason                // why these resolutions
 ///   f.terms.count, f.terms.reason      // K, and why (issue 5: sum of K separable terms)
@@ -24,7 +24,9 @@
 /// why, and every error).
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
-#include "factorization/lobe.h"
+#include "core/backend.h"
+#include "core/lafortune.h"
+#include "shared/lafortune.h"
 #include "factorization/normalized_decomposition.h"
 #include "factorization/residual_term.h"
 #include "factorization/resolution.h"
@@ -38,8 +40,6 @@
 
 namespace specula::factorization {
 
-enum class FactorizationBackend { Cpu, Vulkan };
-[[nodiscard]] const char* to_string(FactorizationBackend backend) noexcept;
 
 struct FactorizationOptions {
     /// 0 = default_resolution(lobe) for that field.
@@ -192,7 +192,7 @@ private:
 
 /// Either path; ctx is required for Vulkan.
 [[nodiscard]] Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options,
-                                      FactorizationBackend backend, gpu::Context* ctx = nullptr);
+                                      Backend backend, gpu::Context* ctx = nullptr);
 
 // ---- approximation error -------------------------------------------------------------
 

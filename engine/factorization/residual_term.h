@@ -48,15 +48,6 @@ void residual_terms_validate(const ResidualTermsInputs& in);
 /// the least-squares fit has none. Non-negative F and a non-negative start stay non-negative.
 [[nodiscard]] Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations);
 
-struct ResidualTermPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t rows;
-    uint32_t cols;
-    uint32_t term;
-    uint32_t pass_index; // 0: H start (column RMS), 1: G from H, 2: H from G
-};
-static_assert(sizeof(ResidualTermPush) == 24);
-
 /// The Vulkan kernel: per term, 1 + 2 iterations dispatches separated by compute->compute
 /// barriers. g and h hold all K terms, term-major (term 0 already written at offset 0).
 class ResidualTermsVk {

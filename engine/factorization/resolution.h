@@ -14,7 +14,8 @@
 //   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
 // (finer: there the separability floor is gone and the rendered highlights' tails need it).
 #include "core/factor_param.h"
-#include "factorization/lobe.h"
+#include "core/lafortune.h"
+#include "shared/lafortune.h"
 
 #include <cstdint>
 #include <string>

@@ -83,7 +83,7 @@ json visibility_json(const VisibilityStats& s) {
             {"seconds", s.seconds}};
 }
 
-json lambert_json(const LambertOutputs& out, const LambertOptions& o, LambertBackend backend) {
+json lambert_json(const LambertOutputs& out, const LambertOptions& o, Backend backend) {
     const LambertSummary& s = out.summary;
     json j = {{"backend", to_string(backend)},
               {"mode", to_string(o.mode)},
@@ -142,7 +142,7 @@ json param_candidates_json(const factorization::ParamChoice& c) {
 }
 
 json specular_json(const ResidualSamples& rs, const ResidualEnergy& energy, const LafortuneFitRgb* fit, double fit_seconds,
-                   LambertBackend backend, const std::string& decision) {
+                   Backend backend, const std::string& decision) {
     const ResidualCounts& c = rs.counts;
     json j = {{"decision", decision},
               {"backend", to_string(backend)},
@@ -340,7 +340,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     // 5. Diffuse solve on the chosen backend.
     std::unique_ptr<gpu::Context> ctx;
     json device = nullptr;
-    if (config.backend == LambertBackend::Vulkan) {
+    if (config.backend == Backend::Vulkan) {
         ctx = run_stage(result, "vulkan init", [&] { return std::make_unique<gpu::Context>(gpu::ContextOptions{.device = config.device}); });
         device = {{"name", ctx->info().name},
                   {"kind", gpu::device_kind_name(ctx->info().kind)},
@@ -354,23 +354,23 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     // when one of their buffers would exceed a storage binding of this device (gpu::LimitError:
     // knot_hd's 2.8 M particles need 134 MB, lavapipe allows 128 MiB), the C++ reference runs
     // them instead, and the report says so.
-    LambertBackend particle_backend = config.backend;
+    Backend particle_backend = config.backend;
     const auto on_backend = [&](const std::string& what, auto&& fn) {
-        if (particle_backend == LambertBackend::Vulkan) {
+        if (particle_backend == Backend::Vulkan) {
             try {
-                return fn(LambertBackend::Vulkan);
+                return fn(Backend::Vulkan);
             } catch (const gpu::LimitError& e) {
-                particle_backend = LambertBackend::Cpu;
+                particle_backend = Backend::Cpu;
                 const std::string why = std::string(e.what()) + ": the C++ reference ran instead";
                 result.left_out.push_back({"Vulkan " + what + " and the later per-particle passes", why});
                 log::warn("Vulkan " + what + ": " + why);
             }
         }
-        return fn(LambertBackend::Cpu);
+        return fn(Backend::Cpu);
     };
     LambertOptions solve_options = lambert; // the options of the last solve (its lobe, after joint rounds)
     LambertOutputs solve = run_stage(result, "diffuse solve", [&] {
-        return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lambert, b, ctx.get()); });
+        return on_backend("diffuse solve", [&](Backend b) { return lambert_solve(lambert_in, lambert, b, ctx.get()); });
     });
     log::info(describe(solve.summary, lambert.mode));
     {
@@ -408,7 +408,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                                .max_albedo_spread = 0.02f};
         ResidualSamples rs = run_stage(result, "residual samples", [&] {
             return on_backend("residual samples",
-                              [&](LambertBackend b) { return residual_samples(lambert_in, solve, residual_options, b, ctx.get()); });
+                              [&](Backend b) { return residual_samples(lambert_in, solve, residual_options, b, ctx.get()); });
         });
         if (rs.gpu_ms) gpu_dispatches.push_back({{"stage", "residual samples"}, {"dispatch", "residuals (" + std::to_string(rs.chunks) + " dispatches)"}, {"ms", *rs.gpu_ms}});
         const ResidualEnergy energy =
@@ -476,11 +476,11 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                 LambertOptions lo = lambert;
                 lo.lobe = previous;
                 solve = run_stage(result, "diffuse solve" + tag, [&] {
-                    return on_backend("diffuse solve", [&](LambertBackend b) { return lambert_solve(lambert_in, lo, b, ctx.get()); });
+                    return on_backend("diffuse solve", [&](Backend b) { return lambert_solve(lambert_in, lo, b, ctx.get()); });
                 });
                 solve_options = lo;
                 rs = run_stage(result, "residual samples" + tag, [&] {
-                    return on_backend("residual samples", [&](LambertBackend b) {
+                    return on_backend("residual samples", [&](Backend b) {
                         return residual_samples(lambert_in, solve, residual_options, b, ctx.get());
                     });
                 });
@@ -557,7 +557,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         refined = run_stage(result, "albedo refinement", [&] {
             return refine_albedo(*rc, capture, atlas, particles.particles, lambert_in, solve, solve_options.lobe,
                                  refine_rounds, [&](const LambertInputs& in) {
-                                     return on_backend("diffuse solve", [&](LambertBackend b) {
+                                     return on_backend("diffuse solve", [&](Backend b) {
                                          return lambert_solve(in, solve_options, b, ctx.get());
                                      });
                                  });
@@ -613,8 +613,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         const factorization::FactorizationResolution res =
             decided_grid(*lobe, config.factorization_grid_h, config.factorization_grid_d);
         cubes = run_stage(result, "factorization", [&] {
-            const auto backend = config.backend == LambertBackend::Vulkan ? factorization::FactorizationBackend::Vulkan
-                                                                          : factorization::FactorizationBackend::Cpu;
+            const auto backend = config.backend == Backend::Vulkan ? Backend::Vulkan
+                                                                          : Backend::Cpu;
             factorization::FactorizationOptions fo;
             // The planner's grid is the plain GSHD's; the mirrored and warped ones put the peak
             // along d (factorization/resolution.h), so unforced axes are left to each parametrization.
@@ -735,7 +735,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             const evaluate::EvaluationResult ev = run_stage(result, "evaluation", [&] {
                 evaluate::EvaluateOptions eo;
                 // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
-                eo.metrics_backend = render_ctx->info().kind == gpu::DeviceKind::Cpu ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
+                eo.metrics_backend = render_ctx->info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
                 eo.max_frames_per_split = config.evaluate_max_frames;
                 eo.include_train = config.evaluate_train;
                 if (config.evaluate_factorized && bundle.cube_g) eo.render.specular = render::SpecularModel::Factorized;

@@ -14,13 +14,13 @@ layout(std430, set = 0, binding = 1) readonly buffer Rows { Lsq3Row rows[]; };
 layout(std430, set = 0, binding = 2) writeonly buffer Results { Lsq3Result results[]; };
 
 layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
+    DispatchHeader dispatch;
     uint row_base;
 } pc;
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint begin = row_offsets[e] - pc.row_base;
     uint end = row_offsets[e + 1u] - pc.row_base;
 

@@ -34,12 +34,12 @@ int main(int argc, char** argv) {
     gpu::Context ctx;
     std::printf("%s, %dx%d, %zu triangles, device %s\n", name.c_str(), size, size, preset.mesh.triangle_count(),
                 ctx.info().name.c_str());
-    for (const auto backend : {evaluate::MetricsBackend::Vulkan, evaluate::MetricsBackend::Cpu})
+    for (const auto backend : {Backend::Vulkan, Backend::Cpu})
         for (const bool hausdorff : {true, false}) {
             evaluate::EvaluateOptions eo{.metrics_backend = backend, .progress = false};
             eo.metrics.hausdorff = hausdorff;
             const evaluate::EvaluationResult r = evaluate::evaluate(ctx, b, capture, eo);
-            std::printf("metrics %s%s:\n%s", evaluate::to_string(backend), hausdorff ? "" : " (no hausdorff)",
+            std::printf("metrics %s%s:\n%s", to_string(backend), hausdorff ? "" : " (no hausdorff)",
                         evaluate::format_summary(r).c_str());
         }
     std::filesystem::remove_all(dir);

@@ -144,7 +144,7 @@ TEST_F(EvaluateTest, HalvedAlbedoScoresWorse) {
 TEST_F(EvaluateTest, CpuAndVulkanMetricsAgree) {
     const SphereCapture& s = sphere();
     const EvaluationResult vk = evaluate(ctx(), s.truth, s.capture, {.max_frames_per_split = 2});
-    const EvaluationResult cpu = evaluate(ctx(), s.truth, s.capture, {.metrics_backend = MetricsBackend::Cpu, .max_frames_per_split = 2});
+    const EvaluationResult cpu = evaluate(ctx(), s.truth, s.capture, {.metrics_backend = Backend::Cpu, .max_frames_per_split = 2});
     ASSERT_EQ(vk.frames.size(), cpu.frames.size());
     EXPECT_NEAR(vk.metrics.test_masked.q1, cpu.metrics.test_masked.q1, 1e-4);
     EXPECT_NEAR(vk.metrics.train_full.q2, cpu.metrics.train_full.q2, 1e-4);

@@ -480,10 +480,10 @@ TEST(WarpedGshd, RadialFactorTimesNormalizedLobeIsTheLobe) {
                                   gray(0.5f, -1.0f, 3.0f)}) {
         for (int i = 0; i < 2000; ++i) {
             const glm::dvec3 u = random_hemisphere(rng), v = random_hemisphere(rng);
-            const double f = lafortune_eval_f64(l.cx.x, l.cz.x, l.n.x, u, v);
-            const double g = lafortune_radial_f64(l.cx.x, l.cz.x, l.n.x, u) * lafortune_normalized_f64(l.cx.x, l.cz.x, l.n.x, u, v);
+            const double f = shared::f64::lafortune_eval(l.cx.x, l.cz.x, l.n.x, u, v);
+            const double g = shared::f64::lafortune_radial(l.cx.x, l.cz.x, l.n.x, u) * shared::f64::lafortune_normalized(l.cx.x, l.cz.x, l.n.x, u, v);
             EXPECT_NEAR(g, f, 1e-12 * (1.0 + f));
-            EXPECT_LE(lafortune_normalized_f64(l.cx.x, l.cz.x, l.n.x, u, v), 1.0);
+            EXPECT_LE(shared::f64::lafortune_normalized(l.cx.x, l.cz.x, l.n.x, u, v), 1.0);
         }
     }
 }

@@ -64,7 +64,7 @@ int main(int argc, char** argv) try {
                             {.culling = std::getenv("BENCH_NO_CULLING") != nullptr ? render::Culling::Never
                                                                                     : render::Culling::Auto});
     std::printf("back-face culling: %s (BENCH_NO_CULLING=1 turns it off)\n", renderer.culls_back_faces() ? "on" : "off");
-    const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
+    const LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
     const factorization::FactorizationResolution res = factorization::default_resolution(lobe, FactorParam::Warped);
     const glm::vec4 warp = warp_for_lobe(lobe).value();
     std::printf("factorized: one term, cube faces %u (G) and %u (H)\n", res.cube_g, res.cube_h);

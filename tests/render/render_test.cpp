@@ -624,7 +624,7 @@ double masked_psnr(const Frame& a, const Frame& ref) {
 // than plain K = 1.
 TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     const synth::Preset preset = synth::make_preset("can");
-    const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
+    const LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
     const factorization::Factorization f = factorization::factorize_cpu(lobe, {.param = FactorParam::Gshd});
     const factorization::Factorization fm = factorization::factorize_cpu(lobe, {.param = FactorParam::Mirrored});
     const factorization::Factorization fw = factorization::factorize_cpu(lobe, {});

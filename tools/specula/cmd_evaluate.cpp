@@ -44,7 +44,7 @@ void run_evaluate(const EvaluateArgs& a) {
     o.render.mode = a.mode == "diffuse" ? render::Mode::Diffuse : a.mode == "specular" ? render::Mode::Specular : render::Mode::Both;
     o.render.specular = a.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic;
     o.render.shadows = !a.no_shadows;
-    o.metrics_backend = a.metrics == "cpu" ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
+    o.metrics_backend = a.metrics == "cpu" ? Backend::Cpu : Backend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
     if (!a.sheets.empty()) o.sheet_dir = a.sheets;
