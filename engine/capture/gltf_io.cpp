@@ -148,7 +148,7 @@ bool stash_image(tinygltf::Image* image, const int index, std::string*, std::str
 // Checks on the JSON text, before it is parsed.
 
 // The JSON field where the nesting first exceeds `max_depth` (outside strings), or nothing.
-// The field is the path of its first few levels, e.g. "asset.extras[0][0]".
+// The field is the path of its first six levels, e.g. "asset.extras[0][0][0][0]".
 std::optional<std::string> too_deep(std::string_view text, int max_depth) {
     struct Level {
         bool object;
@@ -171,7 +171,7 @@ std::optional<std::string> too_deep(std::string_view text, int max_depth) {
         } else if (ch == '{' || ch == '[') {
             if (levels.size() >= static_cast<std::size_t>(max_depth)) {
                 std::string path;
-                for (std::size_t k = 0; k < levels.size() && k < 4; ++k)
+                for (std::size_t k = 0; k < levels.size() && k < 6; ++k)
                     path += levels[k].object ? (path.empty() ? "" : ".") + levels[k].key
                                              : "[" + std::to_string(levels[k].index) + "]";
                 return path.empty() ? std::string("json") : path;
