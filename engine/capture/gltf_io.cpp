@@ -349,7 +349,7 @@ private:
     }
 
     // extensionsRequired: a reader that cannot honour one must not load the file (glTF 2.0
-    // section 3.12 "Extensions").
+    // section 3.12, extensions).
     void required_extensions() const {
         if (!m_doc.contains("extensionsRequired")) return;
         const json& list = m_doc["extensionsRequired"];
@@ -448,7 +448,7 @@ GltfFile GltfFile::load(const fs::path& path, const std::string& field, const Gl
         std::string why;
         if (!read_regular_file(path, bytes, why)) throw InputError(path, field, why);
 
-        // The JSON text: the whole file, or a .glb's first chunk (glTF 2.0 section 4.4: a
+        // The JSON text: the whole file, or a .glb's first chunk (glTF 2.0 chapter 4: a
         // 12-byte header, then chunks of length, type and data; the JSON chunk comes first).
         // tinygltf parses the container again; this only finds the text to check.
         const bool binary = bytes.size() >= 4 && get_u32(bytes, 0) == kGlbMagic;
@@ -457,7 +457,7 @@ GltfFile GltfFile::load(const fs::path& path, const std::string& field, const Gl
             if (bytes.size() < 20) throw not_gltf("truncated GLB header");
             if (get_u32(bytes, 4) != 2) throw not_gltf("GLB version is not 2");
             const std::uint64_t length = get_u32(bytes, 8), json_length = get_u32(bytes, 12);
-            if (length > bytes.size()) throw not_gltf("the file is shorter than its GLB header says");
+            if (length < 20 || length > bytes.size()) throw not_gltf("the GLB header's length does not match the file");
             if (get_u32(bytes, 16) != kChunkJson) throw not_gltf("the first GLB chunk is not JSON");
             if (json_length > length - 20) throw not_gltf("the JSON chunk runs past the end of the file");
             text = text.substr(20, static_cast<std::size_t>(json_length));
@@ -696,7 +696,7 @@ std::size_t GlbWriter::add_accessor(json accessor) {
 }
 
 json GlbWriter::add_mesh(const Mesh& mesh, const fs::path& file) {
-    constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963; // glTF 2.0 section 3.6.2.1 (target)
+    constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963; // bufferView.target, glTF 2.0 section 3.6.1.1
     const std::size_t n = mesh.positions.size();
     if (n == 0 || mesh.triangles.empty()) throw InputError(file, "mesh", "refusing to write an empty mesh");
     for (const glm::uvec3& t : mesh.triangles)

@@ -14,7 +14,7 @@
 // and the JSON field.
 //
 // Writing: GlbWriter builds the BIN chunk and its bufferViews/accessors, and writes the .glb
-// container (glTF 2.0 section 4.4) from a JSON document built with nlohmann::json. Not through
+// container (glTF 2.0 chapter 4) from a JSON document built with nlohmann::json. Not through
 // tinygltf's serializer: its Value narrows every JSON integer to int and it leaves out
 // default values (roughnessFactor 1), so the bundle's free-form "info" and its viewer material
 // would not survive (docs/SPECULA_lafortune.md).
@@ -40,7 +40,7 @@ inline constexpr int kMaxGltfJsonDepth = 256;
 /// of gigabytes, even for an accessor without data (all zeros, plus sparse values).
 inline constexpr std::size_t kMaxGltfAccessorCount = std::size_t{1} << 28;
 /// Largest file, buffer or linked file accepted: a .glb's 32-bit length field caps a binary
-/// glTF at 4 GiB - 1 (glTF 2.0 section 4.4.2), and tinygltf takes lengths as unsigned int.
+/// glTF at 4 GiB - 1 (glTF 2.0 section 4.3, the header), and tinygltf takes lengths as unsigned int.
 inline constexpr std::uint64_t kMaxGltfFileBytes = 0xFFFFFFFFull;
 
 /// The extensions Specula honours when a file lists them in extensionsRequired: its own

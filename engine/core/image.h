@@ -58,7 +58,7 @@ struct ImageFileInfo {
 /// EXR is written as 32-bit float.
 void write_image(const std::filesystem::path& path, const Image& image, ColorSpace integer_encoding, int bits = 8);
 
-/// The formats of the in-memory codec: what glTF embeds (PNG, JPEG: glTF 2.0 section 3.8.4)
+/// The formats of the in-memory codec: what glTF embeds (PNG, JPEG: glTF 2.0 section 3.8.3)
 /// and Specula's float images (OpenEXR).
 enum class ImageCodec { Png, Jpeg, Exr };
 

@@ -40,7 +40,7 @@ constexpr const char* kExtension = "SPECULA_lafortune";
 constexpr int kExtensionVersion = 4;
 constexpr std::size_t kMaxExtraTerms = 3; // K <= 4 (render::kMaxFactorTerms)
 
-constexpr int kLinear = 9729, kClampToEdge = 33071; // glTF 2.0 section 3.8.3 (samplers)
+constexpr int kLinear = 9729, kClampToEdge = 33071; // glTF 2.0 section 3.8.4 (samplers)
 
 // ---------------------------------------------------------------------------------------------
 // The metallic-roughness approximation (docs/SPECULA_lafortune.md, "Viewer approximation").
