@@ -1,4 +1,4 @@
-// Capture format version 1 (../shared/docs/capture-format.md): parsing and
+// Capture format version 1 (docs/capture-format.md): parsing and
 // validating capture.json, decoding images and masks, writing capture.json back.
 // Every refusal throws InputError(file, field, message).
 #include "capture/capture.h"

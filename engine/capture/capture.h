@@ -1,5 +1,5 @@
 #pragma once
-// Capture format version 1 (../shared/docs/capture-format.md): reading,
+// Capture format version 1 (docs/capture-format.md): reading,
 // validating and writing `capture.json`, plus the decoded images and masks.
 // Every refusal names the file and the field (InputError).
 #include "capture/camera.h"

@@ -1,6 +1,6 @@
 #pragma once
 // Triangle meshes in world coordinates, read from and written to glTF 2.0
-// (.glb / .gltf) through tinygltf (Debian's compiled library: no TINYGLTF_IMPLEMENTATION).
+// (.glb / .gltf) through capture/gltf_io (the guarded tinygltf loader and the .glb writer).
 #include <glm/glm.hpp>
 
 #include <filesystem>
@@ -8,6 +8,8 @@
 #include <vector>
 
 namespace specula {
+
+class GltfFile;
 
 struct Mesh {
     std::vector<glm::vec3> positions;  // world space, all node transforms applied
@@ -30,8 +32,15 @@ struct MeshLoadResult {
 /// primitive has none. Drops degenerate (zero-area) triangles with a warning.
 /// Throws InputError naming the file and the field (e.g. "mesh_path",
 /// "meshes[2].primitives[0].attributes.POSITION") on: missing/unreadable file,
-/// empty mesh, non-finite vertices, out-of-range indices.
+/// empty mesh, non-finite vertices, out-of-range indices, a TRIANGLES primitive whose
+/// index (or, without indices, vertex) count is not a multiple of 3, and everything the
+/// loader guards against (capture/gltf_io.h: JSON nesting, duplicate keys, URIs outside the
+/// file's folder or not regular files, required extensions, accessor ranges).
 [[nodiscard]] MeshLoadResult load_mesh(const std::filesystem::path& path, const std::string& field = "mesh_path");
+
+/// The same from a file already loaded (capture/gltf_io.h); `field` names it in errors about
+/// the mesh as a whole (e.g. "empty mesh").
+[[nodiscard]] MeshLoadResult load_mesh(const GltfFile& file, const std::string& field);
 
 /// Writes a single-primitive .glb (POSITION, NORMAL, TEXCOORD_0 when present, uint32 indices), atomically.
 void write_mesh_glb(const std::filesystem::path& path, const Mesh& mesh);

@@ -4,6 +4,7 @@
 // transfer function is applied here, exactly, not by OIIO's colour management.
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -56,5 +57,34 @@ struct ImageFileInfo {
 /// encoded with `integer_encoding` and rounded; `bits` is 8 or 16 (PNG, TIFF).
 /// EXR is written as 32-bit float.
 void write_image(const std::filesystem::path& path, const Image& image, ColorSpace integer_encoding, int bits = 8);
+
+/// The formats of the in-memory codec: what glTF embeds (PNG, JPEG: glTF 2.0 section 3.8.3)
+/// and Specula's float images (OpenEXR).
+enum class ImageCodec { Png, Jpeg, Exr };
+
+/// Largest width or height decode_image accepts unless told otherwise: 16384, the
+/// maxImageDimension2D of the devices Specula targets (and far above any texture it writes),
+/// so a file that claims 30000 x 30000 is refused from its header instead of decoded (10 GB).
+inline constexpr int kMaxDecodedImageDimension = 16384;
+
+/// Encodes an image in memory (the bytes a file of that format would hold). Integer formats
+/// (PNG 8 or 16 bits, JPEG 8 bits): values are clamped to [0, 1], encoded with
+/// `integer_encoding` and rounded to nearest (std::lround); non-finite values become 0. EXR
+/// is 32-bit float, values as they are. Throws Error when the encoder fails.
+[[nodiscard]] std::vector<std::uint8_t> encode_image(const Image& image, ImageCodec codec, ColorSpace integer_encoding,
+                                                     int bits = 8);
+
+/// The header of an image held in memory (its format from its first bytes: PNG, JPEG or
+/// OpenEXR). Throws InputError(file, field, ...) when the bytes are none of these or unreadable.
+[[nodiscard]] ImageFileInfo read_image_info(std::span<const std::uint8_t> bytes, const std::filesystem::path& file,
+                                            const std::string& field);
+
+/// Decodes an image held in memory to linear float, as read_image does for a file (alpha is
+/// kept unassociated: colour is never premultiplied). Its size is read from the header first:
+/// a width or height above `max_dimension` is refused before any pixel is decoded or any
+/// pixel memory allocated. Throws InputError(file, field, ...) naming the file the bytes came from.
+[[nodiscard]] Image decode_image(std::span<const std::uint8_t> bytes, ColorSpace integer_encoding,
+                                 const std::filesystem::path& file, const std::string& field,
+                                 int max_dimension = kMaxDecodedImageDimension);
 
 } // namespace specula

@@ -10,7 +10,9 @@
 //       if (!chain.present(*i)) recreate on the next frame;
 //   }
 //
-// The surface is the window system's (glfwCreateWindowSurface); Surface owns it.
+// gpu::Presenter (presenter.h) does all of this for a window, with a render target to
+// draw into and screenshots. The surface is the window system's (glfwCreateWindowSurface);
+// Surface owns it.
 // Images are written by transfers (a blit from an offscreen target), so the format
 // must support BLIT_DST; an sRGB format is preferred, so the blit encodes linear
 // colour exactly as an sRGB PNG writer does. recreate() waits for the device to be

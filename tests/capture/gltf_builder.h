@@ -80,13 +80,29 @@ public:
 
     nlohmann::json& doc() { return m_doc; }
 
-    /// Writes a .gltf with the buffer embedded as a data URI.
-    void write(const std::filesystem::path& path) {
+    /// The .gltf text, with the buffer embedded as a data URI.
+    std::string text() const {
         nlohmann::json doc = m_doc;
         doc["buffers"] = {{{"byteLength", m_bin.size()},
                            {"uri", "data:application/octet-stream;base64," + base64(m_bin)}}};
-        write_text_file(path, doc.dump(1));
+        return doc.dump(1);
     }
+
+    /// Writes a .gltf with the buffer embedded as a data URI.
+    void write(const std::filesystem::path& path) const { write_text_file(path, text()); }
+
+    /// Writes a .gltf whose buffer is the external file `uri` (taken as it is: tests give
+    /// hostile ones), and the buffer's bytes to `bin_file` unless it is empty.
+    void write_external(const std::filesystem::path& path, const std::string& uri,
+                        const std::filesystem::path& bin_file = {}) const {
+        nlohmann::json doc = m_doc;
+        doc["buffers"] = {{{"byteLength", m_bin.size()}, {"uri", uri}}};
+        write_text_file(path, doc.dump(1));
+        if (!bin_file.empty()) write_text_file(bin_file, std::string(m_bin.begin(), m_bin.end()));
+    }
+
+    /// The buffer's bytes.
+    const std::vector<unsigned char>& bin() const { return m_bin; }
 
 private:
     nlohmann::json m_doc;

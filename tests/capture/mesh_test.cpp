@@ -11,8 +11,14 @@
 #include <gtest/gtest.h>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <sys/stat.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <fstream>
+#include <future>
 #include <limits>
 
 namespace specula {
@@ -385,6 +391,313 @@ TEST(MeshRobustness, TruncatedAndCorruptedGlbNeverCrash) {
             ADD_FAILURE() << "trial " << trial << ": not an InputError: " << e.what();
         }
     }
+}
+
+
+// ---- the loader's guards (capture/gltf_io.h) ------------------------------------
+// Each builds its input in a temporary folder and checks that the refusal names the file and
+// the JSON field.
+
+// A .glb from a JSON text and a BIN chunk (glTF 2.0 section 4.4), for hand-made JSON.
+void write_glb(const fs::path& path, std::string text, std::string bin) {
+    while (text.size() % 4 != 0) text.push_back(' ');
+    while (bin.size() % 4 != 0) bin.push_back('\0');
+    std::string out;
+    auto put32 = [&](std::size_t v) {
+        const auto u = static_cast<std::uint32_t>(v);
+        out.append(reinterpret_cast<const char*>(&u), 4);
+    };
+    put32(0x46546C67u);
+    put32(2);
+    put32(12 + 8 + text.size() + 8 + bin.size());
+    put32(text.size());
+    put32(0x4E4F534Au);
+    out += text;
+    put32(bin.size());
+    put32(0x004E4942u);
+    out += bin;
+    write_text_file(path, out);
+}
+
+// The JSON chunk and the BIN chunk of a .glb.
+std::pair<std::string, std::string> glb_chunks(const fs::path& path) {
+    const std::string bytes = read_text_file(path);
+    std::uint32_t json_len = 0, bin_len = 0;
+    std::memcpy(&json_len, bytes.data() + 12, 4);
+    std::memcpy(&bin_len, bytes.data() + 20 + json_len, 4);
+    return {bytes.substr(20, json_len), bytes.substr(28 + json_len, bin_len)};
+}
+
+// One unit triangle (non-indexed) whose buffer the caller places.
+test::GltfBuilder one_triangle() {
+    test::GltfBuilder b;
+    b.node({{"mesh", b.mesh(json::array({triangle_primitive(b)}))}});
+    return b;
+}
+
+void expect_refusal(const fs::path& file, const std::string& field, const std::string& words,
+                    const std::string& field_arg = "mesh_path") {
+    const InputError e = expect_input_error([&] { (void)load_mesh(file, field_arg); });
+    EXPECT_EQ(e.file(), file);
+    EXPECT_EQ(e.field(), field) << e.what();
+    EXPECT_NE(e.message().find(words), std::string::npos) << e.what();
+}
+
+TEST(GltfGuard, JsonNestingIsCappedBeforeParsing) {
+    test::TempDir dir("gltf");
+    write_mesh_glb(dir / "t.glb", tetrahedron());
+    const auto [text, bin] = glb_chunks(dir / "t.glb");
+    ASSERT_EQ(text.rfind("{\"accessors\":", 0), 0u);
+    // "extras" nested k arrays deep inside "asset": the document is 2 + k deep.
+    auto nested = [&, text = text](int k) {
+        std::string t = text;
+        const std::size_t at = t.find("\"asset\":{") + 9;
+        t.insert(at, "\"extras\":" + std::string(static_cast<std::size_t>(k), '[') + std::string(static_cast<std::size_t>(k), ']') + ",");
+        return t;
+    };
+    write_glb(dir / "ok.glb", nested(254), bin); // depth 256: accepted
+    EXPECT_EQ(load_mesh(dir / "ok.glb").mesh.triangle_count(), 4u);
+    write_glb(dir / "over.glb", nested(255), bin); // depth 257
+    expect_refusal(dir / "over.glb", "asset.extras[0][0][0][0]", "deeper than 256");
+    // 100,000 levels used to overflow the stack (tinygltf converts extras recursively).
+    write_glb(dir / "deep.glb", nested(100000), bin);
+    expect_refusal(dir / "deep.glb", "asset.extras[0][0][0][0]", "refused before parsing");
+    // Brackets inside strings do not count.
+    std::string quoted = text;
+    quoted.insert(quoted.find("\"asset\":{") + 9, "\"extras\":\"" + std::string(1000, '[') + "\",");
+    write_glb(dir / "quoted.glb", quoted, bin);
+    EXPECT_EQ(load_mesh(dir / "quoted.glb").mesh.triangle_count(), 4u);
+}
+
+TEST(GltfGuard, UrisMustStayInsideTheFilesFolder) {
+    test::TempDir dir("gltf");
+    const test::GltfBuilder b = one_triangle();
+    fs::create_directories(dir / "model");
+    const fs::path file = dir / "model" / "m.gltf";
+    const std::string bytes(b.bin().begin(), b.bin().end());
+    write_text_file(dir / "outside.bin", bytes);
+    write_text_file(dir / "model" / "inside.bin", bytes);
+    // Inside the folder: read (also through a "sub/.." detour that stays inside).
+    b.write_external(file, "inside.bin");
+    EXPECT_EQ(load_mesh(file).mesh.triangle_count(), 1u);
+    fs::create_directories(dir / "model" / "sub");
+    b.write_external(file, "sub/../inside.bin");
+    EXPECT_EQ(load_mesh(file).mesh.triangle_count(), 1u);
+    // Escapes: "../", percent-encoded "../", an absolute path, a symbolic link out.
+    b.write_external(file, "../outside.bin");
+    expect_refusal(file, "buffers[0].uri", "leaves the glTF file's folder");
+    b.write_external(file, "sub/../../outside.bin");
+    expect_refusal(file, "buffers[0].uri", "leaves the glTF file's folder");
+    b.write_external(file, "%2E%2E/outside.bin");
+    expect_refusal(file, "buffers[0].uri", "leaves the glTF file's folder");
+    b.write_external(file, (dir / "outside.bin").string());
+    expect_refusal(file, "buffers[0].uri", "absolute path");
+    fs::create_symlink(dir / "outside.bin", dir / "model" / "link.bin");
+    b.write_external(file, "link.bin");
+    expect_refusal(file, "buffers[0].uri", "symbolic link");
+    // Images too (a mesh does not need them, but they are opened all the same).
+    test::GltfBuilder with_image = one_triangle();
+    with_image.doc()["images"] = {{{"uri", "../outside.png"}}};
+    with_image.write(file);
+    expect_refusal(file, "images[0].uri", "leaves the glTF file's folder");
+}
+
+TEST(GltfGuard, FifosDevicesAndFoldersAreRefusedWithoutBlocking) {
+    test::TempDir dir("gltf");
+    const test::GltfBuilder b = one_triangle();
+    const fs::path file = dir / "m.gltf";
+    ASSERT_EQ(::mkfifo((dir / "pipe.bin").c_str(), 0600), 0);
+    // The load runs aside: should it block on the FIFO, opening the FIFO's other end frees it
+    // and the test fails instead of hanging.
+    auto load_with_timeout = [&](const fs::path& path, const std::string& field, const std::string& words) {
+        auto result = std::async(std::launch::async, [&] {
+            try {
+                (void)load_mesh(path);
+            } catch (const InputError& e) {
+                return std::string(e.field()) + "|" + e.what();
+            } catch (const std::exception& e) {
+                return std::string("other|") + e.what();
+            }
+            return std::string("loaded|");
+        });
+        if (result.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
+            ADD_FAILURE() << path << ": the load blocked on the FIFO";
+            const int fd = ::open((dir / "pipe.bin").c_str(), O_WRONLY | O_NONBLOCK);
+            if (fd >= 0) ::close(fd);
+        }
+        const std::string r = result.get();
+        EXPECT_EQ(r.substr(0, r.find('|')), field) << r;
+        EXPECT_NE(r.find(words), std::string::npos) << r;
+    };
+    b.write_external(file, "pipe.bin");
+    load_with_timeout(file, "buffers[0].uri", "a FIFO");
+    test::GltfBuilder with_image = one_triangle();
+    with_image.doc()["images"] = {{{"uri", "pipe.bin"}}};
+    with_image.write(file);
+    load_with_timeout(file, "images[0].uri", "a FIFO");
+    load_with_timeout(dir / "pipe.bin", "mesh_path", "a FIFO"); // the file itself
+    fs::create_directories(dir / "folder.bin");
+    b.write_external(file, "folder.bin");
+    expect_refusal(file, "buffers[0].uri", "a folder");
+    expect_refusal("/dev/null", "mesh_path", "a device");
+}
+
+TEST(GltfGuard, NulInPathsAndUrisIsRefused) {
+    test::TempDir dir("gltf");
+    const test::GltfBuilder b = one_triangle();
+    const fs::path file = dir / "m.gltf";
+    // "in" exists and holds the buffer: a reader that cut the URI at the NUL would load it.
+    write_text_file(dir / "in", std::string(b.bin().begin(), b.bin().end()));
+    b.write_external(file, std::string("in\0side.bin", 10));
+    ASSERT_NE(read_text_file(file).find("\\u0000"), std::string::npos);
+    expect_refusal(file, "buffers[0].uri", "NUL");
+    b.write_external(file, "in%00side.bin");
+    expect_refusal(file, "buffers[0].uri", "NUL");
+    b.write_external(file, "in");
+    EXPECT_EQ(load_mesh(file).mesh.triangle_count(), 1u); // the control: the file itself is fine
+    test::GltfBuilder with_image = one_triangle();
+    with_image.doc()["images"] = {{{"uri", std::string("in\0.png", 7)}}};
+    with_image.write(file);
+    expect_refusal(file, "images[0].uri", "NUL");
+    const fs::path nul_path = dir / std::string("m.gltf\0.txt", 11);
+    const InputError e = expect_input_error([&] { (void)load_mesh(nul_path); });
+    EXPECT_EQ(e.file(), nul_path);
+    EXPECT_EQ(e.field(), "mesh_path");
+    EXPECT_NE(e.message().find("NUL"), std::string::npos) << e.message();
+}
+
+TEST(GltfGuard, AccessorCountsAndByteRangesAreCheckedBeforeAllocation) {
+    test::TempDir dir("gltf");
+    const fs::path file = dir / "m.gltf";
+    const std::string pos = "meshes[0].primitives[0].attributes.POSITION";
+    // A count above the maximum (2^28), with data or without (all zeros): refused, not allocated.
+    for (const bool with_view : {true, false}) {
+        test::GltfBuilder b = one_triangle();
+        b.doc()["accessors"][0]["count"] = std::uint64_t{1} << 40;
+        if (!with_view) b.doc()["accessors"][0].erase("bufferView");
+        b.write(file);
+        expect_refusal(file, pos, "above the maximum");
+    }
+    // Elements past the bufferView, and a byteOffset past it (no overflow).
+    test::GltfBuilder b = one_triangle();
+    b.doc()["accessors"][0]["count"] = 4;
+    b.write(file);
+    expect_refusal(file, pos, "exceed the bufferView");
+    b = one_triangle();
+    b.doc()["accessors"][0]["byteOffset"] = std::numeric_limits<std::uint64_t>::max() - 3;
+    b.write(file);
+    expect_refusal(file, pos, "byteOffset exceeds the bufferView");
+    // A bufferView past its buffer is refused before tinygltf reads anything through it.
+    b = one_triangle();
+    b.doc()["bufferViews"][1]["byteLength"] = 1000;
+    b.write(file);
+    expect_refusal(file, "bufferViews[1].byteLength", "runs past buffers[0]");
+    b = one_triangle();
+    b.doc()["bufferViews"][0]["byteOffset"] = std::numeric_limits<std::uint64_t>::max();
+    b.write(file);
+    expect_refusal(file, "bufferViews[0].byteLength", "runs past buffers[0]");
+    b = one_triangle();
+    b.doc()["bufferViews"][0]["buffer"] = 7;
+    b.write(file);
+    expect_refusal(file, "bufferViews[0].buffer", "does not exist");
+    // An image's bufferView out of range (tinygltf would index past the array).
+    b = one_triangle();
+    b.doc()["images"] = {{{"bufferView", 9}, {"mimeType", "image/png"}}};
+    b.write(file);
+    expect_refusal(file, "images[0].bufferView", "does not exist");
+}
+
+TEST(GltfGuard, RequiredExtensionsSpeculaCannotHonourAreRefused) {
+    test::TempDir dir("gltf");
+    const fs::path file = dir / "m.gltf";
+    test::GltfBuilder b = one_triangle();
+    b.doc()["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+    b.write(file);
+    expect_refusal(file, "extensionsRequired[0]", "KHR_draco_mesh_compression");
+    b.doc()["extensionsRequired"] = {"SPECULA_lafortune", "EXT_meshopt_compression"};
+    b.write(file);
+    expect_refusal(file, "extensionsRequired[1]", "EXT_meshopt_compression");
+    b.doc()["extensionsRequired"] = {"VENDOR_never_heard_of"};
+    b.write(file);
+    expect_refusal(file, "extensionsRequired[0]", "cannot honour");
+    b.doc()["extensionsRequired"] = "SPECULA_lafortune";
+    b.write(file);
+    expect_refusal(file, "extensionsRequired", "not an array");
+    b.doc()["extensionsRequired"] = {"SPECULA_lafortune"}; // its own: honoured
+    b.write(file);
+    EXPECT_EQ(load_mesh(file).mesh.triangle_count(), 1u);
+}
+
+// KHR_mesh_quantization (honoured): normalized SHORT positions decode as v / 32767.
+TEST(GltfGuard, QuantizedPositionsAreHonoured) {
+    test::TempDir dir("gltf");
+    test::GltfBuilder b;
+    const int pos = b.accessor(std::vector<std::int16_t>{0, 0, 0, 0, 0, 32767, 0, 0, 0, -16384, 32767, 0},
+                               5122, "VEC3", 3); // each element padded to 8 bytes: byteStride 8
+    b.doc()["bufferViews"][b.doc()["accessors"][pos]["bufferView"].get<int>()]["byteStride"] = 8;
+    b.doc()["accessors"][pos]["normalized"] = true;
+    b.node({{"mesh", b.mesh(json::array({{{"attributes", {{"POSITION", pos}}}}}))}});
+    b.doc()["extensionsUsed"] = {"KHR_mesh_quantization"};
+    b.doc()["extensionsRequired"] = {"KHR_mesh_quantization"};
+    b.write(dir / "q.gltf");
+    const Mesh m = load_mesh(dir / "q.gltf").mesh;
+    ASSERT_EQ(m.positions.size(), 3u);
+    expect_vec_eq(m.positions[0], {0, 0, 0}, 0.0f);
+    expect_vec_eq(m.positions[1], {0, 1, 0}, 0.0f);
+    expect_vec_eq(m.positions[2], {0, -16384.0f / 32767.0f, 1}, 1e-7f);
+}
+
+TEST(GltfGuard, TriangleCountsMustBeMultiplesOf3) {
+    test::TempDir dir("gltf");
+    const fs::path file = dir / "m.gltf";
+    const std::vector<float> quad = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    test::GltfBuilder b;
+    b.node({{"mesh", b.mesh(json::array({{{"attributes", {{"POSITION", b.positions(quad)}}}}}))}});
+    b.write(file); // 4 vertices, no indices
+    expect_refusal(file, "meshes[0].primitives[0].attributes.POSITION", "multiple of 3");
+    test::GltfBuilder i;
+    json prim = {{"attributes", {{"POSITION", i.positions(quad)}}}, {"indices", i.indices_u16({0, 1, 2, 3})}};
+    i.node({{"mesh", i.mesh(json::array({prim}))}});
+    i.write(file);
+    expect_refusal(file, "meshes[0].primitives[0].indices", "multiple of 3");
+    // A strip of 4 vertices is two triangles: fine.
+    i.doc()["meshes"][0]["primitives"][0]["mode"] = 5;
+    i.write(file);
+    EXPECT_EQ(load_mesh(file).mesh.triangle_count(), 2u);
+}
+
+TEST(GltfGuard, DuplicateJsonKeysAreRefusedNamingTheKey) {
+    test::TempDir dir("gltf");
+    const fs::path file = dir / "m.gltf";
+    test::GltfBuilder b;
+    const int mesh = b.mesh(json::array({triangle_primitive(b)}));
+    b.node({{"mesh", mesh}, {"name", "first"}});
+    b.doc()["scenes"] = {{{"nodes", {0}}}};
+    b.write(file);
+    ASSERT_EQ(load_mesh(file).mesh.triangle_count(), 1u);
+    // Which "translation" counts? nlohmann and tinygltf take the last, other readers the first.
+    std::string text = b.text();
+    const std::size_t at = text.find("\"name\": \"first\"");
+    ASSERT_NE(at, std::string::npos) << text;
+    text.insert(at, "\"translation\": [0, 0, 1], \"translation\": [0, 0, 2], ");
+    write_text_file(file, text);
+    expect_refusal(file, "nodes[0].translation", "duplicate JSON key");
+    // At the top level too; the same key in different objects is fine.
+    text = b.text();
+    text.insert(1, "\"asset\": {\"version\": \"2.0\"},");
+    write_text_file(file, text);
+    expect_refusal(file, "asset", "duplicate JSON key");
+}
+
+TEST(GltfGuard, MissingLinkedImageIsOnlyAWarningForAMesh) {
+    test::TempDir dir("gltf");
+    test::GltfBuilder b = one_triangle();
+    b.doc()["images"] = {{{"uri", "texture.png"}}};
+    b.write(dir / "m.gltf");
+    const MeshLoadResult r = load_mesh(dir / "m.gltf");
+    EXPECT_EQ(r.mesh.triangle_count(), 1u);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_NE(r.warnings[0].find("images[0].uri: file not found"), std::string::npos) << r.warnings[0];
 }
 
 } // namespace

@@ -49,18 +49,22 @@ inline nlohmann::json glb_json(const std::filesystem::path& file) {
     std::memcpy(&len, s.data() + 12, 4);
     return nlohmann::json::parse(s.substr(20, len));
 }
-inline void rewrite_glb_json(const std::filesystem::path& file, const nlohmann::json& doc) {
+/// The same with the JSON chunk given as text (for JSON nlohmann would not write: duplicate
+/// keys, 100,000 levels of nesting).
+inline void rewrite_glb_text(const std::filesystem::path& file, std::string text) {
     const std::string s = read_text_file(file);
     std::uint32_t len = 0;
     std::memcpy(&len, s.data() + 12, 4);
     const std::string rest = s.substr(20 + len); // BIN chunk header + data
-    std::string text = doc.dump();
     while (text.size() % 4 != 0) text.push_back(' ');
     std::string out(20, '\0');
     const std::uint32_t head[5] = {0x46546C67u, 2u, static_cast<std::uint32_t>(20 + text.size() + rest.size()),
                                    static_cast<std::uint32_t>(text.size()), 0x4E4F534Au};
     std::memcpy(out.data(), head, 20);
     write_text_file(file, out + text + rest);
+}
+inline void rewrite_glb_json(const std::filesystem::path& file, const nlohmann::json& doc) {
+    rewrite_glb_text(file, doc.dump());
 }
 
 } // namespace specula::test

@@ -2,13 +2,21 @@
 // through write_bundle / read_bundle, the viewer approximation in the material,
 // foreign .glb files, errors naming the file and the field, and the Khronos glTF
 // validator on a written bundle (skipped when node or the validator is not installed).
+#include "../capture/gltf_builder.h"
 #include "bundle_fixtures.h"
+#include "legacy_bundles.h"
 #include "test_dirs.h"
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <future>
 #include <set>
 #include <tuple>
 
@@ -425,6 +433,275 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
         if (WEXITSTATUS(status) == 77)
             GTEST_SKIP() << "the gltf-validator npm package is not installed (tools/install-deps.sh installs it)";
         EXPECT_EQ(WEXITSTATUS(status), 0) << cmd << ": the validator reported errors (printed above)";
+    }
+}
+
+
+// ---- format compatibility -----------------------------------------------------------
+
+// tests/export/data/legacy_v{1,4}.glb were written by write_bundle before the glTF I/O moved
+// to capture/gltf_io (legacy_bundles.h): they read back bit for bit, including an integer in
+// "info" above 2^32, and writing what was read gives the same bytes: the format is unchanged.
+TEST(Bundle, LegacyBundlesReadExactlyAndRewriteByteForByte) {
+    TempDir dir("bundle");
+    for (const int version : {1, 4}) {
+        const auto file = test::source_dir() / "tests" / "export" / "data" / ("legacy_v" + std::to_string(version) + ".glb");
+        const Bundle want = test::legacy_bundle(version);
+        const Bundle r = read_bundle(file);
+        EXPECT_TRUE(r.warnings.empty());
+        EXPECT_TRUE(same_bits(r.mesh.positions, want.mesh.positions));
+        EXPECT_TRUE(same_bits(r.mesh.normals, want.mesh.normals));
+        EXPECT_TRUE(same_bits(r.mesh.texcoords, want.mesh.texcoords));
+        EXPECT_TRUE(same_bits(r.mesh.triangles, want.mesh.triangles));
+        EXPECT_EQ(r.albedo.width, 3);
+        EXPECT_EQ(r.albedo.height, 2);
+        EXPECT_TRUE(same_bits(r.albedo.pixels, want.albedo.pixels));
+        ASSERT_TRUE(r.lobe.has_value());
+        EXPECT_EQ(r.lobe->cx, want.lobe->cx);
+        EXPECT_EQ(r.lobe->cz, want.lobe->cz);
+        EXPECT_EQ(r.lobe->n, want.lobe->n);
+        EXPECT_EQ(r.lobe_status, want.lobe_status);
+        ASSERT_TRUE(r.cube_g && r.cube_h);
+        EXPECT_EQ(r.cube_g->resolution, 1u);
+        EXPECT_EQ(r.cube_h->resolution, 2u);
+        EXPECT_TRUE(same_bits(r.cube_g->rgb, want.cube_g->rgb));
+        EXPECT_TRUE(same_bits(r.cube_h->rgb, want.cube_h->rgb));
+        ASSERT_EQ(r.extra_terms.size(), want.extra_terms.size());
+        for (std::size_t k = 0; k < r.extra_terms.size(); ++k) {
+            EXPECT_TRUE(same_bits(r.extra_terms[k].g.rgb, want.extra_terms[k].g.rgb));
+            EXPECT_TRUE(same_bits(r.extra_terms[k].h.rgb, want.extra_terms[k].h.rgb));
+        }
+        EXPECT_EQ(r.factor_param, want.factor_param);
+        EXPECT_EQ(r.factor_warp, want.factor_warp);
+        EXPECT_EQ(r.info, want.info);
+        ASSERT_TRUE(r.info["texels"].is_number_unsigned());
+        EXPECT_EQ(r.info["texels"].get<std::uint64_t>(), 5000000000ull); // not narrowed to int
+        const auto again = dir / ("again" + std::to_string(version) + ".glb");
+        write_bundle(again, r);
+        EXPECT_EQ(read_text_file(again), read_text_file(file)) << "version " << version;
+        write_bundle(again, want);
+        EXPECT_EQ(read_text_file(again), read_text_file(file)) << "version " << version;
+    }
+}
+
+// ---- the loader's guards, through read_bundle (capture/gltf_io.h) ---------------------
+
+void expect_bundle_refusal(const std::filesystem::path& file, const std::string& field, const std::string& words) {
+    try {
+        (void)read_bundle(file);
+        ADD_FAILURE() << "expected InputError on " << field;
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.file(), file);
+        EXPECT_EQ(e.field(), field) << e.what();
+        EXPECT_NE(e.message().find(words), std::string::npos) << e.what();
+    }
+}
+
+// The JSON text of a written bundle with `insert` placed right after `after` (its first match).
+std::string bundle_text_with(const std::filesystem::path& file, const std::string& after, const std::string& insert) {
+    std::string text = test::glb_json(file).dump();
+    const std::size_t at = text.find(after);
+    EXPECT_NE(at, std::string::npos) << after;
+    text.insert(at + after.size(), insert);
+    return text;
+}
+
+TEST(BundleGuard, JsonNestingInTheExtensionIsRefusedWithoutCrashing) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    const auto file = dir / "deep.glb";
+    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe));
+    const std::string deep = "\"deep\":" + std::string(100000, '[') + std::string(100000, ']') + ",";
+    test::rewrite_glb_text(file, bundle_text_with(file, "\"info\":{", deep));
+    expect_bundle_refusal(file, "materials[0].extensions.SPECULA_lafortune.info.deep", "deeper than 256");
+}
+
+TEST(BundleGuard, DuplicateKeyInTheExtensionIsRefused) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    const auto file = dir / "dup.glb";
+    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe));
+    // Two versions: a reader keeping the first and one keeping the last would read different bundles.
+    test::rewrite_glb_text(file, bundle_text_with(file, "\"SPECULA_lafortune\":{", "\"version\":4,"));
+    expect_bundle_refusal(file, "materials[0].extensions.SPECULA_lafortune.version", "duplicate JSON key");
+}
+
+TEST(BundleGuard, RequiredExtensionsAreHonouredOrRefused) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    const auto file = dir / "req.glb";
+    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    write_bundle(file, b);
+    json doc = test::glb_json(file);
+    doc["extensionsRequired"] = {"SPECULA_lafortune"}; // its own extension: honoured
+    test::rewrite_glb_json(file, doc);
+    const Bundle r = read_bundle(file);
+    ASSERT_TRUE(r.lobe.has_value());
+    EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
+    doc["extensionsRequired"] = {"SPECULA_lafortune", "KHR_draco_mesh_compression"};
+    test::rewrite_glb_json(file, doc);
+    expect_bundle_refusal(file, "extensionsRequired[1]", "KHR_draco_mesh_compression");
+}
+
+// A .gltf bundle with its buffer in a file beside it reads as the .glb does; the buffer's
+// URI must stay in the folder and name a regular file (a FIFO is refused, not waited on).
+TEST(BundleGuard, ExternalBufferReadsTheSameAndStaysInItsFolder) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    b.cube_g = test::random_cube(4, 1);
+    b.cube_h = test::random_cube(4, 2);
+    write_bundle(dir / "b.glb", b);
+    const std::string glb = read_text_file(dir / "b.glb");
+    std::uint32_t json_len = 0, bin_len = 0;
+    std::memcpy(&json_len, glb.data() + 12, 4);
+    std::memcpy(&bin_len, glb.data() + 20 + json_len, 4);
+    std::filesystem::create_directories(dir / "model");
+    write_text_file(dir / "model" / "b.bin", glb.substr(28 + json_len, bin_len));
+    write_text_file(dir / "b.bin", glb.substr(28 + json_len, bin_len));
+    json doc = test::glb_json(dir / "b.glb");
+    const auto file = dir / "model" / "b.gltf";
+    doc["buffers"][0]["uri"] = "b.bin";
+    write_text_file(file, doc.dump());
+    const Bundle r = read_bundle(file);
+    EXPECT_TRUE(same_bits(r.mesh.positions, b.mesh.positions));
+    EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
+    EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
+    doc["buffers"][0]["uri"] = "../b.bin";
+    write_text_file(file, doc.dump());
+    expect_bundle_refusal(file, "buffers[0].uri", "leaves the glTF file's folder");
+    ASSERT_EQ(::mkfifo((dir / "model" / "pipe.bin").c_str(), 0600), 0);
+    doc["buffers"][0]["uri"] = "pipe.bin";
+    write_text_file(file, doc.dump());
+    auto result = std::async(std::launch::async, [&] { expect_bundle_refusal(file, "buffers[0].uri", "a FIFO"); });
+    if (result.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
+        ADD_FAILURE() << "read_bundle blocked on the FIFO";
+        const int fd = ::open((dir / "model" / "pipe.bin").c_str(), O_WRONLY | O_NONBLOCK); // frees it
+        if (fd >= 0) ::close(fd);
+    }
+    result.get();
+}
+
+// CRC-32 of PNG chunks (PNG specification, annex D: polynomial 0xEDB88320, reflected).
+std::uint32_t png_crc(const std::string& bytes) {
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (const char ch : bytes) {
+        c ^= static_cast<unsigned char>(ch);
+        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+    }
+    return c ^ 0xFFFFFFFFu;
+}
+
+std::string be32(std::uint32_t v) {
+    return {static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8), static_cast<char>(v)};
+}
+
+std::string png_chunk(const std::string& type, const std::string& data) {
+    return be32(static_cast<std::uint32_t>(data.size())) + type + data + be32(png_crc(type + data));
+}
+
+// A PNG whose header (IHDR, PNG specification 11.2.2) claims w x h 8-bit RGB pixels but whose
+// data is a few bytes: decoding it would allocate w * h * 3 floats before finding out.
+std::vector<std::uint8_t> png_claiming(std::uint32_t w, std::uint32_t h) {
+    const std::string ihdr = be32(w) + be32(h) + std::string("\x08\x02\x00\x00\x00", 5);
+    const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + png_chunk("IHDR", ihdr) +
+                            png_chunk("IDAT", std::string("\x78\x9c\x63\x00\x00\x00\x01\x00\x01", 9)) +
+                            png_chunk("IEND", "");
+    return {png.begin(), png.end()};
+}
+
+// A foreign .gltf (no extension): a textured quad whose base colour is images[0], which the
+// caller adds.
+test::GltfBuilder foreign_quad() {
+    test::GltfBuilder b;
+    json prim = {{"attributes",
+                  {{"POSITION", b.positions({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0})},
+                   {"TEXCOORD_0", b.texcoords({0, 0, 1, 0, 1, 1, 0, 1})}}},
+                 {"indices", b.indices_u16({0, 1, 2, 0, 2, 3})},
+                 {"material", 0}};
+    b.node({{"mesh", b.mesh(json::array({prim}))}});
+    b.doc()["materials"] = {{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}};
+    b.doc()["textures"] = {{{"source", 0}}};
+    return b;
+}
+
+TEST(BundleGuard, BaseColourSizeIsReadFromTheHeaderAndRefusedAboveTheLimit) {
+    TempDir dir("bundle");
+    const auto file = dir / "f.gltf";
+    // The control: a real 2 x 2 PNG in a bufferView decodes to the albedo.
+    Image texture(2, 2, 3);
+    for (std::size_t i = 0; i < texture.pixels.size(); ++i) texture.pixels[i] = 0.05f * static_cast<float>(i + 1);
+    const std::vector<std::uint8_t> real = encode_image(texture, ImageCodec::Png, ColorSpace::Srgb);
+    test::GltfBuilder b = foreign_quad();
+    b.doc()["images"] = {{{"bufferView", b.view(real)}, {"mimeType", "image/png"}}};
+    b.write(file);
+    const Bundle r = read_bundle(file);
+    ASSERT_EQ(r.albedo.width, 2);
+    for (std::size_t i = 0; i < r.albedo.pixels.size(); ++i)
+        EXPECT_NEAR(linear_to_srgb(r.albedo.pixels[i]), linear_to_srgb(texture.pixels[i]), 0.5f / 255.0f + 1e-5f);
+
+    // 30000 x 30000: the header is readable, and the image is refused from it.
+    const std::vector<std::uint8_t> huge = png_claiming(30000, 30000);
+    const ImageFileInfo info = read_image_info(huge, file, "images[0]");
+    EXPECT_EQ(info.width, 30000);
+    EXPECT_EQ(info.height, 30000);
+    b = foreign_quad(); // embedded in a bufferView
+    b.doc()["images"] = {{{"bufferView", b.view(huge)}, {"mimeType", "image/png"}}};
+    b.write(file);
+    expect_bundle_refusal(file, "images[0].bufferView", "30000 x 30000");
+    b = foreign_quad(); // linked
+    write_text_file(dir / "huge.png", std::string(huge.begin(), huge.end()));
+    b.doc()["images"] = {{{"uri", "huge.png"}}};
+    b.write(file);
+    expect_bundle_refusal(file, "images[0].uri", "30000 x 30000");
+    b.doc()["images"] = {{{"uri", "data:image/png;base64," + test::base64(huge)}}}; // a data URI
+    b.write(file);
+    expect_bundle_refusal(file, "images[0].uri", "30000 x 30000");
+    // One side above the limit is enough.
+    const std::vector<std::uint8_t> wide = png_claiming(kMaxDecodedImageDimension + 1, 1);
+    b.doc()["images"] = {{{"uri", "data:image/png;base64," + test::base64(wide)}}};
+    b.write(file);
+    expect_bundle_refusal(file, "images[0].uri", "above the largest accepted width or height");
+}
+
+// ---- the in-memory image codec (core/image.h), which the bundle's base colour uses ------
+
+TEST(ImageCodec, PngAndExrRoundTripInMemory) {
+    Image image(5, 3, 3);
+    for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = 0.021f * static_cast<float>(i);
+    image.pixels[4] = 1.75f; // above 1: EXR keeps it, PNG clamps
+    const std::filesystem::path name = "memory";
+    for (const int bits : {8, 16}) {
+        const std::vector<std::uint8_t> png = encode_image(image, ImageCodec::Png, ColorSpace::Srgb, bits);
+        const ImageFileInfo info = read_image_info(png, name, "png");
+        EXPECT_EQ(info.width, 5);
+        EXPECT_EQ(info.height, 3);
+        EXPECT_EQ(info.bits_per_channel, bits);
+        EXPECT_FALSE(info.is_float);
+        const Image back = decode_image(png, ColorSpace::Srgb, name, "png");
+        ASSERT_EQ(back.pixels.size(), image.pixels.size());
+        const float step = bits == 8 ? 1.0f / 255.0f : 1.0f / 65535.0f;
+        for (std::size_t i = 0; i < image.pixels.size(); ++i)
+            ASSERT_NEAR(linear_to_srgb(back.pixels[i]), linear_to_srgb(std::min(image.pixels[i], 1.0f)), 0.5f * step + 1e-6f) << i;
+    }
+    const std::vector<std::uint8_t> exr = encode_image(image, ImageCodec::Exr, ColorSpace::Linear);
+    EXPECT_TRUE(read_image_info(exr, name, "exr").is_float);
+    const Image back = decode_image(exr, ColorSpace::Srgb, name, "exr"); // float data is never sRGB-decoded
+    EXPECT_TRUE(same_bits(back.pixels, image.pixels));
+    // Refusals name the file and the field: not an image; above a given size.
+    const std::vector<std::uint8_t> junk = {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'a', 'g', 'e'};
+    try {
+        (void)decode_image(junk, ColorSpace::Srgb, name, "images[3]");
+        ADD_FAILURE() << "junk decoded";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.file(), name);
+        EXPECT_EQ(e.field(), "images[3]");
+    }
+    try {
+        (void)decode_image(exr, ColorSpace::Linear, name, "exr", 4);
+        ADD_FAILURE() << "a 5 x 3 image decoded under a limit of 4";
+    } catch (const InputError& e) {
+        EXPECT_NE(e.message().find("5 x 3"), std::string::npos) << e.what();
     }
 }
 

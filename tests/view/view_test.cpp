@@ -6,6 +6,7 @@
 // the viewer too (SPECULA_VALIDATION=1 from the test environment): any message makes
 // it exit 1, which these tests check.
 #include "orbit.h"
+#include "presenter_probe.h"
 
 #include "capture/capture.h"
 #include "core/file_util.h"
@@ -21,6 +22,7 @@
 
 #include <glm/gtc/constants.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -244,6 +246,67 @@ TEST_F(ViewTest, XvfbPhotographIsTheCapturedImage) {
     const Diff d = compare(read_image(out / "expected.png", ColorSpace::Linear), read_image(out / "photo.png", ColorSpace::Linear));
     EXPECT_GT(d.lit, 96u * 96u / 10);
     EXPECT_LE(d.max, 1.0 / 255.0 + 1e-6);
+}
+
+/// gpu::Presenter on its own (tests/view/presenter_probe.cpp, validation on): a frame that
+/// clears the target reads back the clear colour exactly from the target and, from the
+/// presented swapchain image, encoded to sRGB 8-bit (one step of rounding allowed, as
+/// above); a texture of known sRGB codes blitted 1:1 shows those codes at its rectangle,
+/// every other pixel black; scaled 2x (letterboxed) it covers exactly its rectangle.
+TEST_F(ViewTest, XvfbPresenterShowsAndReadsBackWhatItWasGiven) {
+    namespace pr = probe;
+    TempDir out("view_presenter");
+    const std::string xvfb = std::string(SPECULA_XVFB_RUN) + " -a -s \"-screen 0 320x240x24\" ";
+    const RunResult v = run(xvfb + SPECULA_PRESENTER_PROBE + " " + out.path().string(), out / "p.txt");
+    ASSERT_EQ(v.code, 0) << v.err;
+    const auto encoded = [](float v) { return linear_to_srgb(std::clamp(v, 0.0f, 1.0f)); };
+    const double step = 1.0 / 255.0 + 1e-6;
+
+    const Image target = read_image(out / "target.exr", ColorSpace::Linear);
+    const Image shown = read_image(out / "target_shown.exr", ColorSpace::Linear);
+    for (const Image* img : {&target, &shown}) {
+        ASSERT_EQ(img->width, pr::kWindowW);
+        ASSERT_EQ(img->height, pr::kWindowH);
+    }
+    double target_err = 0.0, shown_err = 0.0;
+    for (int y = 0; y < pr::kWindowH; ++y)
+        for (int x = 0; x < pr::kWindowW; ++x)
+            for (int c = 0; c < 3; ++c) {
+                target_err = std::max(target_err, static_cast<double>(std::abs(target.at(x, y, c) - pr::kClear[c])));
+                shown_err = std::max(shown_err, static_cast<double>(std::abs(encoded(shown.at(x, y, c)) - encoded(pr::kClear[c]))));
+            }
+    EXPECT_EQ(target_err, 0.0);
+    EXPECT_LE(shown_err, step);
+
+    const Image image = read_image(out / "image_shown.exr", ColorSpace::Linear);
+    ASSERT_EQ(image.width, pr::kWindowW);
+    ASSERT_EQ(image.height, pr::kWindowH);
+    double inside_err = 0.0, outside_max = 0.0;
+    for (int y = 0; y < pr::kWindowH; ++y)
+        for (int x = 0; x < pr::kWindowW; ++x)
+            for (int c = 0; c < 3; ++c) {
+                if (pr::kRect.contains(x, y)) {
+                    const double want = pr::code(x - pr::kRect.x0, y - pr::kRect.y0, c) / 255.0;
+                    inside_err = std::max(inside_err, std::abs(encoded(image.at(x, y, c)) - want));
+                } else {
+                    outside_max = std::max(outside_max, static_cast<double>(image.at(x, y, c)));
+                }
+            }
+    EXPECT_LE(inside_err, step);
+    EXPECT_EQ(outside_max, 0.0);
+
+    const Image scaled = read_image(out / "scaled_shown.exr", ColorSpace::Linear);
+    ASSERT_EQ(scaled.width, pr::kWindowW);
+    ASSERT_EQ(scaled.height, pr::kWindowH);
+    std::size_t wrong = 0;
+    for (int y = 0; y < pr::kWindowH; ++y)
+        for (int x = 0; x < pr::kWindowW; ++x) {
+            // every code is at least 10/255, so every pixel of the image is lit; the rest is black
+            const float least = std::min({scaled.at(x, y, 0), scaled.at(x, y, 1), scaled.at(x, y, 2)});
+            const float most = std::max({scaled.at(x, y, 0), scaled.at(x, y, 1), scaled.at(x, y, 2)});
+            wrong += pr::kScaledRect.contains(x, y) ? (least > 0.0f ? 0 : 1) : (most == 0.0f ? 0 : 1);
+        }
+    EXPECT_EQ(wrong, 0u);
 }
 
 /// A resize after the first frame (the swapchain and target recreated, validation on):

@@ -36,12 +36,12 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", quiet, "Print only warnings and errors");
     app.add_flag("-v,--verbose", verbose, "Print debugging detail (device, culling)");
     app.add_option("bundle", c.bundle, "Bundle written by `specula reconstruct` (.glb)")->required();
-    app.add_option("--capture", c.capture, "Capture folder (or its capture.json): start from a frame's camera and light");
-    app.add_option("--frame", c.frame, "Frame index in capture.json's frames list (with --capture); C shows its photograph");
-    app.add_option("--camera", c.camera, "Free start camera: eye,target,up (9 numbers, world units); default: the object, from the front");
-    app.add_option("--light", c.light, "Free start light: x,y,z,intensity or x,y,z,r,g,b; default: above right of the camera");
-    app.add_option("--size", c.size, "Window (free camera image) size: N or WxH")->capture_default_str();
-    app.add_option("--fov", c.fov, "Free camera vertical field of view, degrees (default 40)");
+    app.add_option("--capture", c.pose.capture, "Capture folder (or its capture.json): start from a frame's camera and light");
+    app.add_option("--frame", c.pose.frame, "Frame index in capture.json's frames list (with --capture); C shows its photograph");
+    app.add_option("--camera", c.pose.camera, "Free start camera: eye,target,up (9 numbers, world units); default: the object, from the front");
+    app.add_option("--light", c.pose.light, "Free start light: x,y,z,intensity or x,y,z,r,g,b; default: above right of the camera");
+    app.add_option("--size", c.pose.size, "Window (free camera image) size: N or WxH")->capture_default_str();
+    app.add_option("--fov", c.pose.fov, "Free camera vertical field of view, degrees (default 40)");
     app.add_option("--mode", c.mode, "Terms drawn at the start: both, diffuse or specular")
         ->check(CLI::IsMember({"both", "diffuse", "specular"}))
         ->capture_default_str();

@@ -1,7 +1,9 @@
 #pragma once
 // specula-view: shows a bundle in a window with the raster passes of engine/render
-// (Renderer::record into a window-sized target, blitted to the swapchain), or
-// renders it offscreen when there is no display.
+// (Renderer::record into the window-sized target of a gpu::Presenter, which blits it to
+// the swapchain), or renders it offscreen when there is no display.
+#include "evaluate/pose.h"
+
 #include <optional>
 #include <string>
 
@@ -9,12 +11,9 @@ namespace specula::view {
 
 struct ViewerConfig {
     std::string bundle;                 ///< .glb written by `specula reconstruct`
-    std::string capture;                ///< capture folder: start from a frame's camera and light
-    std::optional<long long> frame;     ///< frame index in capture.json
-    std::string camera;                 ///< free start camera eye,target,up (9 numbers)
-    std::string light;                  ///< free start light x,y,z,I or x,y,z,r,g,b
-    std::string size = "512";           ///< free camera image size: N or WxH
-    std::optional<double> fov;          ///< free camera vertical field of view (degrees)
+    /// Where the view starts: a capture frame's camera and light (--capture, --frame), or a
+    /// free pose (--camera, --light, --size, --fov; a missing camera or light frames the object).
+    evaluate::PoseOptions pose;
     std::string mode = "both";          ///< both, diffuse, specular
     std::string specular = "analytic";  ///< analytic, factorized
     std::string passes = "deferred";    ///< deferred (G-buffer, then per-pixel shading), fused (one pass for both terms) or separate (the thesis's two)
