@@ -21,7 +21,7 @@
 // the same way when they exceed one binding.
 #include "capture/capture.h"
 #include "core/backend.h"
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 #include "geometry/particles.h"
 #include "visibility/visibility.h"
 

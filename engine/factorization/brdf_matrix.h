@@ -8,8 +8,8 @@
 // GSHD of (u, v), the mirrored GSHD of (r(u), v), or the warped GSHD of (w(u), v) with the
 // warp `warp` = (s, k_r, k_g, k_b) (channel c's pairs in its own warp (s, k_c)), whose F is
 // the lobe over its radial factor |C u|^N (in [0, 1]).
-#include "core/factor_param.h"
-#include "core/lafortune.h"
+#include "material/factor_param.h"
+#include "material/lafortune.h"
 #include "shared/lafortune.h"
 #include "gpu/buffer.h"
 #include "gpu/pipeline.h"

@@ -13,6 +13,7 @@
 // Reference in double (residual_term_cpu.cpp); Vulkan: shaders/factorization/residual_term.comp.
 #include "factorization/brdf_matrix.h"
 #include "factorization/normalized_decomposition.h"
+#include "material/material.h"
 
 #include <cstdint>
 #include <optional>
@@ -20,7 +21,6 @@
 
 namespace specula::factorization {
 
-inline constexpr uint32_t kMaxTerms = 4;           ///< fixed bindings in the renderer, fields in the bundle
 inline constexpr uint32_t kResidualIterations = 12; ///< ALS iterations per residual term
 inline constexpr double kDefaultTermTarget = 0.03;  ///< automatic K: matrix relative RMS to reach
 /// Residual terms are left out when the lobe's height max(|Cx|, |Cz|)^N exceeds this (float sums
@@ -30,7 +30,7 @@ inline constexpr double kResidualMaxValue = 1.0e15;
 struct ResidualTermsInputs {
     const BrdfMatrix* matrix = nullptr;
     const Decomposition* first = nullptr; ///< term 1 (normalized decomposition) on the same grids
-    uint32_t terms = 2;                   ///< K, total including term 1; 2..kMaxTerms
+    uint32_t terms = 2;                   ///< K, total including term 1; 2..kMaxFactorTerms
     uint32_t iterations = kResidualIterations;
 };
 

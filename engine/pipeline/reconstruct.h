@@ -12,7 +12,7 @@
 //     -> albedo refinement (back-projection through renders of the train frames) -> albedo texture
 //     -> factorization (grid from the lobe's width) -> bundle (object.glb)
 //     -> self-evaluation -> report.html -> report.json
-#include "core/factor_param.h"
+#include "material/factor_param.h"
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
 #include "pipeline/planner.h"

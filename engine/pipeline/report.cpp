@@ -207,12 +207,12 @@ json factorization_json(const PipelineRun& run, const FactorizationStage& f) {
               {"terms_reason", cubes.terms.reason},
               {"terms_target", cubes.terms.target},
               {"per_term", std::move(per_term)},
-              {"parametrization", to_string(cubes.param)},
+              {"parametrization", to_string(cubes.cubes.param)},
               {"parametrization_forced", cubes.param_choice.forced},
               {"parametrization_reason", cubes.param_choice.reason},
               {"parametrization_candidates", param_candidates_json(cubes.param_choice)},
               {"seconds", cubes.timings.total_s}};
-    if (cubes.param == FactorParam::Warped) j["warp"] = {cubes.warp.x, cubes.warp.y, cubes.warp.z, cubes.warp.w};
+    if (cubes.cubes.param == FactorParam::Warped) j["warp"] = {cubes.cubes.warp.x, cubes.cubes.warp.y, cubes.cubes.warp.z, cubes.cubes.warp.w};
     if (const auto ns = cubes.timings.gpu_total_ns()) j["gpu_ms"] = *ns * 1e-6;
     return j;
 }
@@ -262,7 +262,10 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
             {"albedo_refinement", refinement_json(run, in.refine)},
             {"specular", specular_json(in.specular, run.config.joint_tolerance)},
             {"factorization", factorization_json(run, in.factorization)},
-            {"bundle", {{"file", "object.glb"}, {"has_lobe", in.bundle.lobe.has_value()}, {"has_cubemaps", in.bundle.cube_g.has_value()}}},
+            {"bundle",
+             {{"file", "object.glb"},
+              {"has_lobe", in.bundle.material.specular.has_value()},
+              {"has_cubemaps", in.bundle.material.factorized.has_value()}}},
             {"evaluation", evaluation_json(run, in.evaluation)},
             {"albedo_texture",
              {{"files", {"albedo.exr", "albedo.png"}},

@@ -401,22 +401,11 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const AlbedoTexture& texture,
                     const FactorizationStage& factorization) {
     return run.stage("bundle", [&] {
-        Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, factorization.lobe);
-        b.lobe_status = factorization.lobe_status;
-        if (factorization.cubes) {
-            const factorization::Factorization& cubes = *factorization.cubes;
-            const auto to_cube = [](const factorization::Cubemap& c) {
-                BundleCubeMap out{c.res, {}};
-                out.rgb.reserve(c.texels.size() * 3);
-                for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
-                return out;
-            };
-            b.cube_g = to_cube(cubes.cube_g);
-            b.cube_h = to_cube(cubes.cube_h);
-            for (const factorization::FactorTerm& t : cubes.extra) b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
-            b.factor_param = cubes.param;
-            b.factor_warp = cubes.warp;
-        }
+        Material material;
+        if (factorization.lobe) material.specular = *factorization.lobe;
+        material.status = factorization.lobe_status;
+        if (factorization.cubes) material.factorized = factorization.cubes->cubes;
+        Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
         b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(run.config.out_dir / "object.glb", b);
         return b;
@@ -440,7 +429,7 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         eo.metrics_backend = ctx->info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
         eo.max_frames_per_split = config.evaluate_max_frames;
         eo.include_train = config.evaluate_train;
-        if (config.evaluate_factorized && bundle.cube_g) eo.render.specular = render::SpecularModel::Factorized;
+        if (config.evaluate_factorized && bundle.material.factorized) eo.render.specular = render::SpecularPath::Factorized;
         if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
         eo.bundle_name = "object.glb";
         eo.progress = true;

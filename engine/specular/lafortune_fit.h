@@ -39,7 +39,7 @@
 //
 // The result never holds NaN or infinity: non-finite values end the fit with an honest
 // status instead.
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 
 #include <glm/vec3.hpp>
 

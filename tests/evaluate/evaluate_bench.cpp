@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
     Bundle b;
     b.mesh = preset.mesh;
     b.albedo = preset.material.albedo_texture;
-    b.lobe = preset.material.lobe;
+    b.material.specular = preset.material.lobe;
     gpu::Context ctx;
     std::printf("%s, %dx%d, %zu triangles, device %s\n", name.c_str(), size, size, preset.mesh.triangle_count(),
                 ctx.info().name.c_str());
