@@ -12,7 +12,7 @@
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "gpu/context.h"
-#include "pipeline/albedo_refine.h"
+#include "refine/albedo_refine.h"
 #include "report/report_html.h"
 #include "visibility/visibility.h"
 
@@ -576,7 +576,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         set_refinement_cost(refine_decision, stage_seconds(result, "albedo refinement"));
         refinement = {{"rounds", rounds},
                       {"method", "A <- A + S(captured) - S(render(A)): S the diffuse solve's robust combination over views, "
-                                 "render without cast shadows with the solve's lobe (pipeline/albedo_refine.h)"},
+                                 "render without cast shadows with the solve's lobe (refine/albedo_refine.h)"},
                       {"seconds", stage_seconds(result, "albedo refinement")}};
     }
 
