@@ -14,6 +14,7 @@
 #include "gpu/context.h"
 #include "refine/albedo_refine.h"
 #include "report/report_html.h"
+#include "specula/version.h"
 #include "visibility/visibility.h"
 
 #include <algorithm>
@@ -718,7 +719,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             b.factor_param = cubes->param;
             b.factor_warp = cubes->warp;
         }
-        b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(config.out_dir / "object.glb", b);
         return b;
     });
@@ -765,7 +766,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     json left_out = json::array();
     for (const LeftOut& l : result.left_out) left_out.push_back({{"what", l.what}, {"why", l.why}});
     result.report = {
-        {"specula_version", "0.1.0"},
+        {"specula_version", kVersion},
         {"capture",
          {{"path", fs::absolute(capture.desc.dir).string()},
           {"views", capture.views.size()},
