@@ -12,8 +12,9 @@
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "gpu/context.h"
-#include "pipeline/albedo_refine.h"
+#include "refine/albedo_refine.h"
 #include "report/report_html.h"
+#include "specula/version.h"
 #include "visibility/visibility.h"
 
 #include <algorithm>
@@ -576,7 +577,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
         set_refinement_cost(refine_decision, stage_seconds(result, "albedo refinement"));
         refinement = {{"rounds", rounds},
                       {"method", "A <- A + S(captured) - S(render(A)): S the diffuse solve's robust combination over views, "
-                                 "render without cast shadows with the solve's lobe (pipeline/albedo_refine.h)"},
+                                 "render without cast shadows with the solve's lobe (refine/albedo_refine.h)"},
                       {"seconds", stage_seconds(result, "albedo refinement")}};
     }
 
@@ -718,7 +719,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
             b.factor_param = cubes->param;
             b.factor_warp = cubes->warp;
         }
-        b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(config.out_dir / "object.glb", b);
         return b;
     });
@@ -765,7 +766,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     json left_out = json::array();
     for (const LeftOut& l : result.left_out) left_out.push_back({{"what", l.what}, {"why", l.why}});
     result.report = {
-        {"specula_version", "0.1.0"},
+        {"specula_version", kVersion},
         {"capture",
          {{"path", fs::absolute(capture.desc.dir).string()},
           {"views", capture.views.size()},
