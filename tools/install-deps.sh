@@ -10,7 +10,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
   libvulkan-dev vulkan-validationlayers mesa-vulkan-drivers vulkan-tools \
   glslang-tools glslang-dev spirv-tools \
   libglm-dev libeigen3-dev libembree-dev libopenimageio-dev openimageio-tools \
-  libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev \
+  libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev \
   libglfw3-dev xvfb xauth xdotool >/dev/null
 # Node.js for the glTF validator: Debian's packages, unless a Node.js with npm is already
 # there (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm package).

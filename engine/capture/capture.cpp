@@ -5,20 +5,18 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
-#include <exception>
 #include <map>
 #include <new>
 #include <set>
 #include <sstream>
-#include <thread>
 
 namespace specula {
 
@@ -225,35 +223,6 @@ std::string line_column(const std::string& text, std::size_t byte) {
         }
     }
     return "line " + std::to_string(line) + ", column " + std::to_string(col);
-}
-
-// Runs job(i) for i in [0, n) on up to `threads` threads. Exceptions are kept per
-// index and the one of the lowest index is rethrown, so errors are deterministic.
-template <class Job>
-void parallel_for(std::size_t n, int threads, const Job& job) {
-    std::vector<std::exception_ptr> errors(n);
-    std::atomic<std::size_t> next{0};
-    std::atomic<std::size_t> first_failed{n};
-    auto worker = [&] {
-        for (std::size_t i = next++; i < n; i = next++) {
-            if (i > first_failed.load()) continue; // stop early; lower indices still run, so the error is deterministic
-            try {
-                job(i);
-            } catch (...) {
-                errors[i] = std::current_exception();
-                std::size_t seen = first_failed.load();
-                while (i < seen && !first_failed.compare_exchange_weak(seen, i)) {
-                }
-            }
-        }
-    };
-    const std::size_t count = std::min<std::size_t>(static_cast<std::size_t>(std::max(1, threads)), n);
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < count; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
-    for (auto& e : errors)
-        if (e) std::rethrow_exception(e);
 }
 
 // Pixels of a capture image: the first `channels` (at most 3) channels, linear float.
@@ -644,12 +613,15 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
                                  " but the frame's w x h is " + std::to_string(k.w) + " x " + std::to_string(k.h));
     };
 
+    // Decoding errors are deterministic: parallel_for rethrows the lowest failing index's,
+    // the one a single thread would have met first.
+    const unsigned threads = static_cast<unsigned>(std::max(1, options.threads));
     if (!options.load_images) {
-        parallel_for(mask_files.size(), options.threads, [&](std::size_t m) {
+        parallel_for(mask_files.size(), threads, [&](std::size_t m) {
             const ImageFileInfo info = read_image_info(mask_files[m], frame_prefix(mask_first_frame[m]) + ".mask_path");
             (void)info;
         });
-        parallel_for(desc.frames.size(), options.threads, [&](std::size_t i) {
+        parallel_for(desc.frames.size(), threads, [&](std::size_t i) {
             const std::string field = frame_prefix(i) + ".file_path";
             const fs::path file = desc.resolve(desc.frames[i].file_path);
             const ImageFileInfo info = read_image_info(file, field);
@@ -661,12 +633,12 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
         });
     } else {
         std::vector<DecodedMask> masks(mask_files.size());
-        parallel_for(mask_files.size(), options.threads, [&](std::size_t m) {
+        parallel_for(mask_files.size(), threads, [&](std::size_t m) {
             const std::size_t first = mask_first_frame[m];
             masks[m] = decode_mask(mask_files[m], frame_prefix(first) + ".mask_path", desc.frames[first].intrinsics);
         });
         capture.images.resize(desc.frames.size());
-        parallel_for(desc.frames.size(), options.threads, [&](std::size_t i) {
+        parallel_for(desc.frames.size(), threads, [&](std::size_t i) {
             const FrameDesc& f = desc.frames[i];
             const std::string field = frame_prefix(i) + ".file_path";
             const fs::path file = desc.resolve(f.file_path);

@@ -1,5 +1,5 @@
 #pragma once
-// Stage 3, the diffuse solve (pipeline.md section 3; thesis section 3.1, eq. 3.1):
+// Stage 4, the diffuse solve (pipeline.md section 3; thesis section 3.1, eq. 3.1):
 // per surface particle, the Lambertian albedo from the train images of the views that
 // see it, with shadowed, grazing, missing, clipped and highlight samples rejected.
 // The method, thresholds and layouts are in shaders/shared/lambert.h (one source for

@@ -11,7 +11,7 @@
 //   atlas               texels <= image pixels (texels_per_pixel 1),      --texels-per-pixel, --texture-size
 //                       within the budget (geometry/atlas.h)
 //   albedo_refinement   kAlbedoRefineRounds rounds of back-projection      --refine-rounds
-//                       (pipeline/albedo_refine.h)
+//                       (refine/albedo_refine.h)
 //   specular_stages     residual samples, then the fit, factorization and  --specular on|off
 //                       specular pass only when the residuals hold more
 //                       energy than the noise (specular/residuals.h)
@@ -115,7 +115,7 @@ inline constexpr double kPhotometricViewFraction = 0.5;
 
 // ---- albedo refinement ------------------------------------------------------------------
 
-/// Rounds of albedo refinement by back-projection the planner runs (pipeline/albedo_refine.h).
+/// Rounds of albedo refinement by back-projection the planner runs (refine/albedo_refine.h).
 /// Can preset, 512 px, noise free: masked test PSNR 39.8 dB without, 41.4 after 1 round,
 /// 41.7 after 2; a third changed it by less than 0.01 dB.
 inline constexpr std::uint32_t kAlbedoRefineRounds = 2;

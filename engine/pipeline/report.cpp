@@ -2,6 +2,7 @@
 
 #include "core/file_util.h"
 #include "report/report_html.h"
+#include "specula/version.h"
 
 #include <cmath>
 #include <filesystem>
@@ -238,7 +239,7 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
     json left_out = json::array();
     for (const LeftOut& l : result.left_out) left_out.push_back({{"what", l.what}, {"why", l.why}});
     const AlbedoTextureStats& ts = in.texture.stats;
-    return {{"specula_version", "0.1.0"},
+    return {{"specula_version", kVersion},
             {"capture",
              {{"path", fs::absolute(in.capture.desc.dir).string()},
               {"views", in.capture.views.size()},

@@ -6,6 +6,7 @@
 #include "core/timer.h"
 #include "gpu/context.h"
 #include "pipeline/planner.h"
+#include "specula/version.h"
 
 #include <algorithm>
 #include <cmath>
@@ -406,7 +407,7 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         material.status = factorization.lobe_status;
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
-        b.info = {{"generator", "specula 0.1.0"}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};
         write_bundle(run.config.out_dir / "object.glb", b);
         return b;
     });

@@ -15,7 +15,7 @@
 #include "geometry/ray_scene.h"
 #include "pipeline/joint.h"
 #include "pipeline/run.h"
-#include "pipeline/albedo_refine.h"
+#include "refine/albedo_refine.h"
 #include "specular/lafortune_fit.h"
 #include "specular/residuals.h"
 #include "visibility/visibility.h"

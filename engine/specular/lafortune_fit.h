@@ -1,5 +1,5 @@
 #pragma once
-// Stage 5, the Lafortune fit (pipeline.md section 5; thesis eq. 2.1 and section 3.2.2):
+// Stage 5 (specular), the Lafortune fit (pipeline.md section 5; thesis eq. 2.1 and section 3.2.2):
 // one isotropic lobe per RGB channel, fitted by Levenberg-Marquardt to specular BRDF
 // samples (u, v, f_s, weight), u and v the light and view directions in the tangent frame:
 //

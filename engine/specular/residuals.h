@@ -1,5 +1,5 @@
 #pragma once
-// Stage 4, residual samples (pipeline.md section 4): per particle with a diffuse solution,
+// Stage 5 (specular), residual samples (pipeline.md section 4): per particle with a diffuse solution,
 // per train frame of every view that sees it where its light reaches it, the specular BRDF
 // sample f_s = (c - (rho/pi) E) / E with the light and view directions in the particle's
 // tangent frame. Method, weight and drop rules: shaders/shared/residuals.h.

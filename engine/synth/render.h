@@ -56,7 +56,7 @@ public:
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
 
-    /// Renders one frame: `threads` std::threads over rows (>= 1).
+    /// Renders one frame: `threads` threads over rows (core/parallel.h; at least 1).
     [[nodiscard]] RenderedFrame render(const Camera& camera, const PointLight& light, int threads = 2) const;
 
     /// Only the object mask of a view (primary rays, no shading).

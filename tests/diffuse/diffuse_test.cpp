@@ -128,7 +128,7 @@ TEST_P(DiffuseSolve, LambertianRecoversAlbedo) {
 // (irradiance, shadows, occlusion, view choice, gutters), none of it the images resampling a
 // texture finer than their pixels. Measured 0.204% (best view; 0.394% before each tap got its
 // own irradiance); with the shadows baked in (every frame lit) 21.7%, which the test checks too.
-// On the presets' own textures (tests/diffuse/seen_texels.cpp, README.md "How the albedo is
+// On the presets' own textures (bench/seen_texels.cpp, README.md "How the albedo is
 // sharpened") the error over every seen texel is mostly detail finer than a texel, which the
 // atlas cannot hold. TapIrradianceMeetsTheCriterionOnCurvedRims below covers the geometry
 // where the solve itself was biased.

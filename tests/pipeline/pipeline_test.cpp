@@ -220,7 +220,7 @@ double mean_abs_difference(const fs::path& a_path, const fs::path& b_path) {
 // small. The sphere's checker has sharp albedo edges; the solve reads each particle
 // bilinearly from its best view and the renderer reads the atlas bilinearly again, so the
 // edges come back as ramps that the held-out views see at another phase. The albedo
-// refinement (pipeline/albedo_refine.h) corrects them with every view's sampling.
+// refinement (refine/albedo_refine.h) corrects them with every view's sampling.
 // 128 px, 12 views x 4 lights, 2 test views x 2 lights, png16. Measured (lavapipe): test
 // masked PSNR 41.75 dB, Q1 99.18 without the refinement (the pipeline before it), 43.60 dB,
 // Q1 99.34 with the planner's 2 rounds. The thresholds lie between the two.

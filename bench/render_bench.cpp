@@ -1,6 +1,6 @@
 // Frame time of each render mode on the knot_hd preset (204,800 triangles) at 512x512
 // and 1024x1024. Run by hand (not a ctest):
-//   build/tests/render/render_bench [frames=10]
+//   build/bench/render_bench [frames=10]
 // Validation is off here (it costs far more than the rendering). The albedo atlas is a
 // real one (build_atlas by surface area, default 4096 budget) filled with the truth, so
 // texture access patterns are those of a reconstruction; the factorized mode uses

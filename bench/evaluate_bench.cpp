@@ -1,5 +1,5 @@
 // Evaluate time per frame (render + metrics) of a truth bundle against a synthetic
-// capture (run by hand, not a ctest): build-dir/tests/evaluate/evaluate_bench [preset] [size]
+// capture (run by hand, not a ctest): build/bench/evaluate_bench [preset] [size]
 #include "capture/capture.h"
 #include "evaluate/evaluate.h"
 #include "gpu/context.h"

@@ -2,9 +2,9 @@
 // without a full reconstruction (knot_hd takes minutes: its 2.8 M particles exceed one
 // storage binding on lavapipe, so the per-particle passes run on the CPU reference).
 // Run by hand, not a ctest:
-//   build/tests/view/view_bench_bundle knot_hd /tmp/knot_hd.glb
+//   build/bench/view_bench_bundle knot_hd /tmp/knot_hd.glb
 // The atlas is a real one (build_atlas, default budget) filled with the true albedo,
-// as tests/render/render_bench builds it, so the renderer's load (mesh split at
+// as bench/render_bench builds it, so the renderer's load (mesh split at
 // patches, atlas size) is what a reconstruction would give; the lobe is the truth's.
 #include "core/timer.h"
 #include "export/bundle.h"

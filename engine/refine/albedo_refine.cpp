@@ -1,4 +1,4 @@
-#include "pipeline/albedo_refine.h"
+#include "refine/albedo_refine.h"
 
 #include "core/error.h"
 #include "core/timer.h"

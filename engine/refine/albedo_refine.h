@@ -32,7 +32,7 @@
 /// texel-centre values overshoot what the surface holds there, as much as the solve's blurred
 /// ones undershoot. Where S(R(.)) barely responds to a particle (texels that only grazing
 /// views see: one pixel stretches over several texels), the mismatch between renders and
-/// captures is amplified round after round. Measured with tests/diffuse/seen_texels on the
+/// captures is amplified round after round. Measured with bench/seen_texels on the
 /// Lambertian knot at 512 px: RMSE over seen texels 2.77% -> 3.29% (2 rounds) -> 4.13% (4),
 /// the largest texel error 0.69 -> 1.66 -> 2.75. So each round is
 ///     A <- A + s [ w_p (S(captured) - S(R(A))) - lambda (A - A_0) ]

@@ -23,7 +23,7 @@
 //   --ibp N            ... then N rounds of back-projection, A += mean over seeing views (weights
 //                      cos^--ibp-power, default 1; --ibp-best: the best view only) of the bilinear
 //                      residual (albedo image - A as rendered), step --ibp-step (default 1): the
-//                      simulation behind pipeline/albedo_refine.h
+//                      simulation behind refine/albedo_refine.h
 // --shadow-map N renders with an N x N shadow map (default 2048, the renderer's).
 #include "capture/capture.h"
 #include "core/image.h"

@@ -1,4 +1,4 @@
-// The albedo refinement (pipeline/albedo_refine.h) against the truth at the texel centres:
+// The albedo refinement (refine/albedo_refine.h) against the truth at the texel centres:
 // the texels that only grazing views see must not drift round after round, and the rounds
 // must not make the texel values much worse than the solve's. Lambertian knot (the preset
 // whose grazing texels drifted most), 128 px, 8 views x 6 lights, png8: ~10 s on lavapipe.
@@ -10,7 +10,7 @@
 // 512 px the knot's RMSE goes 2.77% -> 2.79%, README.md "How the albedo is sharpened").
 // On a uniform albedo the refinement leaves the solve's values as they were.
 #include "diffuse_scene.h"
-#include "pipeline/albedo_refine.h"
+#include "refine/albedo_refine.h"
 #include "vulkan_env.h"
 
 #include <gtest/gtest.h>
