@@ -970,7 +970,7 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
         const std::vector<double> pixels = best_pixel_footprint(mesh, cameras);
         for (std::size_t t = 0; t < tri_count; ++t) {
             if (pixels[t] > 0.0) {
-                desired[t] = options.texels_per_pixel * pixels[t];
+                desired[t] = kChartTexelsPerPatchTexel * options.texels_per_pixel * pixels[t];
             } else {
                 desired[t] = unseen_texels;
                 ++s.triangles_seen_by_no_camera;

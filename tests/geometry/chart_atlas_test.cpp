@@ -522,17 +522,21 @@ Mesh four_triangles(float big, float small) {
 }
 
 TEST(ChartAtlas, TexelDensityFollowsThePixelFootprint) {
-    // Each chart's texels are the pixels its triangles cover in their best views (one texel
-    // per pixel; a triangle no camera sees asks for min_patch^2 / 2 = 0.5), a quarter at 0.25.
+    // Each chart's texels are kChartTexelsPerPatchTexel times the pixels its triangles cover
+    // in their best views (at one texel per pixel; a triangle no camera sees asks for
+    // min_patch^2 / 2 = 0.5), a quarter of that at 0.25 texels per pixel.
     const Mesh mesh = test::sphere(1.0f, 16, 24);
     const std::vector<Camera> cams = ring_of_cameras(4, 3.0, 512);
     std::vector<double> pixels = best_pixel_footprint(mesh, cams);
     std::size_t unseen_count = 0;
-    for (double& p : pixels)
+    for (double& p : pixels) {
         if (p == 0.0) {
             p = 0.5;
             ++unseen_count;
+        } else {
+            p *= kChartTexelsPerPatchTexel;
         }
+    }
     double want = 0.0;
     for (double p : pixels) want += p;
     const Atlas atlas = build_atlas(mesh, cams);
