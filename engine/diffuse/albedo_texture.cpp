@@ -25,7 +25,8 @@ std::size_t pull_push(Image& image, std::vector<std::uint8_t>& filled) {
         Level l0{image.width, image.height, std::vector<glm::vec3>(filled.size()), filled};
         for (int y = 0; y < l0.h; ++y)
             for (int x = 0; x < l0.w; ++x)
-                l0.color[std::size_t(y) * std::size_t(l0.w) + std::size_t(x)] = glm::vec3(image.at(x, y, 0), image.at(x, y, 1), image.at(x, y, 2));
+                l0.color[std::size_t(y) * std::size_t(l0.w) + std::size_t(x)] =
+                    glm::vec3(image.at(x, y, 0), image.at(x, y, 1), image.at(x, y, 2));
         levels.push_back(std::move(l0));
     }
     while (levels.back().w > 1 || levels.back().h > 1) {
@@ -64,7 +65,8 @@ std::size_t pull_push(Image& image, std::vector<std::uint8_t>& filled) {
                 const std::size_t i = std::size_t(y) * std::size_t(f.w) + std::size_t(x);
                 if (f.filled[i]) continue;
                 // The texel's center in the coarser level's texel coordinates (clamped to its edge).
-                const float cx = std::clamp((x + 0.5f) / 2.0f - 0.5f, 0.0f, float(c.w - 1)), cy = std::clamp((y + 0.5f) / 2.0f - 0.5f, 0.0f, float(c.h - 1));
+                const float cx = std::clamp((x + 0.5f) / 2.0f - 0.5f, 0.0f, float(c.w - 1));
+                const float cy = std::clamp((y + 0.5f) / 2.0f - 0.5f, 0.0f, float(c.h - 1));
                 const int x0 = int(cx), y0 = int(cy), x1 = std::min(x0 + 1, c.w - 1), y1 = std::min(y0 + 1, c.h - 1);
                 const float ax = cx - float(x0), ay = cy - float(y0);
                 const auto at = [&](int xx, int yy) { return c.color[std::size_t(yy) * std::size_t(c.w) + std::size_t(xx)]; };

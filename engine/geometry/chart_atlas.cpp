@@ -568,8 +568,9 @@ bool check_flattening(const Mesh& mesh, const Topology& topo, const std::vector<
     for (glm::dvec2& q : f.uv) q *= scale;
     for (std::size_t i = 0; i < f.tris.size(); ++i) {
         const glm::uvec3 t = mesh.triangles[f.tris[i]];
-        const glm::dvec2 s = triangle_stretch(glm::dvec3(mesh.positions[t.x]), glm::dvec3(mesh.positions[t.y]), glm::dvec3(mesh.positions[t.z]),
-                                              f.uv[f.local[i][0]], f.uv[f.local[i][1]], f.uv[f.local[i][2]]);
+        const glm::dvec2 s = triangle_stretch(glm::dvec3(mesh.positions[t.x]), glm::dvec3(mesh.positions[t.y]),
+                                              glm::dvec3(mesh.positions[t.z]), f.uv[f.local[i][0]], f.uv[f.local[i][1]],
+                                              f.uv[f.local[i][2]]);
         if (!(s.y > 0.0) || s.x > kChartMaxAngleDistortion * s.y) return false;
         const double a = s.x * s.y;
         if (a > kChartMaxAreaDistortion || a * kChartMaxAreaDistortion < 1.0) return false;
@@ -669,17 +670,15 @@ ChartSet make_charts(const Mesh& mesh) {
         const std::uint32_t id = scratch_id++;
         for (std::uint32_t t : f.tris) chart_of[t] = id;
         index_vertices(mesh, f, slot);
-        if (f.tris.size() == 1 || (lscm(mesh, topo, f) && check_flattening(mesh, topo, chart_of, id, f))) {
-            if (f.tris.size() == 1) {
-                (void)lscm(mesh, topo, f);
-                // A degenerate triangle (no area) still gets a small positive one.
-                const glm::dvec2 q0 = f.uv[f.local[0][0]], q1 = f.uv[f.local[0][1]], q2 = f.uv[f.local[0][2]];
-                if (!(cross2(q1 - q0, q2 - q0) > 0.0)) {
-                    f.uv[f.local[0][0]] = {0.0, 0.0};
-                    f.uv[f.local[0][1]] = {1e-6, 0.0};
-                    f.uv[f.local[0][2]] = {0.0, 1e-6};
-                }
-            }
+        const bool single = f.tris.size() == 1; // flattened exactly: no check can fail
+        const bool flat = lscm(mesh, topo, f);
+        if (single && !(flat && cross2(f.uv[f.local[0][1]] - f.uv[f.local[0][0]], f.uv[f.local[0][2]] - f.uv[f.local[0][0]]) > 0.0)) {
+            // A degenerate triangle (no area) still gets a small positive one.
+            f.uv[f.local[0][0]] = {0.0, 0.0};
+            f.uv[f.local[0][1]] = {1e-6, 0.0};
+            f.uv[f.local[0][2]] = {0.0, 1e-6};
+        }
+        if (single || (flat && check_flattening(mesh, topo, chart_of, id, f))) {
             done.push_back(std::move(f));
             continue;
         }
@@ -689,7 +688,9 @@ ChartSet make_charts(const Mesh& mesh) {
             if (!h.empty()) pending.push_back(std::move(h));
     }
     // Charts numbered by their lowest triangle.
-    std::sort(done.begin(), done.end(), [](const Flat& a, const Flat& b) { return *std::min_element(a.tris.begin(), a.tris.end()) < *std::min_element(b.tris.begin(), b.tris.end()); });
+    std::sort(done.begin(), done.end(), [](const Flat& a, const Flat& b) {
+        return *std::min_element(a.tris.begin(), a.tris.end()) < *std::min_element(b.tris.begin(), b.tris.end());
+    });
     set.charts = done.size();
     for (std::uint32_t c = 0; c < done.size(); ++c)
         for (std::size_t i = 0; i < done[c].tris.size(); ++i) {
@@ -1036,8 +1037,10 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
             m.init(wc, hc);
             for (std::uint32_t t : members[c]) {
                 glm::dvec2 tri[3];
-                for (int k = 0; k < 3; ++k) tri[k] = l.k * (frames[c].rot * set.corner_uv[3 * std::size_t(t) + std::size_t(k)] - frames[c].lo) + kPad;
-                const glm::dvec2 lo = glm::min(tri[0], glm::min(tri[1], tri[2])) - half, hi = glm::max(tri[0], glm::max(tri[1], tri[2])) + half;
+                for (int k = 0; k < 3; ++k)
+                    tri[k] = l.k * (frames[c].rot * set.corner_uv[3 * std::size_t(t) + std::size_t(k)] - frames[c].lo) + kPad;
+                const glm::dvec2 lo = glm::min(tri[0], glm::min(tri[1], tri[2])) - half;
+                const glm::dvec2 hi = glm::max(tri[0], glm::max(tri[1], tri[2])) + half;
                 const int x0 = std::max(0, int(std::floor(lo.x / cell))), x1 = std::min(wc - 1, int(std::floor(hi.x / cell)));
                 const int y0 = std::max(0, int(std::floor(lo.y / cell))), y1 = std::min(hc - 1, int(std::floor(hi.y / cell)));
                 for (int y = y0; y <= y1; ++y)
@@ -1253,7 +1256,9 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
                                                    glm::dvec3(mesh.positions[tri.z]), atlas.corner_texel(t, 0), atlas.corner_texel(t, 1),
                                                    atlas.corner_texel(t, 2));
             const double angle = st.y > 0.0 ? st.x / st.y : std::numeric_limits<double>::infinity();
-            const double ratio = surface[t] > 0.0 && chart_density[c] > 0.0 ? (texel_area[t] / surface[t]) / (chart_density[c] / chart_area[c]) : 1.0;
+            const double ratio = surface[t] > 0.0 && chart_density[c] > 0.0
+                                     ? (texel_area[t] / surface[t]) / (chart_density[c] / chart_area[c])
+                                     : 1.0;
             angle_sum += surface[t] * angle;
             weight_sum += surface[t];
             s.angle_distortion_max = std::max(s.angle_distortion_max, angle);

@@ -11,14 +11,16 @@
 //    triangle) over that adjacency, the triangle whose normal is closest to the chart's
 //    area-weighted mean normal first, taking a triangle only while its normal stays
 //    within kChartConeDegrees of that mean (Specula's heuristic: such a chart is nearly a
-//    height field over its mean plane, so it flattens without folding). Then neighbouring
-//    charts merge, smallest first, while the union's normals stay within the cone (fewer,
-//    larger charts: fewer seams, fewer split vertices).
+//    height field over its mean plane, so it flattens without folding). Lloyd iterations
+//    of variational shape approximation on normals (Cohen-Steiner, Alliez and Desbrun
+//    2004) then regrow all charts at once from their triangles closest to their mean
+//    normals, borders are straightened (a triangle with two neighbours in another chart
+//    moves there), and neighbouring charts merge, smallest first, while the union's
+//    normals stay within the cone (fewer, larger charts: fewer seams, fewer split vertices).
 // 2. Flattening: the least-squares conformal map (LSCM) of Levy, Petitjean, Ray and
 //    Maillot 2002, "Least squares conformal maps for automatic texture atlas generation"
-//    (SIGGRAPH): per triangle,
-//    with E_j the complex edge opposite corner j in the triangle's own orthonormal frame
-//    and U_j = u_j + i v_j,
+//    (SIGGRAPH): per triangle, with E_j the complex edge opposite corner j in the
+//    triangle's own orthonormal frame and U_j = u_j + i v_j,
 //        sum_j E_j U_j = 0        (dU/d(zbar) = 0: the map is conformal on the triangle),
 //    weighted by 1 / sqrt(area), in least squares over the chart with two vertices (an
 //    approximate diameter) pinned; solved by the normal equations (Eigen's sparse
@@ -26,8 +28,10 @@
 // 3. Checks, per chart, after scaling its flattening to the chart's surface area: every
 //    triangle keeps its orientation, sigma1 / sigma2 of its Jacobian (angle distortion)
 //    is at most kChartMaxAngleDistortion, sigma1 sigma2 (area distortion) lies within
-//    [1 / kChartMaxAreaDistortion, kChartMaxAreaDistortion], and the chart's boundary
-//    does not cross itself. A chart that fails is split in two (breadth-first regions
+//    [1 / kChartMaxAreaDistortion, kChartMaxAreaDistortion], the chart's boundary does
+//    not cross itself, and (from 16 triangles) the chart fills at least kChartMinRectFill
+//    of its smallest bounding rectangle (curved bands and rings would waste the texture).
+//    A chart that fails is split in two (breadth-first regions
 //    grown from its two farthest triangles, each connected) and both are flattened again.
 // 4. Texel density: a chart's scale gives it sum over its triangles of
 //    kChartTexelsPerPatchTexel x texels_per_pixel x the triangle's pixel area in its best
@@ -44,19 +48,27 @@
 //    patchwork, 1.5 0.7 dB.
 // 5. Packing: each chart is turned to its smallest bounding rectangle (one side lies along
 //    an edge of the convex hull: Freeman and Shapira 1975, "Determining the minimum-area
-//    encasing rectangle for an arbitrary closed curve"), laid landscape, surrounded by
-//    kChartMargin texels on every side and packed bottom-left on a skyline (Jylanki 2010,
-//    "A thousand ways to pack the bin", section 4), tallest first, at the width (of
-//    several tried) that gives the smallest texture. When the budget is exceeded every chart is scaled by one
-//    factor until it fits, and the summary says so.
+//    encasing rectangle for an arbitrary closed curve"). Its reserved texels, those whose
+//    centers lie within kChartMargin + 0.5 of its triangles, are rasterized to a bitmap
+//    (in cells of several texels on large atlases, so a search stays within about 768
+//    cells across). Charts, largest first, go first fit on the atlas's occupancy bitmap:
+//    of four quarter-turn orientations, the position whose bottom is highest (then
+//    leftmost), scanning rows top down, bit-parallel over columns. Reserved texels never
+//    overlap, so charts' triangles stay 2 kChartMargin apart (were two points closer, the
+//    texel center nearest their midpoint would be reserved by both); a chart may sit in
+//    another's ring or hollow. Two widths are tried (the square of the expected area and
+//    1.25x wider), the smaller texture kept; sides are rounded up to multiples of 4 so that
+//    mip levels 1 and 2 halve exactly. When the budget is exceeded every chart is scaled
+//    by one factor until it fits, and the summary says so.
 // 6. Texels. A texel whose center lies in a triangle (in_patch of its barycentric
 //    coordinates; the first triangle of the chart wins on a shared edge) is interior; a
 //    texel within Chebyshev distance kChartGutterReach = 1.25 of the chart's triangles (the
 //    texels a bilinear lookup inside the chart can read, within distance 1, with a quarter
 //    texel to spare for a GPU's sub-texel rounding, as the patchwork keeps) is a gutter
-//    texel of the chart's triangle closest to its center. Charts' triangles are at least 2 kChartMargin = 6 texels apart, so a
-//    bilinear lookup at mip level 0 or 1 inside a chart reads only that chart's texels
-//    and the albedo texture's dilation of them (diffuse/albedo_texture.h).
+//    texel of the chart's triangle closest to its center (Euclidean: the particle shows
+//    the chart's closest point). Charts' triangles are at least 2 kChartMargin = 6 texels
+//    apart, so a bilinear lookup at mip level 0 or 1 inside a chart reads only that
+//    chart's texels and the albedo texture's dilation of them (diffuse/albedo_texture.h).
 #include "geometry/atlas.h"
 
 #include <glm/glm.hpp>

@@ -156,7 +156,8 @@ Distortion distortion(const Mesh& mesh, const Atlas& atlas) {
     Distortion d;
     double weight = 0.0;
     for (std::uint32_t t = 0; t < n; ++t) {
-        const glm::dvec3 p0(mesh.positions[mesh.triangles[t].x]), p1(mesh.positions[mesh.triangles[t].y]), p2(mesh.positions[mesh.triangles[t].z]);
+        const glm::uvec3 tri = mesh.triangles[t];
+        const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
         const glm::dvec2 q0 = render_corner(atlas, t, 0), q1 = render_corner(atlas, t, 1), q2 = render_corner(atlas, t, 2);
         const double a2 = cross2(q1 - q0, q2 - q0);
         const glm::dvec3 ss = (p0 * (q1.y - q2.y) + p1 * (q2.y - q0.y) + p2 * (q0.y - q1.y)) / a2;
@@ -352,7 +353,8 @@ TEST(ChartAtlas, ParticlesAreTheChartTexels) {
         const glm::dvec2 center(p.texel_x() + 0.5, p.texel_y() + 0.5);
         const glm::dvec2 st = atlas.patch_bary(p.triangle, center);
         EXPECT_EQ(p.is_gutter(), !in_patch(st));
-        const glm::dvec2 c0 = atlas.corner_texel(p.triangle, 0), c1 = atlas.corner_texel(p.triangle, 1), c2 = atlas.corner_texel(p.triangle, 2);
+        const glm::dvec2 c0 = atlas.corner_texel(p.triangle, 0), c1 = atlas.corner_texel(p.triangle, 1);
+        const glm::dvec2 c2 = atlas.corner_texel(p.triangle, 2);
         if (!p.is_gutter()) {
             // Interior: the texel center's own barycentric coordinates.
             EXPECT_NEAR(p.bary.x, st.x, 1e-6);
