@@ -49,7 +49,11 @@ auto run_stage(ReconstructResult& result, const std::string& name, Fn&& fn) {
 }
 
 json atlas_json(const AtlasSummary& s, const AtlasOptions& o) {
-    return {{"width", s.width},
+    return {{"mode", s.mode},
+            {"charts", s.charts},
+            {"seam_edges", s.seam_edges},
+            {"vertices", {{"mesh", s.mesh_vertices}, {"atlas", s.atlas_vertices}}},
+            {"width", s.width},
             {"height", s.height},
             {"size_source", s.size_source},
             {"texels_per_pixel", o.texels_per_pixel},
@@ -797,7 +801,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
           {"solved", texture.stats.solved},
           {"filled_same_patch", texture.stats.filled_same_patch},
           {"filled_across_patches", texture.stats.filled_across},
-          {"filled_global_mean", texture.stats.filled_global}}},
+          {"filled_global_mean", texture.stats.filled_global},
+          {"filled_gutter_dilation", texture.stats.filled_dilation},
+          {"filled_pull_push", texture.stats.filled_pull_push}}},
         {"left_out", left_out},
         {"warnings", result.warnings}};
     if (config.write_html)
