@@ -59,19 +59,21 @@ int main(int argc, char** argv) try {
         lobe = v;
         status = (*l)["status"].get<std::vector<std::string>>();
     }
-    Bundle b = make_bundle(capture.mesh, atlas.corner_uv, std::move(albedo), lobe);
-    b.lobe_status = status;
+    Material material;
+    if (lobe) material.specular = *lobe;
+    material.status = status;
     if (argc > 5) {
         const auto r = static_cast<std::uint32_t>(std::stoul(argv[5]));
-        b.cube_g = BundleCubeMap{r, std::vector<float>(std::size_t{6} * r * r * 3, 0.5f)};
-        b.cube_h = b.cube_g;
+        const CubeMap cube{r, std::vector<glm::vec3>(std::size_t{6} * r * r, glm::vec3(0.5f))};
+        material.factorized = FactorizedSpecular{.terms = {{cube, cube}}};
     }
+    Bundle b = make_bundle(capture.mesh, atlas.corner_uv, std::move(albedo), std::move(material));
     b.info = {{"capture", argv[1]}};
     write_bundle(argv[4], b);
     const auto bytes = std::filesystem::file_size(argv[4]);
     std::printf("%s: %zu triangles, %zu -> %zu vertices, atlas %dx%d, lobe %s, cubes %s: %.2f MiB (%ju bytes)\n", argv[4],
                 b.mesh.triangles.size(), capture.mesh.positions.size(), b.mesh.positions.size(), b.albedo.width,
-                b.albedo.height, lobe ? "yes" : "no", b.cube_g ? argv[5] : "no", static_cast<double>(bytes) / (1 << 20),
+                b.albedo.height, lobe ? "yes" : "no", b.material.factorized ? argv[5] : "no", static_cast<double>(bytes) / (1 << 20),
                 static_cast<std::uintmax_t>(bytes));
     return 0;
 } catch (const std::exception& e) {

@@ -83,8 +83,8 @@ int main(int argc, char** argv) try {
             continue;
         }
         for (LambertMode mode : {LambertMode::Albedo, LambertMode::Photometric}) {
-            for (LambertBackend backend : {LambertBackend::Cpu, LambertBackend::Vulkan}) {
-                if (backend == LambertBackend::Vulkan && !ctx) continue;
+            for (Backend backend : {Backend::Cpu, Backend::Vulkan}) {
+                if (backend == Backend::Vulkan && !ctx) continue;
                 LambertOptions o;
                 o.mode = mode;
                 LambertOutputs out = lambert_solve(in, o, backend, ctx.get());
@@ -92,7 +92,7 @@ int main(int argc, char** argv) try {
                 if (out.summary.gpu_ms) std::printf(", GPU %.2f ms (pairs %.2f, combine %.2f)", *out.summary.gpu_ms,
                                                     out.summary.gpu_dispatch_ms[0].second, out.summary.gpu_dispatch_ms[1].second);
                 std::printf("\n");
-                if (backend == LambertBackend::Cpu) std::printf("%s", describe(out.summary, mode).c_str());
+                if (backend == Backend::Cpu) std::printf("%s", describe(out.summary, mode).c_str());
                 for (ViewChoice choice : {ViewChoice::BestView, ViewChoice::Robust}) {
                     out.choice = choice;
                     std::vector<std::uint8_t> seen(scene.truth.size()), flat_seen(scene.truth.size());

@@ -30,16 +30,16 @@ int main(int argc, char** argv) {
     Bundle b;
     b.mesh = preset.mesh;
     b.albedo = preset.material.albedo_texture;
-    b.lobe = preset.material.lobe;
+    b.material.specular = preset.material.lobe;
     gpu::Context ctx;
     std::printf("%s, %dx%d, %zu triangles, device %s\n", name.c_str(), size, size, preset.mesh.triangle_count(),
                 ctx.info().name.c_str());
-    for (const auto backend : {evaluate::MetricsBackend::Vulkan, evaluate::MetricsBackend::Cpu})
+    for (const auto backend : {Backend::Vulkan, Backend::Cpu})
         for (const bool hausdorff : {true, false}) {
             evaluate::EvaluateOptions eo{.metrics_backend = backend, .progress = false};
             eo.metrics.hausdorff = hausdorff;
             const evaluate::EvaluationResult r = evaluate::evaluate(ctx, b, capture, eo);
-            std::printf("metrics %s%s:\n%s", evaluate::to_string(backend), hausdorff ? "" : " (no hausdorff)",
+            std::printf("metrics %s%s:\n%s", to_string(backend), hausdorff ? "" : " (no hausdorff)",
                         evaluate::format_summary(r).c_str());
         }
     std::filesystem::remove_all(dir);

@@ -127,7 +127,7 @@ int main(int argc, char** argv) try {
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : lobes) {
         for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped})
-        for (uint32_t k = 1; k <= kMaxTerms; ++k) {
+        for (uint32_t k = 1; k <= kMaxFactorTerms; ++k) {
             if (param == FactorParam::Warped && (k > 1 || !warp_for_lobe(l.lobe))) continue; // one term: rank 1
             const FactorizationOptions o{.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .keep_matrix = true, .terms = k, .iterations = iterations,
                                          .param = param};
@@ -142,7 +142,7 @@ int main(int argc, char** argv) try {
             std::fflush(stdout);
         }
         const Factorization a = factorize_cpu(l.lobe, {.grid_h = grid, .grid_d = grid_d ? grid_d : grid, .iterations = iterations});
-        std::printf("| %s | %s | | | auto: %s; %s | | | | | | |\n", l.name, to_string(a.param), a.terms.reason.c_str(),
+        std::printf("| %s | %s | | | auto: %s; %s | | | | | | |\n", l.name, to_string(a.cubes.param), a.terms.reason.c_str(),
                     a.param_choice.reason.c_str());
     }
     if (terms_only) return 0;
@@ -155,8 +155,8 @@ int main(int argc, char** argv) try {
         for (uint32_t r : grids) {
             const FactorizationOptions o{.grid_h = r, .grid_d = r, .keep_matrix = true};
             const Factorization c = factorize_cpu(l.lobe, o);
-            const double em = matrix_relative_rms(*c.matrix, c.decomposition);
-            const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+            const double em = matrix_relative_rms(*c.matrix, c.grids[0]);
+            const DirectError ed = direct_relative_rms(l.lobe, c.grids[0], &c.cubes.terms[0].g, &c.cubes.terms[0].h, pairs);
             std::string vk_ms = "n/a", vk_gpu = "n/a";
             if (vk) {
                 const Factorization g = vk->run(l.lobe, {.grid_h = r, .grid_d = r});
@@ -177,7 +177,7 @@ int main(int argc, char** argv) try {
         for (uint32_t cr : cubes) {
             const FactorizationOptions o{.grid_h = fixed, .grid_d = fixed, .cube_g = cr, .cube_h = cr};
             const Factorization c = factorize_cpu(l.lobe, o);
-            const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+            const DirectError ed = direct_relative_rms(l.lobe, c.grids[0], &c.cubes.terms[0].g, &c.cubes.terms[0].h, pairs);
             std::string gpu = "n/a";
             if (vk) {
                 const Factorization g = vk->run(l.lobe, o);
@@ -196,21 +196,21 @@ int main(int argc, char** argv) try {
             for (float p : {1.0f, 2.0f, 4.0f}) {
                 const Factorization c =
                     factorize_cpu(l.lobe, {.grid_h = fixed, .grid_d = fixed, .p = p, .weighting = w, .keep_matrix = true});
-                const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, nullptr, nullptr, pairs);
+                const DirectError ed = direct_relative_rms(l.lobe, c.grids[0], nullptr, nullptr, pairs);
                 std::printf("| %s | %g | %s | %.4f | %.4f |\n", l.name, p, to_string(w),
-                            matrix_relative_rms(*c.matrix, c.decomposition), ed.grid);
+                            matrix_relative_rms(*c.matrix, c.grids[0]), ed.grid);
                 std::fflush(stdout);
             }
 
     std::printf("\n## Default resolution rule\n\n| lobe | R_h | R_d | cube G | cube H | matrix | direct (grid) | direct (cube) | cpu ms | vulkan gpu ms |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : lobes) {
         const Factorization c = factorize_cpu(l.lobe, {.keep_matrix = true});
-        const DirectError ed = direct_relative_rms(l.lobe, c.decomposition, &c.cube_g, &c.cube_h, pairs);
+        const DirectError ed = direct_relative_rms(l.lobe, c.grids[0], &c.cubes.terms[0].g, &c.cubes.terms[0].h, pairs);
         std::string gpu = "n/a";
         if (vk) gpu = ms(vk->run(l.lobe, {}).timings.gpu_total_ns());
         const auto& r = c.resolution;
         std::printf("| %s | %u | %u | %u | %u | %.4f | %.4f | %.4f | %.1f | %s |\n", l.name, r.grid_h, r.grid_d, r.cube_g,
-                    r.cube_h, matrix_relative_rms(*c.matrix, c.decomposition), ed.grid, ed.cube, c.timings.total_s * 1e3,
+                    r.cube_h, matrix_relative_rms(*c.matrix, c.grids[0]), ed.grid, ed.cube, c.timings.total_s * 1e3,
                     gpu.c_str());
     }
     for (const auto& l : lobes) std::printf("\n%s: %s", l.name, default_resolution(l.lobe).reason.c_str());

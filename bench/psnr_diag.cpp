@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
         const synth::Preset p = synth::make_preset(truth);
         b.mesh = p.mesh;
         b.albedo = p.material.albedo_texture;
-        b.lobe = p.material.lobe;
+        b.material.specular = p.material.lobe;
     } else if (!oracle.empty()) {
         // The atlas reconstruct builds (train cameras), every particle given the TRUE albedo
         // at its surface point: what the atlas itself can hold, with no estimation error.
@@ -252,14 +252,15 @@ int main(int argc, char** argv) {
         }
         std::printf("oracle atlas %ux%u at %.2f texels per pixel, %zu particles\n", atlas.width, atlas.height, oracle_tpp,
                     ps.particles.size());
-        b = make_bundle(cap.mesh, atlas.corner_uv, img, p.material.lobe);
+        b = make_bundle(cap.mesh, atlas.corner_uv, img, Material{.specular = p.material.lobe});
     } else {
         b = read_bundle(argv[2]);
-        if (!truth_lobe.empty()) b.lobe = synth::make_preset(truth_lobe).material.lobe;
+        if (!truth_lobe.empty()) b.material.specular = synth::make_preset(truth_lobe).material.lobe;
     }
     gpu::Context ctx;
     const std::vector<glm::vec2> corner_uv = corner_uvs(b.mesh);
-    render::Renderer r(ctx, render::Scene{.mesh = &b.mesh, .corner_uv = corner_uv, .albedo = &b.albedo, .lobe = b.lobe.value_or(LafortuneRgb{})},
+    render::Renderer r(ctx, render::Scene{.mesh = &b.mesh, .corner_uv = corner_uv, .albedo = &b.albedo,
+                                         .material = {.specular = b.material.specular}},
                        render::Options{.shadow_map_size = std::uint32_t(shadow_map)});
     if (!out.empty()) std::filesystem::create_directories(out);
     constexpr int kClasses = 5;

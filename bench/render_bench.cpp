@@ -7,7 +7,7 @@
 // constant cube-maps of the sizes the warped parametrization's default rule gives this lobe
 // (contents do not change the cost of a lookup), in the warped parametrization (the
 // automatic choice: a lookup per channel and the radial factor) and in the thesis's GSHD.
-#include "core/factor_param.h"
+#include "material/factor_param.h"
 #include "core/timer.h"
 #include "factorization/resolution.h"
 #include "geometry/atlas.h"
@@ -32,8 +32,8 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
-render::CubeMapRgb constant_cube(uint32_t res, float value) {
-    return {res, std::vector<float>(std::size_t{6} * res * res * 3, value)};
+CubeMap constant_cube(uint32_t res, float value) {
+    return {res, std::vector<glm::vec3>(std::size_t{6} * res * res, glm::vec3(value))};
 }
 
 } // namespace
@@ -60,11 +60,11 @@ int main(int argc, char** argv) try {
     render::Renderer renderer(ctx, {.mesh = &preset.mesh,
                                     .corner_uv = atlas.corner_uv,
                                     .albedo = &albedo,
-                                    .lobe = {preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n}},
+                                    .material = {.specular = preset.material.lobe}},
                             {.culling = std::getenv("BENCH_NO_CULLING") != nullptr ? render::Culling::Never
                                                                                     : render::Culling::Auto});
     std::printf("back-face culling: %s (BENCH_NO_CULLING=1 turns it off)\n", renderer.culls_back_faces() ? "on" : "off");
-    const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
+    const LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
     const factorization::FactorizationResolution res = factorization::default_resolution(lobe, FactorParam::Warped);
     const glm::vec4 warp = warp_for_lobe(lobe).value();
     std::printf("factorized: one term, cube faces %u (G) and %u (H)\n", res.cube_g, res.cube_h);
@@ -76,13 +76,13 @@ int main(int argc, char** argv) try {
     };
     const Case cases[] = {
         {"diffuse", {.mode = render::Mode::Diffuse}},
-        {"specular (analytic)", {.mode = render::Mode::Specular, .specular = render::SpecularModel::Analytic}},
-        {"specular (fact. warped)", {.mode = render::Mode::Specular, .specular = render::SpecularModel::Factorized}},
-        {"specular (fact. gshd)", {.mode = render::Mode::Specular, .specular = render::SpecularModel::Factorized},
+        {"specular (analytic)", {.mode = render::Mode::Specular, .specular = render::SpecularPath::Analytic}},
+        {"specular (fact. warped)", {.mode = render::Mode::Specular, .specular = render::SpecularPath::Factorized}},
+        {"specular (fact. gshd)", {.mode = render::Mode::Specular, .specular = render::SpecularPath::Factorized},
          FactorParam::Gshd},
-        {"both (analytic)", {.mode = render::Mode::Both, .specular = render::SpecularModel::Analytic}},
-        {"both (fact. warped)", {.mode = render::Mode::Both, .specular = render::SpecularModel::Factorized}},
-        {"both (fact. gshd)", {.mode = render::Mode::Both, .specular = render::SpecularModel::Factorized}, FactorParam::Gshd},
+        {"both (analytic)", {.mode = render::Mode::Both, .specular = render::SpecularPath::Analytic}},
+        {"both (fact. warped)", {.mode = render::Mode::Both, .specular = render::SpecularPath::Factorized}},
+        {"both (fact. gshd)", {.mode = render::Mode::Both, .specular = render::SpecularPath::Factorized}, FactorParam::Gshd},
     };
     std::printf("%-10s %-24s %10s %10s %10s %10s %10s %8s\n", "size", "mode", "wall ms", "pass1 ms", "pass2 ms",
                 "readback", "fps(wall)", "covered");
@@ -92,8 +92,9 @@ int main(int argc, char** argv) try {
                          look_at_camera_to_world({1.5, 2.0, 4.5}, {0.0, 0.0, 0.0}, {0.0, 1.0, 0.0}));
         const PointLight light{{3.0, 3.0, 4.0}, {30.0, 30.0, 30.0}};
         for (const Case& c : cases) {
-            renderer.set_factorization(constant_cube(res.cube_g, 0.5f), constant_cube(res.cube_h, 0.5f), c.param,
-                                       c.param == FactorParam::Warped ? warp : glm::vec4(1.0f));
+            renderer.set_factorization({.param = c.param,
+                                        .warp = c.param == FactorParam::Warped ? warp : glm::vec4(1.0f),
+                                        .terms = {{constant_cube(res.cube_g, 0.5f), constant_cube(res.cube_h, 0.5f)}}});
             for (int i = 0; i < 2; ++i) (void)renderer.render(cam, light, c.settings); // warm-up
             std::vector<double> wall, p1, p2, rb;
             std::size_t covered = 0;

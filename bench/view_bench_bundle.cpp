@@ -38,7 +38,7 @@ int main(int argc, char** argv) try {
         }
         for (int c = 0; c < 3; ++c) albedo.at(static_cast<int>(p.texel_x()), static_cast<int>(p.texel_y()), c) = rho[c];
     }
-    const Bundle bundle = make_bundle(preset.mesh, atlas.corner_uv, std::move(albedo), preset.material.lobe);
+    const Bundle bundle = make_bundle(preset.mesh, atlas.corner_uv, std::move(albedo), Material{.specular = preset.material.lobe});
     write_bundle(argv[2], bundle);
     std::printf("%s: %zu triangles, %zu vertices, atlas %ux%u -> %s (%.1f s)\n", argv[1], bundle.mesh.triangles.size(),
                 bundle.mesh.positions.size(), atlas.width, atlas.height, argv[2], sw.seconds());

@@ -24,7 +24,7 @@
 // the work on, `measured_seconds` is what it took. The decision functions are pure (the
 // tests call them directly); reconstruct.cpp is the only caller that runs stages.
 #include "capture/capture.h"
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 #include "factorization/resolution.h"
 #include "geometry/atlas.h"
 #include "specular/residuals.h"

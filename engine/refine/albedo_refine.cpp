@@ -54,7 +54,7 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
         const Stopwatch render_watch;
         const AlbedoTexture texture = make_albedo_texture(atlas, particles, out.albedo, out.valid);
         render::Renderer renderer(ctx, render::Scene{.mesh = &capture.mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image,
-                                                     .lobe = lobe});
+                                                     .material = {.specular = lobe}});
         std::vector<FrameImage> images(capture.desc.frames.size());
         for (std::size_t v = 0; v < inputs.views.size(); ++v)
             for (const std::uint32_t f : inputs.views[v].frames) {

@@ -61,7 +61,7 @@
 /// after 2, 41.72 after 3 (train 49.26 -> 50.79 dB). Each round costs one render of every
 /// train frame and one diffuse solve (the can: about 2 s + 4 s on lavapipe, 2 cores).
 #include "capture/capture.h"
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
 #include "geometry/particles.h"

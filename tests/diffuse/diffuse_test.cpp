@@ -63,10 +63,10 @@ void expect_sane(const LambertOutputs& out) {
     EXPECT_EQ(out.summary.ok + out.summary.no_sample + out.summary.not_seen, out.summary.particles);
 }
 
-class DiffuseSolve : public ::testing::TestWithParam<LambertBackend> {
+class DiffuseSolve : public ::testing::TestWithParam<Backend> {
 protected:
     void SetUp() override {
-        if (GetParam() == LambertBackend::Vulkan) SPECULA_REQUIRE_VULKAN();
+        if (GetParam() == Backend::Vulkan) SPECULA_REQUIRE_VULKAN();
     }
     LambertOutputs run(const LambertInputs& in, const LambertOptions& o) {
         return lambert_solve(in, o, GetParam(), test::vulkan_context());
@@ -383,8 +383,8 @@ TEST_P(DiffuseSolve, NaNPixelsAreMissing) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(Backends, DiffuseSolve, ::testing::Values(LambertBackend::Cpu, LambertBackend::Vulkan),
-                         [](const auto& info) { return info.param == LambertBackend::Cpu ? "Cpu" : "Vulkan"; });
+INSTANTIATE_TEST_SUITE_P(Backends, DiffuseSolve, ::testing::Values(Backend::Cpu, Backend::Vulkan),
+                         [](const auto& info) { return info.param == Backend::Cpu ? "Cpu" : "Vulkan"; });
 
 // ---- the albedo texture -------------------------------------------------------------------
 

@@ -39,23 +39,13 @@ int main(int argc, char** argv) try {
         }
     }
     Bundle b = read_bundle(argv[1]);
-    if (!b.lobe) throw Error(std::string(argv[1]) + ": no lobe");
-    const Factorization f = factorize_cpu(*b.lobe, o);
-    const auto to_cube = [](const Cubemap& c) {
-        BundleCubeMap out{c.res, {}};
-        for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
-        return out;
-    };
-    b.cube_g = to_cube(f.cube_g);
-    b.cube_h = to_cube(f.cube_h);
-    b.extra_terms.clear();
-    for (const FactorTerm& t : f.extra) b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
-    b.factor_param = f.param;
-    b.factor_warp = f.warp;
+    if (!b.material.specular) throw Error(std::string(argv[1]) + ": no lobe");
+    const Factorization f = factorize_cpu(std::get<LafortuneRgb>(*b.material.specular), o);
+    b.material.factorized = f.cubes;
     write_bundle(argv[2], b);
     std::printf("%s: %s, h %u x d %u (cube faces %u, %u), K = %u; against the lobe through the cube-maps %.4f\n  %s\n  %s\n",
-                argv[2], to_string(f.param), f.resolution.grid_h, f.resolution.grid_d, f.resolution.cube_g,
-                f.resolution.cube_h, f.term_count(), f.param_choice.of(f.param).direct_rms, f.terms.reason.c_str(),
+                argv[2], to_string(f.cubes.param), f.resolution.grid_h, f.resolution.grid_d, f.resolution.cube_g,
+                f.resolution.cube_h, f.term_count(), f.param_choice.of(f.cubes.param).direct_rms, f.terms.reason.c_str(),
                 f.param_choice.reason.c_str());
     return 0;
 } catch (const std::exception& e) {

@@ -31,7 +31,7 @@ struct ReconstructArgs {
 
 void run_reconstruct(ReconstructArgs& args) {
     ReconstructConfig& c = args.config;
-    c.backend = args.backend == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan;
+    c.backend = args.backend == "cpu" ? Backend::Cpu : Backend::Vulkan;
     c.diffuse_mode = args.mode == "photometric" ? DiffuseModeChoice::Photometric
                      : args.mode == "albedo"    ? DiffuseModeChoice::Albedo
                                                 : DiffuseModeChoice::Auto;

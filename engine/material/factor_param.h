@@ -10,7 +10,7 @@
 //   Warped:   (h, d) = GSHD of (w(u), v), w(u) = norm(s ux, s uy, k uz), F = the lobe over its
 //             radial factor |C u|^N: rank 1 for every Lafortune lobe (gshd.h part 5); the warp
 //             (s, k per channel) comes from the lobe (warp_for_lobe below)
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 
 #include <glm/glm.hpp>
 
