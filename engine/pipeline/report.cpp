@@ -15,7 +15,11 @@ using nlohmann::json;
 namespace {
 
 json atlas_json(const AtlasSummary& s, const AtlasOptions& o) {
-    return {{"width", s.width},
+    return {{"mode", s.mode},
+            {"charts", s.charts},
+            {"seam_edges", s.seam_edges},
+            {"vertices", {{"mesh", s.mesh_vertices}, {"atlas", s.atlas_vertices}}},
+            {"width", s.width},
             {"height", s.height},
             {"size_source", s.size_source},
             {"texels_per_pixel", o.texels_per_pixel},
@@ -276,7 +280,9 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
               {"solved", ts.solved},
               {"filled_same_patch", ts.filled_same_patch},
               {"filled_across_patches", ts.filled_across},
-              {"filled_global_mean", ts.filled_global}}},
+              {"filled_global_mean", ts.filled_global},
+              {"filled_gutter_dilation", ts.filled_dilation},
+              {"filled_pull_push", ts.filled_pull_push}}},
             {"left_out", left_out},
             {"warnings", result.warnings}};
 }
