@@ -58,7 +58,7 @@ TEST_F(LambertSolveConformance, VulkanMatchesCpuReference) {
                              Config{LambertMode::Albedo, true}, Config{LambertMode::Albedo, false, false}}) {
         const LambertMode mode = cfg.mode;
         LambertOptions o{.mode = mode, .tap_irradiance = cfg.taps};
-        if (cfg.lobe) o.lobe = s.preset.material.lobe;
+        if (cfg.lobe) o.material = s.preset.material.lobe;
         ASSERT_FALSE(s.preset.material.lobe.is_zero());
         const LambertOutputs ref = lambert_solve_cpu(in, o);
         const LambertOutputs vk = kernel.run(in, o);
