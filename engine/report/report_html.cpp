@@ -203,10 +203,35 @@ std::string counts_section(const json& r) {
     return out + "</table>\n";
 }
 
+// The model choice (report.json specular.material): every candidate family with its parameters,
+// validation error and time, and why the winner won.
+std::string material_section(const json& r) {
+    const json& m = at(r, {"specular", "material"});
+    if (!m.is_object()) return {};
+    std::string out = "<h2 id=\"material\">Material model</h2>\n<p>Chosen: <b>" + str(m.value("family", json())) + "</b>. " +
+                      str(m.value("choice", json())) + ".</p>\n<table>\n";
+    out += row({"family", "fit", "validation mean square", "validation PSNR (linear, dB)", "joint rounds kept", "seconds"}, true);
+    const json& candidates = m.value("candidates", json());
+    if (candidates.is_array())
+        for (const json& c : candidates)
+            out += row({str(c.value("family", json())), str(c.value("summary", json())), num(c.value("validation_mse", json()), "%.3g"),
+                        num(c.value("validation_psnr_linear_db", json()), "%.2f"), num(at(c, {"joint", "accepted"}), "%g"),
+                        num(c.value("seconds", json()), "%.2f")});
+    out += "</table>\n";
+    const json& coated = at(r, {"specular", "coated"});
+    if (coated.is_object())
+        out += "<p>Coated: eta " + num(coated.value("eta", json()), "%.4g") + " &plusmn; " +
+               num(at(coated, {"standard_errors", "eta"}), "%.2g") + ", alpha " + num(coated.value("alpha", json()), "%.4g") +
+               " &plusmn; " + num(at(coated, {"standard_errors", "alpha"}), "%.2g") + ", status " +
+               str(coated.value("status", json())) + ": " + str(coated.value("reason", json())) + ".</p>\n";
+    return out;
+}
+
 std::string lobe_section(const json& r) {
     std::string out = "<h2 id=\"lobe\">Specular lobe</h2>\n";
     const json& sp = r.value("specular", json());
     const json& lobe = at(r, {"specular", "lobe"});
+    if (at(r, {"specular", "coated"}).is_object()) return {}; // the coated family: the material section
     if (!sp.is_object() || !lobe.is_object()) {
         out += "<p>No lobe fitted";
         if (sp.is_object()) out += ": " + str(sp.value("decision", json()));
@@ -321,12 +346,13 @@ std::string report_html(const json& r, const ReportHtmlOptions& o) {
            "<code>object.glb</code>, <code>albedo.png</code>, <code>albedo.exr</code>, <code>evaluation.json</code>, "
            "<code>sheets/</code>, <code>report.json</code>.</p>\n";
     out += "<nav><a href=\"#quality\">quality</a><a href=\"#planner\">planner</a><a href=\"#left-out\">left out</a>"
-           "<a href=\"#time\">time</a><a href=\"#counts\">counts</a><a href=\"#lobe\">lobe</a><a href=\"#sheets\">sheets</a></nav>\n";
+           "<a href=\"#time\">time</a><a href=\"#counts\">counts</a><a href=\"#material\">material</a><a href=\"#lobe\">lobe</a><a href=\"#sheets\">sheets</a></nav>\n";
     out += quality_section(r);
     out += planner_section(r);
     out += left_out_section(r);
     out += time_section(r);
     out += counts_section(r);
+    out += material_section(r);
     out += lobe_section(r);
     out += sheets_section(r, o);
     const json& tex = r.value("albedo_texture", json());
