@@ -250,6 +250,58 @@ TEST(SynthRig, LightsAtTheStatedAnglesAndExposureAsStated) {
     EXPECT_GT(covered, 64u * 64u / 2u) << "the object should fill most of the image";
 }
 
+// The thesis rig (Erdem 2003 section 3.1: six point lights around the camera; the judged rig: a
+// ring about 15 degrees around each camera): every light, train and test, 15 degrees off the
+// camera direction seen from the object's centre, at the camera's distance; six per train view,
+// 60 degrees apart in azimuth about that direction; the test lights between the train ring's.
+// The cameras are the spread rig's.
+TEST(SynthRig, ThesisRigPutsSixLightsOnA15DegreeRing) {
+    const Mesh sphere = make_uv_sphere(glm::vec3(0.2f, 0.5f, -0.1f), 0.5f, 64, 32);
+    RigOptions ro;
+    ro.size = 64;
+    ro.kind = RigKind::Thesis;
+    const Rig rig = make_rig(sphere, ro);
+    RigOptions spread_options = ro;
+    spread_options.kind = RigKind::Spread;
+    const Rig spread = make_rig(sphere, spread_options);
+    ASSERT_EQ(rig.views.size(), 24u);
+    ASSERT_EQ(spread.views.size(), rig.views.size());
+    EXPECT_EQ(rig.frame_count(Split::Train), 120u) << "the thesis's 20 views x 6 lights";
+    EXPECT_EQ(rig.frame_count(Split::Test), 8u);
+    const auto degrees = [](const glm::dvec3& a, const glm::dvec3& b) {
+        return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)) * 180.0 / kPi;
+    };
+    for (std::size_t i = 0; i < rig.views.size(); ++i) {
+        const RigView& v = rig.views[i];
+        EXPECT_EQ(v.camera.camera_to_world, spread.views[i].camera.camera_to_world) << "view " << i;
+        ASSERT_EQ(v.lights.size(), v.split == Split::Train ? 6u : 2u) << "view " << i;
+        const glm::dvec3 to_eye = v.camera.center() - rig.center;
+        std::vector<double> azimuths;
+        for (const PointLight& l : v.lights) {
+            const glm::dvec3 to_light = l.position - rig.center;
+            EXPECT_NEAR(degrees(to_light, to_eye), 15.0, 1.0) << "view " << i;   // the bound
+            EXPECT_NEAR(degrees(to_light, to_eye), 15.0, 1e-6) << "view " << i;  // and exactly as built
+            EXPECT_NEAR(glm::length(to_light), rig.camera_distance, 1e-9);
+            const glm::dvec3 lc = v.camera.to_camera(l.position);
+            azimuths.push_back(std::atan2(lc.y, lc.x) * 180.0 / kPi);
+        }
+        for (std::size_t l = 0; l < azimuths.size(); ++l) {
+            const double first = v.split == Split::Train ? 0.0 : 90.0 + 30.0; // (l + 0.5) 360 / 2 + 180 / 6
+            const double step = v.split == Split::Train ? 60.0 : 180.0;
+            EXPECT_NEAR(std::remainder(azimuths[l] - (first + step * double(l)), 360.0), 0.0, 1e-6) << "view " << i << " light " << l;
+        }
+    }
+    // --lights sets the lights per ring; the ring's angle stays.
+    ro.lights = 4;
+    const Rig four = make_rig(sphere, ro);
+    EXPECT_EQ(four.frame_count(Split::Train), 80u);
+    EXPECT_NEAR(degrees(four.views[5].lights[3].position - four.center, four.views[5].camera.center() - four.center), 15.0, 1e-6);
+    // Names.
+    EXPECT_EQ(parse_rig_kind("thesis"), RigKind::Thesis);
+    EXPECT_EQ(parse_rig_kind(to_string(RigKind::Spread)), RigKind::Spread);
+    EXPECT_THROW((void)parse_rig_kind("ring"), UsageError);
+}
+
 // (e) Same inputs, same bytes: thread count and repeated runs do not change anything.
 TEST(SynthDeterminism, ThreadsAndSeedsGiveIdenticalResults) {
     const Preset knot = make_preset("knot");
