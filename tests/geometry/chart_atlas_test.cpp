@@ -282,7 +282,7 @@ TEST(ChartAtlas, BundleKeepsAtMostOnePointThreeTimesTheMeshVerticesOnEveryPreset
     for (const synth::PresetInfo& info : synth::list_presets()) {
         const synth::Preset preset = synth::make_preset(info.name);
         const Atlas atlas = build_atlas(preset.mesh, {}, {.max_width = 1024, .max_height = 1024});
-        const Bundle bundle = make_bundle(preset.mesh, atlas.corner_uv, Image(int(atlas.width), int(atlas.height), 3, 0.5f), std::nullopt);
+        const Bundle bundle = make_bundle(preset.mesh, atlas.corner_uv, Image(int(atlas.width), int(atlas.height), 3, 0.5f), Material{});
         const double ratio = double(bundle.mesh.positions.size()) / double(preset.mesh.positions.size());
         std::printf("%-10s %7zu triangles, %7zu mesh vertices -> %7zu bundle vertices (x%.3f), %zu charts\n", info.name.c_str(),
                     preset.mesh.triangles.size(), preset.mesh.positions.size(), bundle.mesh.positions.size(), ratio, atlas.summary.charts);
