@@ -31,11 +31,42 @@ float to_display(float linear, const DisplayEncoding& e) noexcept {
     return static_cast<float>(std::floor(encoded * max_code + 0.5) / max_code);
 }
 
-Image to_display(const Image& linear, const DisplayEncoding& e) {
+DisplayEncoder::DisplayEncoder(const DisplayEncoding& e) : m_encoding(e) {
+    if (e.bits <= 0 || e.bits > 16) return; // unquantized, or too many codes for a table
+    m_max_code = std::ldexp(1.0, e.bits) - 1.0;
+    const auto code = [&](float v) { return std::lround(static_cast<double>(to_display(v, e)) * m_max_code); };
+    const auto codes = static_cast<std::size_t>(m_max_code);
+    m_first.resize(codes);
+    for (std::size_t k = 0; k < codes; ++k) {
+        // Start at the inverse transfer of the code boundary (k + 1/2) / max, then step by one
+        // float until f is the smallest float of code k + 1 (a few steps: the start is within
+        // rounding of it). to_display is non-decreasing, so the codes of the table's floats are.
+        const double boundary = (static_cast<double>(k) + 0.5) / m_max_code;
+        const double start = e.transfer == ColorSpace::Srgb
+                                 ? (boundary <= 0.04045 ? boundary / 12.92 : std::pow((boundary + 0.055) / 1.055, 2.4))
+                                 : boundary;
+        auto f = static_cast<float>(start);
+        const auto k1 = static_cast<long>(k) + 1;
+        while (code(f) >= k1) f = std::nextafter(f, -1.0f);
+        while (code(f) < k1) f = std::nextafter(f, 2.0f);
+        m_first[k] = f;
+    }
+}
+
+float DisplayEncoder::operator()(float linear) const noexcept {
+    if (m_first.empty() || std::isnan(linear)) return to_display(linear, m_encoding);
+    // The number of codes whose smallest float is <= linear is linear's code.
+    const auto k = static_cast<std::size_t>(std::upper_bound(m_first.begin(), m_first.end(), linear) - m_first.begin());
+    return static_cast<float>(static_cast<double>(k) / m_max_code);
+}
+
+Image DisplayEncoder::operator()(const Image& linear) const {
     Image out = linear;
-    for (float& v : out.pixels) v = to_display(v, e);
+    for (float& v : out.pixels) v = (*this)(v);
     return out;
 }
+
+Image to_display(const Image& linear, const DisplayEncoding& e) { return DisplayEncoder(e)(linear); }
 
 MetricsOptions display_metrics_options(const MetricsOptions& linear) noexcept {
     MetricsOptions o = linear;

@@ -21,6 +21,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace specula::metrics {
 
@@ -41,7 +42,24 @@ struct DisplayEncoding {
 /// 1 / (2^bits - 1) when bits > 0. NaN stays NaN (image_metrics refuses it).
 [[nodiscard]] float to_display(float linear, const DisplayEncoding& e) noexcept;
 
-/// Every channel of an image through to_display.
+/// to_display for whole images, fast: for a quantized encoding of up to 16 bits, the code of a
+/// value is found by binary search among the smallest floats of each code (computed once with
+/// to_display itself, so the result is the same, value for value), not by a power per value.
+class DisplayEncoder {
+public:
+    explicit DisplayEncoder(const DisplayEncoding& e);
+    [[nodiscard]] const DisplayEncoding& encoding() const noexcept { return m_encoding; }
+    [[nodiscard]] float operator()(float linear) const noexcept;
+    /// Every value of the image (all channels).
+    [[nodiscard]] Image operator()(const Image& linear) const;
+
+private:
+    DisplayEncoding m_encoding;
+    double m_max_code = 0.0;
+    std::vector<float> m_first; ///< m_first[k]: the smallest float whose code is k + 1
+};
+
+/// Every value of an image through to_display (DisplayEncoder(e)(linear)).
 [[nodiscard]] Image to_display(const Image& linear, const DisplayEncoding& e);
 
 /// The options for measures on display values: G = peak = 1 (the full code range), the

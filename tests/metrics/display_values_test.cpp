@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <vector>
 
 namespace specula::metrics {
@@ -27,11 +28,38 @@ TEST(DisplayValues, DecodedCodesEncodeBackToThemselves) {
         const int max_code = (1 << bits) - 1;
         const DisplayEncoding srgb{.transfer = ColorSpace::Srgb, .bits = bits};
         const DisplayEncoding lin{.transfer = ColorSpace::Linear, .bits = bits};
+        const DisplayEncoder table(srgb);
         for (int k = 0; k <= max_code; ++k) {
             const float stored = static_cast<float>(k) / static_cast<float>(max_code);
             ASSERT_EQ(to_display(srgb_to_linear(stored), srgb) * static_cast<float>(max_code), static_cast<float>(k)) << bits << " " << k;
+            ASSERT_EQ(table(srgb_to_linear(stored)), to_display(srgb_to_linear(stored), srgb)) << bits << " " << k;
             ASSERT_EQ(to_display(stored, lin) * static_cast<float>(max_code), static_cast<float>(k)) << bits << " " << k;
         }
+    }
+}
+
+// The image path (a table of each code's smallest float) gives exactly the scalar path's values:
+// on random values over [-0.1, 1.1], and on both sides of every code boundary.
+TEST(DisplayValues, TheEncoderTableAgreesWithTheScalarDefinition) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-0.1f, 1.1f);
+    for (const DisplayEncoding e : {DisplayEncoding{ColorSpace::Srgb, 8}, DisplayEncoding{ColorSpace::Linear, 8},
+                                    DisplayEncoding{ColorSpace::Srgb, 16}, DisplayEncoding{ColorSpace::Srgb, 0}}) {
+        const DisplayEncoder enc(e);
+        for (int i = 0; i < 200000; ++i) {
+            const float v = u(rng);
+            ASSERT_EQ(enc(v), to_display(v, e)) << e.name() << " " << v;
+        }
+        if (e.bits != 8) continue;
+        for (int k = 0; k < 255; ++k) { // around the boundary between codes k and k + 1
+            const double b = (k + 0.5) / 255.0;
+            const double lin = e.transfer == ColorSpace::Srgb ? (b <= 0.04045 ? b / 12.92 : std::pow((b + 0.055) / 1.055, 2.4)) : b;
+            float f = static_cast<float>(lin);
+            for (int step = 0; step < 8; ++step) f = std::nextafter(f, -1.0f);
+            for (int step = 0; step < 16; ++step, f = std::nextafter(f, 2.0f)) ASSERT_EQ(enc(f), to_display(f, e)) << e.name() << " " << k;
+        }
+        const Image img = to_display(Image(2, 1, 3, 0.18f), e);
+        EXPECT_EQ(img.at(1, 0, 2), to_display(0.18f, e));
     }
 }
 
