@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
                 std::printf("  red cost: truth %.5e  fitted %.5e  zero lobe %.5e\n", ct, cf, cz0);
             }
             LambertOptions lo;
-            lo.lobe = to_lobe(f);
+            lo.material = to_lobe(f);
             cur = lambert_solve_cpu(in, lo);
             double e2 = 0; std::size_t m = 0;
             for (std::size_t p = 0; p < cur.particles.size(); ++p)

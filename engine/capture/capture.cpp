@@ -651,6 +651,7 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
 
             FrameImage& out = capture.images[i];
             out.saturation = effective_saturation(desc, src.info);
+            out.file_info = src.info;
             const std::size_t pixels = static_cast<std::size_t>(src.width) * static_cast<std::size_t>(src.height);
             out.color = Image(src.width, src.height, 3);
             out.flags.assign(pixels, 0);

@@ -65,6 +65,8 @@ struct FrameImage {
     std::vector<std::uint8_t> flags;  // one PixelFlag set per pixel
     float saturation = std::numeric_limits<float>::infinity(); // effective, linear
     std::size_t missing_pixels = 0;   // non-finite pixels found
+    std::optional<ImageFileInfo> file_info; // the header of the file decoded (absent: made in memory):
+                                            // how the capture stores it (evaluation's display values)
 };
 
 /// Frames sharing a view_index: one camera pose lit by several lights.

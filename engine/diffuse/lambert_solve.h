@@ -21,7 +21,7 @@
 // the same way when they exceed one binding.
 #include "capture/capture.h"
 #include "core/backend.h"
-#include "material/lafortune.h"
+#include "material/material.h"
 #include "geometry/particles.h"
 #include "visibility/visibility.h"
 
@@ -58,9 +58,11 @@ struct LambertOptions {
     float min_rcond = 1e-3f;      ///< photometric conditioning floor (shared/solve3.h rcond)
     float view_tau = 0.15f;       ///< cross-view outlier margin, relative
     float view_abs = 0.02f;       ///< cross-view outlier margin, absolute (albedo units)
-    /// Known specular lobe (joint estimate): its light f_s E is subtracted from every sample
-    /// before the solve (shared/lambert.h). Zero (the default): the thesis's solve.
-    LafortuneRgb lobe{};
+    /// Known material (joint estimate, shared/lambert.h "known material"): its specular light
+    /// f_s E is subtracted from every sample and its diffuse angular factor k_d multiplies the
+    /// irradiance factor E, so the solve gives the albedo rho of f = (rho/pi) k_d + f_s. Absent
+    /// (the default): the thesis's solve (Lambertian, nothing subtracted).
+    std::optional<SpecularModel> material;
     /// Per-tap irradiance (shared/lambert.h): scale each bilinear tap by the irradiance of the
     /// surface its pixel shows, from the visibility's surface maps (when it has them; without
     /// them, or false, the taps are mixed as they are: the thesis's sampling).

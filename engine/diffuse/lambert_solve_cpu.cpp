@@ -138,6 +138,7 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
     std::uint32_t shadow = 0, clipped = 0, missing = 0, grazing = 0;
     std::vector<Sample> samples;
     const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
+    const shared::MaterialGpu known = material_gpu(o.material);
     for (std::uint32_t f : view.frames) {
         if (!vis.lights(particle, f)) { ++shadow; continue; }
         const PointLight& light = in.lights[f];
@@ -155,13 +156,11 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         Sample s;
         s.i = glm::dvec3(glm::vec3(light.intensity));
         s.e = s.i * (cosl / d2);
-        const double lb = cosl * nv;
-        const double la = glm::dot(u, vdir) - lb;
-        glm::dvec3 spec(0.0);
-        for (int c = 0; c < 3; ++c)
-            spec[c] = f64::lafortune_eval_ab(double(o.lobe.cx[c]), double(o.lobe.cz[c]), double(o.lobe.n[c]), la, lb);
-        s.c = read.c - spec * s.e;
-        s.a = u / d2;
+        const double kd = f64::material_diffuse_factor(known, cosl, nv);
+        if (!(kd > 0.0)) { ++grazing; continue; } // the known diffuse term is dark here: nothing to solve
+        s.c = read.c - f64::material_specular(known, cosl, nv, glm::dot(u, vdir)) * s.e;
+        s.e *= kd;
+        s.a = (u / d2) * kd;
         samples.push_back(s);
     }
 

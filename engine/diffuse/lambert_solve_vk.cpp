@@ -164,8 +164,9 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
                                 .k_sigma = o.highlight_k * o.noise_sigma,
                                 .min_rcond = o.min_rcond,
                                 .global_view_base = b.first,
-                                .lobe = {o.lobe.cx.x, o.lobe.cx.y, o.lobe.cx.z, o.lobe.cz.x, o.lobe.cz.y, o.lobe.cz.z,
-                                         o.lobe.n.x, o.lobe.n.y, o.lobe.n.z}};
+                                .pad0 = 0,
+                                .pad1 = 0,
+                                .material = material_gpu(o.material)};
             gpu::Sequence seq(ctx, 2);
             seq.dispatch_1d(m_impl->pair, {particles_buf, lit_buf, views_buf, frames_buf, pixels_buf, keys_buf, pair_bufs[ci]},
                             static_cast<std::uint32_t>(keys.size()), push, "lambert_solve pairs")

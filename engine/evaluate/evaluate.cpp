@@ -6,11 +6,16 @@
 #include "evaluate/bundle_render.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <memory>
+#include <optional>
 #include <set>
+#include <span>
 #include <sstream>
+#include <string>
 
 namespace specula::evaluate {
 
@@ -28,11 +33,36 @@ nlohmann::json settings_json(const EvaluationResult& r) {
             {"metrics_backend", to_string(r.metrics_backend)},
             {"masked_pixels", "the capture's mask (render coverage where a frame has no mask); missing pixels left out"},
             {"rendered_clipped_at_saturation", true},
+            {"display_values", "the capture's own encoding applied to both images: transfer function (sRGB or none), "
+                               "clipped to [0, 1], quantized to the file's codes (float files: sRGB, not quantized); G = 1"},
             {"sheet_difference", "0.5 + " + std::to_string(static_cast<int>(kSheetAmplification)) +
                                      " x (rendered - captured), per channel, in sRGB display values"}};
 }
 
 double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
+
+// The display figures beside the linear ones: `keys` of the linear JSON copied with the suffix
+// _linear, and the same keys of the display JSON with _display (evaluate.h, to_json).
+void add_display_keys(nlohmann::json& linear, const nlohmann::json& display, std::initializer_list<const char*> keys) {
+    for (const char* key : keys) {
+        linear[std::string(key) + "_linear"] = linear[key];
+        linear[std::string(key) + "_display"] = display[key];
+    }
+}
+
+nlohmann::json summary_json(const metrics::MetricsSummary& linear, const metrics::MetricsSummary& display,
+                            const std::string& encoding) {
+    nlohmann::json j = metrics::to_json(linear);
+    add_display_keys(j, metrics::to_json(display), {"q1", "rms", "rms_percent", "psnr"});
+    j["display_encoding"] = encoding;
+    return j;
+}
+
+nlohmann::json frame_metrics_json(const metrics::FrameMetrics& linear, const metrics::FrameMetrics& display) {
+    nlohmann::json j = metrics::to_json(linear);
+    add_display_keys(j, metrics::to_json(display), {"rms", "rms_percent", "psnr"});
+    return j;
+}
 
 } // namespace
 
@@ -113,6 +143,11 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     if (options.sheet_dir) std::filesystem::create_directories(*options.sheet_dir);
 
     std::vector<metrics::FrameMetrics> train_masked, train_full, test_masked, test_full;
+    std::vector<metrics::FrameMetrics> train_masked_d, train_full_d, test_masked_d, test_full_d; // display values
+    const metrics::MetricsOptions display_options = metrics::display_metrics_options(options.metrics);
+    std::optional<metrics::DisplayEncoder> encoder; // rebuilt when a frame's encoding differs
+    std::set<std::string> encodings;
+    bool all_srgb_integer = true;
     std::optional<log::Progress> progress;
     if (options.progress) progress.emplace("evaluate", frames.size());
     std::size_t done = 0;
@@ -161,15 +196,22 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         }
 
         const Stopwatch metrics_time;
-        const metrics::MetricsInputs in_masked{cap, ren, masked};
-        const metrics::MetricsInputs in_full{cap, ren, full};
-        if (metrics_vk) {
-            fe.masked = metrics_vk->run(in_masked, options.metrics);
-            fe.full = metrics_vk->run(in_full, options.metrics);
-        } else {
-            fe.masked = metrics::image_metrics_cpu(in_masked, options.metrics);
-            fe.full = metrics::image_metrics_cpu(in_full, options.metrics);
-        }
+        const auto run_metrics = [&](const Image& a, const Image& b, std::span<const std::uint8_t> pixels,
+                                     const metrics::MetricsOptions& o) {
+            const metrics::MetricsInputs in{a, b, pixels};
+            return metrics_vk ? metrics_vk->run(in, o) : metrics::image_metrics_cpu(in, o);
+        };
+        fe.masked = run_metrics(cap, ren, masked, options.metrics);
+        fe.full = run_metrics(cap, ren, full, options.metrics);
+        // Display values: both images as the capture stores its own (metrics/display_values.h).
+        const metrics::DisplayEncoding encoding = metrics::display_encoding_of(captured.file_info, desc.color_space);
+        if (!encoder || encoder->encoding() != encoding) encoder.emplace(encoding);
+        const Image cap_display = (*encoder)(cap), ren_display = (*encoder)(ren);
+        fe.masked_display = run_metrics(cap_display, ren_display, masked, display_options);
+        fe.full_display = run_metrics(cap_display, ren_display, full, display_options);
+        fe.display_encoding = encoding.name();
+        encodings.insert(fe.display_encoding);
+        all_srgb_integer = all_srgb_integer && encoding.transfer == ColorSpace::Srgb && encoding.bits > 0;
         fe.metrics_ms = 1000.0 * metrics_time.seconds();
         result.timings.render_s += fe.render_ms / 1000.0;
         result.timings.metrics_s += fe.metrics_ms / 1000.0;
@@ -177,10 +219,14 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         if (fd.split == Split::Train) {
             train_masked.push_back(fe.masked);
             train_full.push_back(fe.full);
+            train_masked_d.push_back(fe.masked_display);
+            train_full_d.push_back(fe.full_display);
             ++result.train_frames;
         } else {
             test_masked.push_back(fe.masked);
             test_full.push_back(fe.full);
+            test_masked_d.push_back(fe.masked_display);
+            test_full_d.push_back(fe.full_display);
             ++result.test_frames;
         }
 
@@ -208,6 +254,12 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     result.metrics.train_full = metrics::summarize(train_full, options.metrics);
     result.metrics.test_masked = metrics::summarize(test_masked, options.metrics);
     result.metrics.test_full = metrics::summarize(test_full, options.metrics);
+    result.display_metrics.train_masked = metrics::summarize(train_masked_d, display_options);
+    result.display_metrics.train_full = metrics::summarize(train_full_d, display_options);
+    result.display_metrics.test_masked = metrics::summarize(test_masked_d, display_options);
+    result.display_metrics.test_full = metrics::summarize(test_full_d, display_options);
+    result.display_encoding = encodings.size() == 1 ? *encodings.begin() : encodings.empty() ? "" : "mixed";
+    result.display_first = !encodings.empty() && all_srgb_integer;
     result.timings.total_s = total.seconds();
     return result;
 }
@@ -217,10 +269,13 @@ nlohmann::json to_json(const EvaluationResult& r) {
     j["bundle"] = r.bundle_name;
     j["capture"] = r.capture_dir;
     j["settings"] = settings_json(r);
+    j["display_encoding"] = r.display_encoding;
     if (r.train_frames > 0)
-        j["train"] = {{"masked", metrics::to_json(r.metrics.train_masked)}, {"full", metrics::to_json(r.metrics.train_full)}};
+        j["train"] = {{"masked", summary_json(r.metrics.train_masked, r.display_metrics.train_masked, r.display_encoding)},
+                      {"full", summary_json(r.metrics.train_full, r.display_metrics.train_full, r.display_encoding)}};
     if (r.test_frames > 0)
-        j["test"] = {{"masked", metrics::to_json(r.metrics.test_masked)}, {"full", metrics::to_json(r.metrics.test_full)}};
+        j["test"] = {{"masked", summary_json(r.metrics.test_masked, r.display_metrics.test_masked, r.display_encoding)},
+                     {"full", summary_json(r.metrics.test_full, r.display_metrics.test_full, r.display_encoding)}};
     nlohmann::json frames = nlohmann::json::array();
     for (const FrameEvaluation& f : r.frames)
         frames.push_back({{"frame", f.frame},
@@ -230,8 +285,9 @@ nlohmann::json to_json(const EvaluationResult& r) {
                           {"mask_source", f.mask_source},
                           {"covered_pixels", f.covered_pixels},
                           {"shadowed", f.shadowed},
-                          {"masked", metrics::to_json(f.masked)},
-                          {"full", metrics::to_json(f.full)},
+                          {"display_encoding", f.display_encoding},
+                          {"masked", frame_metrics_json(f.masked, f.masked_display)},
+                          {"full", frame_metrics_json(f.full, f.full_display)},
                           {"render_ms", finite_or_zero(f.render_ms)},
                           {"metrics_ms", finite_or_zero(f.metrics_ms)}});
     j["frames"] = std::move(frames);
@@ -249,24 +305,39 @@ nlohmann::json to_json(const EvaluationResult& r) {
 std::string format_summary(const EvaluationResult& r) {
     std::ostringstream out;
     char line[256];
-    std::snprintf(line, sizeof line, "%-13s %6s %7s %7s %7s %7s %8s %7s %7s\n", "split", "frames", "Q1", "Q2", "RMS%",
-                  "DDE%", "PSNR dB", "SSIM", "NCC");
+    // Q1 and PSNR on display and on linear values, display first for sRGB captures (the
+    // field's figures); the other measures on linear values.
+    const bool d1 = r.display_first;
+    std::snprintf(line, sizeof line, "%-13s %6s %8s %9s %8s %9s %7s %7s %7s %7s %7s\n", "split", "frames",
+                  d1 ? "Q1 disp" : "Q1 lin", d1 ? "PSNR disp" : "PSNR lin", d1 ? "Q1 lin" : "Q1 disp",
+                  d1 ? "PSNR lin" : "PSNR disp", "Q2", "RMS%", "DDE%", "SSIM", "NCC");
     out << line;
-    auto row = [&](const char* name, std::size_t split_frames, const metrics::MetricsSummary& s) {
+    auto row = [&](const char* name, std::size_t split_frames, const metrics::MetricsSummary& s,
+                   const metrics::MetricsSummary& d) {
         if (split_frames == 0) return;
         if (s.frames == 0) {
             std::snprintf(line, sizeof line, "%-13s %6llu   (no pixels)\n", name, static_cast<unsigned long long>(s.frames));
         } else {
-            std::snprintf(line, sizeof line, "%-13s %6llu %7.2f %7.2f %7.3f %7.3f %8.2f %7.4f %7.4f\n", name,
-                          static_cast<unsigned long long>(s.frames), s.q1, s.q2, s.rms_percent, s.dde_percent, s.psnr,
-                          s.ssim, s.ncc);
+            const metrics::MetricsSummary& first = d1 ? d : s;
+            const metrics::MetricsSummary& second = d1 ? s : d;
+            std::snprintf(line, sizeof line, "%-13s %6llu %8.2f %9.2f %8.2f %9.2f %7.2f %7.3f %7.3f %7.4f %7.4f\n", name,
+                          static_cast<unsigned long long>(s.frames), first.q1, first.psnr, second.q1, second.psnr, s.q2,
+                          s.rms_percent, s.dde_percent, s.ssim, s.ncc);
         }
         out << line;
     };
-    row("train masked", r.train_frames, r.metrics.train_masked);
-    row("train full", r.train_frames, r.metrics.train_full);
-    row("test masked", r.test_frames, r.metrics.test_masked);
-    row("test full", r.test_frames, r.metrics.test_full);
+    row("train masked", r.train_frames, r.metrics.train_masked, r.display_metrics.train_masked);
+    row("train full", r.train_frames, r.metrics.train_full, r.display_metrics.train_full);
+    row("test masked", r.test_frames, r.metrics.test_masked, r.display_metrics.test_masked);
+    row("test full", r.test_frames, r.metrics.test_full, r.display_metrics.test_full);
+    if (!r.frames.empty()) {
+        const bool quantized = !r.display_encoding.empty() && std::isdigit(static_cast<unsigned char>(r.display_encoding.back()));
+        std::snprintf(line, sizeof line, "display values: %s (%s, G = 1); Q2, RMS%%, DDE%%, SSIM, NCC on linear values\n",
+                      r.display_encoding.c_str(),
+                      quantized || r.display_encoding == "mixed" ? "the capture's own encoding"
+                                                                 : "float capture: sRGB of the values clipped to [0, 1], not quantized");
+        out << line;
+    }
     const std::size_t n = r.frames.size();
     std::snprintf(line, sizeof line,
                   "render %s/%s, %s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",

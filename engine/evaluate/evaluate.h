@@ -13,6 +13,14 @@
 /// (what the camera would have recorded). Aggregates per split (thesis Definitions
 /// 5.1, 5.2: Q1 = 100 - mean RMS%, Q2 = 100 - mean DDE%, metrics_summary.h).
 ///
+/// Every measure is computed on linear values. RMS, RMS%, PSNR and Q1 are computed on display
+/// values too (metrics/display_values.h): the captured and the rendered image both in the
+/// capture's own encoding (for an 8-bit sRGB capture the render is sRGB-encoded, clipped to
+/// [0, 1] and quantized to 8 bits like the stored images, which come back as their stored
+/// codes), G = 1: the figures the field reports on stored images. The JSON names both
+/// (psnr_display, psnr_linear; the unsuffixed psnr, rms, rms_percent and q1 keep their
+/// meaning: linear); the summary table shows display first for sRGB integer captures.
+///
 /// Sheets (thesis figures 5.1-5.4): captured | rendered | difference, side by side, an
 /// sRGB PNG per chosen frame. The difference panel shows, per channel, in display
 /// (sRGB-encoded) values, 0.5 + kSheetAmplification * (rendered - captured): mid-gray
@@ -28,6 +36,7 @@
 #include "core/backend.h"
 #include "export/bundle.h"
 #include "gpu/context.h"
+#include "metrics/display_values.h"
 #include "metrics/image_metrics.h"
 #include "metrics/metrics_summary.h"
 #include "render/renderer.h"
@@ -69,8 +78,13 @@ struct FrameEvaluation {
     Split split = Split::Train;
     int view_index = 0;
     std::string mask_source;        ///< "capture" or "render" (no mask file)
-    metrics::FrameMetrics masked;   ///< over the object's pixels (primary)
-    metrics::FrameMetrics full;     ///< over the full frame
+    metrics::FrameMetrics masked;   ///< over the object's pixels (primary), linear values
+    metrics::FrameMetrics full;     ///< over the full frame, linear values
+    /// The same pixel sets on display values (RMS, PSNR; no SSIM, no Hausdorff), in the
+    /// encoding named by display_encoding (metrics::DisplayEncoding::name(): "srgb8", ...).
+    metrics::FrameMetrics masked_display;
+    metrics::FrameMetrics full_display;
+    std::string display_encoding;
     std::size_t covered_pixels = 0; ///< pixels the render covers
     bool shadowed = false;          ///< the render drew cast shadows (render::FrameInfo::shadow_pass)
     std::string shadow_note;        ///< why not, when render.shadows asked for them (light too close)
@@ -92,7 +106,10 @@ struct EvaluationTimings {
 
 struct EvaluationResult {
     std::vector<FrameEvaluation> frames;           ///< in capture order
-    metrics::EvaluationMetrics metrics;            ///< aggregates per split and pixel set
+    metrics::EvaluationMetrics metrics;            ///< aggregates per split and pixel set (linear values)
+    metrics::EvaluationMetrics display_metrics;    ///< the same on display values (G = 1)
+    std::string display_encoding;                  ///< the frames' encoding name, "mixed" when they differ
+    bool display_first = false;                    ///< every frame is an sRGB integer file
     std::size_t train_frames = 0;                  ///< evaluated
     std::size_t test_frames = 0;
     EvaluationTimings timings;
@@ -118,10 +135,15 @@ struct EvaluationResult {
 [[nodiscard]] Image make_sheet(const Image& captured, const Image& rendered, double amplification = kSheetAmplification);
 
 /// {bundle, capture, settings, train: {masked, full}, test: {masked, full} (a split with
-/// no frame is absent), frames: [...], timings, sheets, warnings}. Numbers are finite.
+/// no frame is absent), frames: [...], timings, sheets, warnings, display_encoding}. Numbers
+/// are finite. Each aggregate holds metrics_summary.h's keys (linear values) and beside them
+/// q1, rms, rms_percent and psnr with the suffixes _display and _linear (the latter equal to
+/// the unsuffixed keys) and display_encoding; each frame's masked and full hold rms,
+/// rms_percent and psnr with both suffixes.
 [[nodiscard]] nlohmann::json to_json(const EvaluationResult& result);
 
-/// A plain-text table of the aggregates (one row per split and pixel set) and the timings.
+/// A plain-text table of the aggregates (one row per split and pixel set: Q1 and PSNR on display
+/// and linear values, display first for sRGB captures; the other measures linear) and the timings.
 [[nodiscard]] std::string format_summary(const EvaluationResult& result);
 
 

@@ -37,7 +37,17 @@ constexpr const char* kExtension = "SPECULA_lafortune";
 // cube-maps, which a version 1 or 2 reader would look up wrongly: it refuses version 3 instead.
 // Version 4 adds "parametrization": "warped" with its "warp" (shared/gshd.h part 5), written
 // only for such cube-maps (they hold the lobe over its radial factor): older readers refuse it.
-constexpr int kExtensionVersion = 4;
+// Version 5 adds "model" (absent: "lafortune") and the coated family's "coated" object
+// (material/material.h CoatedParams), written only for coated bundles: an older reader would
+// take such a file for a Lambertian one. Lafortune bundles keep the versions above, byte for byte.
+constexpr int kExtensionVersion = 5;
+constexpr int kModelVersion = 5;
+
+// The core glTF extensions a coated bundle's viewer material uses (both ratified by Khronos):
+// the coating's index and its specular tint. In extensionsUsed only, never extensionsRequired:
+// a viewer without them still shows the base colour and the roughness.
+constexpr const char* kIorExtension = "KHR_materials_ior";
+constexpr const char* kSpecularExtension = "KHR_materials_specular";
 constexpr std::size_t kMaxExtraTerms = kMaxFactorTerms - 1; // cubeTerms: terms 2..K
 
 constexpr int kLinear = 9729, kClampToEdge = 33071; // glTF 2.0 section 3.8.4 (samplers)
@@ -58,6 +68,13 @@ float roughness_from_lobe(const std::optional<LafortuneRgb>& lobe) {
     const double alpha = std::sqrt(2.0 / (n + 2.0));
     return static_cast<float>(std::clamp(std::sqrt(alpha), 0.0, 1.0));
 }
+
+// The coated family's core material (docs/SPECULA_lafortune.md, "Viewer approximation"): glTF's
+// metallic-roughness specular BRDF is a GGX (Trowbridge-Reitz) microfacet model with
+// alpha = roughness^2 (glTF 2.0 specification, appendix B), the coated family's reflection is
+// GGX of width alpha (shared/coated.h), so roughness = sqrt(alpha) carries it exactly (in
+// double: the JSON number is the square root of the float alpha, rounded once).
+double roughness_from_coated(const CoatedParams& c) { return std::sqrt(static_cast<double>(c.alpha)); }
 
 json vec3_json(const glm::vec3& v) {
     return json::array({static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z)});
@@ -87,6 +104,16 @@ std::vector<float> read_float_view(const GltfFile& f, std::size_t index, std::si
     std::vector<float> out(count);
     std::memcpy(out.data(), bytes.data(), bytes.size());
     return out;
+}
+
+/// obj[key] as a finite float (a double outside float's range is refused, not narrowed).
+float read_number(const GltfFile& f, const json& obj, const char* key, const std::string& field) {
+    const std::string k = field + "." + key;
+    if (!obj.contains(key) || !obj[key].is_number()) f.fail(k, "missing or not a number");
+    const double v = obj[key].get<double>();
+    if (!std::isfinite(v) || std::abs(v) > static_cast<double>(std::numeric_limits<float>::max()))
+        f.fail(k, "not a finite float32 number");
+    return static_cast<float>(v);
 }
 
 glm::vec3 read_vec3(const GltfFile& f, const json& obj, const char* key, const std::string& field) {
@@ -226,10 +253,14 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
         albedo.pixels.size() != static_cast<std::size_t>(albedo.width) * albedo.height * albedo.channels)
         throw InputError(path, "albedo", "empty or inconsistent image (1 to 4 channels)");
     const Material& mat = bundle.material;
-    const std::optional<LafortuneRgb> lobe =
-        mat.specular ? std::optional<LafortuneRgb>(std::get<LafortuneRgb>(*mat.specular)) : std::nullopt;
+    const LafortuneRgb* lobe_model = mat.specular ? std::get_if<LafortuneRgb>(&*mat.specular) : nullptr;
+    const CoatedParams* coated = mat.specular ? std::get_if<CoatedParams>(&*mat.specular) : nullptr;
+    const std::optional<LafortuneRgb> lobe = lobe_model ? std::optional<LafortuneRgb>(*lobe_model) : std::nullopt;
     if (lobe && !(finite3(lobe->cx) && finite3(lobe->cz) && finite3(lobe->n)))
         throw InputError(path, "material.specular", "non-finite lobe parameters");
+    if (coated)
+        if (const std::optional<std::string> why = invalid_parameters(*mat.specular))
+            throw InputError(path, "material.specular.coated." + why->substr(0, why->find(':')), *why);
     if (mat.factorized) {
         const std::vector<FactorTerm>& terms = mat.factorized->terms;
         if (terms.empty() || terms.size() > kMaxFactorTerms)
@@ -259,10 +290,18 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     const bool warped = mat.factorized && mat.factorized->param == FactorParam::Warped;
     const bool multi_term = mat.factorized && mat.factorized->terms.size() > 1;
     if (warped && !lobe)
-        throw InputError(path, "SPECULA_lafortune.parametrization", "warped cube-maps without the lobe (its radial factor)");
-    json ext = {{"version", warped ? 4 : mirrored ? 3 : multi_term ? 2 : 1}};
+        throw InputError(path, "SPECULA_lafortune.parametrization",
+                         "warped cube-maps without a Lafortune lobe (their radial factor)");
+    json ext = {{"version", coated ? kModelVersion : warped ? 4 : mirrored ? 3 : multi_term ? 2 : 1}};
     if (lobe) {
         ext["lobe"] = {{"cx", vec3_json(lobe->cx)}, {"cz", vec3_json(lobe->cz)}, {"n", vec3_json(lobe->n)}, {"status", mat.status}};
+    }
+    if (coated) {
+        ext["model"] = to_string(MaterialFamily::Coated);
+        ext["coated"] = {{"eta", static_cast<double>(coated->eta)},
+                         {"alpha", static_cast<double>(coated->alpha)},
+                         {"tint", vec3_json(coated->tint)},
+                         {"status", mat.status}};
     }
     ext["albedo"] = {{"bufferView", glb.add_view(albedo.pixels.data(), albedo.pixels.size() * sizeof(float))},
                      {"width", albedo.width}, {"height", albedo.height}, {"channels", albedo.channels}};
@@ -284,16 +323,31 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     }
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
+    json extensions = {{kExtension, ext}};
+    json extensions_used = json::array({kExtension});
+    if (coated) {
+        // glTF's dielectric with both extensions has F0 = min(((ior - 1) / (ior + 1))^2
+        // specularColorFactor, 1) specularFactor (KHR_materials_specular, "Interaction with other
+        // extensions"; KHR_materials_ior): with ior = eta, specularColorFactor = tint (values above
+        // 1 are allowed) and specularFactor = 1 that is the coated reflection's tint times its
+        // Fresnel reflectance at normal incidence. The parameters are exact; the viewer's BRDF
+        // is not ours (Schlick's Fresnel, untinted at grazing; its diffuse weight 1 - max F
+        // instead of T(ci) T(co) / T(1)^2): docs/SPECULA_lafortune.md, "Viewer approximation".
+        extensions[kIorExtension] = {{"ior", static_cast<double>(coated->eta)}};
+        extensions[kSpecularExtension] = {{"specularColorFactor", vec3_json(coated->tint)}, {"specularFactor", 1.0}};
+        extensions_used.push_back(kIorExtension);
+        extensions_used.push_back(kSpecularExtension);
+    }
+    const double roughness = coated ? roughness_from_coated(*coated) : roughness_from_lobe(lobe);
     const json material = {
         {"name", "specula"},
         {"pbrMetallicRoughness",
-         {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0},
-          {"roughnessFactor", static_cast<double>(roughness_from_lobe(lobe))}}},
-        {"extensions", {{kExtension, ext}}},
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0}, {"roughnessFactor", roughness}}},
+        {"extensions", std::move(extensions)},
     };
     glb.write(path, {
                         {"asset", {{"version", "2.0"}, {"generator", "Specula"}}},
-                        {"extensionsUsed", json::array({kExtension})},
+                        {"extensionsUsed", std::move(extensions_used)},
                         {"scene", 0},
                         {"scenes", {{{"nodes", {0}}}}},
                         {"nodes", {{{"mesh", 0}, {"name", "specula"}}}},
@@ -388,8 +442,42 @@ Bundle read_bundle(const fs::path& path) {
         b.warnings.push_back("no NORMAL attribute: area-weighted normals computed");
     }
 
-    // The extension's payload.
-    if (ext->contains("lobe")) {
+    // The extension's payload. The model (version 5; absent: the thesis's Lafortune lobe).
+    MaterialFamily family = MaterialFamily::Lafortune;
+    if (ext->contains("model")) {
+        const std::string mf = ext_field + ".model";
+        const json& m = (*ext)["model"];
+        const std::optional<MaterialFamily> named = m.is_string() ? material_family_from_string(m.get<std::string>()) : std::nullopt;
+        if (!named) f.fail(mf, "unknown model " + m.dump() + " (this reader knows \"lafortune\" and \"coated\")");
+        if (version.get<int>() < kModelVersion)
+            f.fail(mf, "present in a version " + std::to_string(version.get<int>()) + " extension (needs version " +
+                           std::to_string(kModelVersion) + ")");
+        family = *named;
+    }
+    if (family == MaterialFamily::Coated) {
+        const std::string cf = ext_field + ".coated";
+        if (ext->contains("lobe")) f.fail(ext_field + ".lobe", "a Lafortune lobe in a \"coated\" model");
+        if (!ext->contains("coated")) f.fail(cf, "missing (\"model\": \"coated\" needs eta, alpha and tint)");
+        const json& c = (*ext)["coated"];
+        if (!c.is_object()) f.fail(cf, "not an object");
+        CoatedParams p;
+        p.eta = read_number(f, c, "eta", cf);
+        p.alpha = read_number(f, c, "alpha", cf);
+        p.tint = read_vec3(f, c, "tint", cf);
+        // The bounds the fit and the renderer assume (shared/coated.h), named per parameter.
+        if (const std::optional<std::string> why = invalid_parameters(p)) f.fail(cf + "." + why->substr(0, why->find(':')), *why);
+        if (c.contains("status")) {
+            if (!c["status"].is_array()) f.fail(cf + ".status", "not an array of strings");
+            for (const json& s : c["status"]) {
+                if (!s.is_string()) f.fail(cf + ".status", "not an array of strings");
+                b.material.status.push_back(s.get<std::string>());
+            }
+        }
+        b.material.specular = p;
+    } else if (ext->contains("coated")) {
+        f.fail(ext_field + ".coated", "present without \"model\": \"coated\"");
+    }
+    if (family == MaterialFamily::Lafortune && ext->contains("lobe")) {
         const json& l = (*ext)["lobe"];
         const std::string lf = ext_field + ".lobe";
         if (!l.is_object()) f.fail(lf, "not an object");
@@ -445,7 +533,8 @@ Bundle read_bundle(const fs::path& path) {
             f.fail(pf, std::string(to_string(*param)) + " in a version " + std::to_string(version.get<int>()) +
                                            " extension (needs version " + std::to_string(needs) + ")");
         if (!ext->contains("cubeG")) f.fail(pf, "a parametrization without cube-maps (cubeG, cubeH)");
-        if (*param == FactorParam::Warped && !b.material.specular) f.fail(pf, "warped without a lobe (its radial factor)");
+        if (*param == FactorParam::Warped && !(b.material.specular && std::holds_alternative<LafortuneRgb>(*b.material.specular)))
+            f.fail(pf, "warped without a Lafortune lobe (its radial factor)");
         b.material.factorized->param = *param;
     }
     const FactorParam read_param = b.material.factorized ? b.material.factorized->param : FactorParam::Gshd;

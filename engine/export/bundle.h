@@ -3,10 +3,12 @@
 // (.glb) that any glTF viewer shows, and that Specula's own renderer reads back exactly.
 //  - the mesh with the atlas texture coordinates (TEXCOORD_0), smooth normals;
 //  - the albedo atlas as the base colour texture (sRGB PNG, as glTF requires);
-//  - a standard metallic-roughness approximation of the lobe for ordinary viewers;
+//  - a standard metallic-roughness approximation of the lobe for ordinary viewers (for the
+//    coated family: its GGX roughness, KHR_materials_ior and KHR_materials_specular, exact);
 //  - the extension SPECULA_lafortune (docs/SPECULA_lafortune.md) carrying what
-//    Specula needs exactly: the per-channel lobe, its fit status, the linear float
-//    albedo (so a round trip is exact, not 8-bit), and the two factorization cube-maps.
+//    Specula needs exactly: the specular model of any family (the per-channel Lafortune
+//    lobe, or version 5's "model": "coated" with eta, alpha and tint), its fit status, the
+//    linear float albedo (so a round trip is exact, not 8-bit), and the factorization cube-maps.
 #include "material/material.h"
 #include "core/image.h"
 #include "capture/mesh.h"
@@ -28,7 +30,8 @@ struct Bundle {
     Mesh mesh;
     Image albedo;                          ///< linear RGB rho, the atlas
     /// The specular model (absent: Lambertian, or left out) with its fit status per channel, and
-    /// its factorization's cube-maps. Written as the extension's "lobe", "cubeG"/"cubeH" (term 1),
+    /// its factorization's cube-maps. Written as the extension's "lobe" (Lafortune) or "model":
+    /// "coated" with "coated" (version 5), "cubeG"/"cubeH" (term 1),
     /// "cubeTerms" (terms 2..K, version 2) and "parametrization" (the thesis's GSHD when absent;
     /// version 3 when mirrored, 4 when warped, with "warp": the warped terms are multiplied by
     /// the lobe's radial factor, so they need the lobe).
@@ -50,12 +53,16 @@ struct Bundle {
 [[nodiscard]] std::vector<glm::vec2> corner_uvs(const Mesh& mesh);
 
 /// Writes the .glb atomically. Throws InputError naming the file (and the bundle field)
-/// on failure: inconsistent sizes, non-finite lobe, a file too large for a .glb.
+/// on failure: inconsistent sizes, non-finite lobe, coated parameters outside the bounds of
+/// shared/coated.h (invalid_parameters), warped cube-maps without a Lafortune lobe, a file
+/// too large for a .glb.
 void write_bundle(const std::filesystem::path& path, const Bundle& bundle);
 
 /// Reads a bundle written by write_bundle (or any glTF with the extension). A .glb
 /// without the extension is read as a diffuse-only bundle from its base colour texture
-/// (sRGB 8-bit) with a warning. Throws InputError naming the file and the field.
+/// (sRGB 8-bit) with a warning. Throws InputError naming the file and the field (an unknown
+/// "model", a coated parameter missing or out of range: e.g.
+/// materials[0].extensions.SPECULA_lafortune.coated.eta).
 [[nodiscard]] Bundle read_bundle(const std::filesystem::path& path);
 
 } // namespace specula

@@ -8,12 +8,17 @@
 ///   - a specular model from a closed set of families (SpecularModel, a std::variant: every
 ///     consumer handles every family, and the compiler says where one is missing):
 ///       LafortuneRgb  the thesis's model: Lambert + one isotropic Lafortune lobe per channel;
+///       CoatedParams  a Lambertian base under a dielectric coating: the diffuse term weighted
+///                     by the coating's Fresnel transmittance at the light and the viewer, plus
+///                     a GGX microfacet reflection off the coating (shaders/shared/coated.h);
 ///   - optionally, the Kautz-McCool factorization of that model's specular part
 ///     (FactorizedSpecular: K pairs of cube-maps looked up in one parametrization), which the
 ///     real-time renderer uses instead of evaluating the model.
-/// The formulas themselves live once in shaders/shared/ (lafortune.h), shared with the shaders.
+/// The formulas themselves live once in shaders/shared/ (lafortune.h, coated.h, and material.h,
+/// which evaluates any family), shared with the shaders; material_gpu() packs a model for them.
 #include "material/factor_param.h"
 #include "material/lafortune.h"
+#include "shared/material.h"
 
 #include <glm/glm.hpp>
 
@@ -26,13 +31,24 @@
 
 namespace specula {
 
+/// The coated family's global parameters (shaders/shared/coated.h): the coating's refractive
+/// index eta, the GGX roughness alpha, and the specular tint (1, 1, 1 for a clear dielectric).
+/// The diffuse albedo rho is per texel, like every family's.
+struct CoatedParams {
+    float eta = 1.5f;
+    float alpha = 0.1f;
+    glm::vec3 tint{1.0f};
+    /// A zero tint: no specular reflection (the diffuse term keeps its Fresnel weighting).
+    [[nodiscard]] bool is_zero() const noexcept { return tint == glm::vec3(0.0f); }
+};
+
 /// The families of specular models, in the order of SpecularModel's alternatives. The numeric
-/// values are the shaders' (shared/material.h) and the bundle's.
-enum class MaterialFamily : std::uint32_t { Lafortune = 0 };
-inline constexpr std::size_t kMaterialFamilyCount = 1;
+/// values are the shaders' (shared/material.h kMaterial*) and the bundle's.
+enum class MaterialFamily : std::uint32_t { Lafortune = 0, Coated = 1 };
+inline constexpr std::size_t kMaterialFamilyCount = 2;
 
 /// The closed set of specular models.
-using SpecularModel = std::variant<LafortuneRgb>;
+using SpecularModel = std::variant<LafortuneRgb, CoatedParams>;
 
 [[nodiscard]] constexpr MaterialFamily family_of(const SpecularModel& m) noexcept {
     return static_cast<MaterialFamily>(m.index());
@@ -41,14 +57,36 @@ using SpecularModel = std::variant<LafortuneRgb>;
 [[nodiscard]] constexpr const char* to_string(MaterialFamily f) noexcept {
     switch (f) {
     case MaterialFamily::Lafortune: return "lafortune";
+    case MaterialFamily::Coated: return "coated";
     }
     return "?";
 }
 /// The inverse of to_string; nullopt for anything else.
 [[nodiscard]] std::optional<MaterialFamily> material_family_from_string(const std::string& s) noexcept;
 
-/// True when the model adds no light (a Lambertian surface).
+/// True when the model adds no specular light.
 [[nodiscard]] bool is_zero(const SpecularModel& m) noexcept;
+
+/// Why the parameters are unusable (non-finite, or outside the bounds of shared/coated.h for
+/// the coated family), naming the parameter; nullopt when they are fine.
+[[nodiscard]] std::optional<std::string> invalid_parameters(const SpecularModel& m);
+
+/// The model as the kernels and shaders read it (shared/material.h). Absent: the zero material
+/// (no specular light, a Lambertian diffuse term).
+[[nodiscard]] shared::MaterialGpu material_gpu(const std::optional<SpecularModel>& m) noexcept;
+
+/// The directional albedo of the whole material, diffuse albedo rho included, for light leaving
+/// at polar angle acos(cos_o) (the white-furnace integral: at most 1 for an energy-conserving
+/// material), by a deterministic quadrature of `n` x 4n cells over the hemisphere (double).
+[[nodiscard]] glm::dvec3 directional_albedo(const SpecularModel& m, const glm::dvec3& rho, double cos_o, int n = 128);
+
+/// The coated family: the hemispherical average of the internal Fresnel reflectance
+/// F_dr = 2 int_0^1 F(c, 1/eta) c dc (light inside the coating reaching it from below).
+[[nodiscard]] double coated_internal_reflectance(double eta);
+/// The largest diffuse albedo rho (normal-incidence, as shared/coated.h defines it) a coated
+/// surface can have: that of a white base, eta^-2 T(1)^2 / (1 - F_dr) (Weidlich and Wilkie
+/// 2007); with it the material's directional albedo is at most 1.
+[[nodiscard]] double coated_max_albedo(double eta);
 
 /// A float RGB cube-map: 6 faces of resolution x resolution texels, [face][row][col] in Vulkan's
 /// face order (+X, -X, +Y, -Y, +Z, -Z) and orientation (shared/gshd.h part 3): the layout the

@@ -4,38 +4,71 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <utility>
 
 namespace specula {
 
-double max_relative_change(const LafortuneRgb& next, const LafortuneRgb& previous) noexcept {
-    const auto rel = [](float a, float b) { return std::abs(double(a) - double(b)) / std::max(1e-6, std::abs(double(b))); };
-    double change = 0.0;
-    for (int k = 0; k < 3; ++k)
-        change = std::max({change, rel(next.cx[k], previous.cx[k]), rel(next.cz[k], previous.cz[k]), rel(next.n[k], previous.n[k])});
-    return change;
+ValidationSplit split_validation_frames(const LambertInputs& in, std::size_t min_frames) {
+    ValidationSplit split{.fit = in, .validation = in, .held_out = 0};
+    for (std::size_t v = 0; v < in.views.size(); ++v) {
+        const std::vector<std::uint32_t>& frames = in.views[v].frames;
+        split.validation.views[v].frames.clear();
+        if (frames.size() < std::max<std::size_t>(min_frames, 2)) continue;
+        const std::size_t k = v % frames.size();
+        split.validation.views[v].frames = {frames[k]};
+        split.fit.views[v].frames.erase(split.fit.views[v].frames.begin() + static_cast<std::ptrdiff_t>(k));
+        ++split.held_out;
+    }
+    return split;
 }
 
 JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps) {
     JointResult out;
     out.stop = "joint rounds: " + std::to_string(options.rounds) + " allowed";
+    std::optional<SpecularModel> previous = state.fit.model();
+    if (steps.validate && previous && !state.validation_mse)
+        state.validation_mse = steps.validate(state.solve, *previous, "");
+    out.first_validation_mse = state.validation_mse;
     for (std::uint32_t round = 1; round <= options.rounds; ++round) {
-        const LafortuneRgb previous = state.fit.converged_lobe();
-        if (previous.is_zero()) {
-            out.stop = "no channel converged: nothing to subtract";
+        if (!previous) {
+            out.stop = "no usable fit (no channel converged): nothing to subtract";
             break;
         }
         const std::string tag = " (joint round " + std::to_string(round) + ")";
+        std::vector<ResidualSample>().swap(state.residuals.samples); // fitted: only the counts are kept (peak memory)
         LambertOptions lo = state.solve_options;
-        lo.lobe = previous;
-        state.solve = steps.solve(lo, tag);
-        state.solve_options = lo;
-        state.residuals = steps.residuals(state.solve, tag);
-        state.fit = steps.fit(to_lafortune_samples(state.residuals.samples), tag);
-        const double change = max_relative_change(state.fit.converged_lobe(), previous);
-        out.rounds.push_back({round, change, state.residuals.counts.used});
-        log::info("joint round " + std::to_string(round) + ": lobe changed by " + std::to_string(100.0 * change) + "%");
-        if (change < options.tolerance) {
-            out.stop = "converged: the lobe changed by less than " + std::to_string(100.0 * options.tolerance) + "%";
+        lo.material = *previous;
+        LambertOutputs solve = steps.solve(lo, tag);
+        ResidualSamples residuals = steps.residuals(solve, lo, tag);
+        MaterialFit fit = steps.fit(residuals, tag);
+        const std::optional<SpecularModel> next = fit.model();
+        JointRound r{round, next ? max_relative_change(*next, *previous) : 1.0, residuals.counts.used, std::nullopt, false};
+        if (steps.validate && next) r.validation_mse = steps.validate(solve, *next, tag);
+        // A round is rejected when its fit is unusable or the validation error rose.
+        const bool worse = !next || (r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse);
+        if (worse) {
+            r.rejected = true;
+            out.rounds.push_back(r);
+            out.stop = !next ? "rejected round " + std::to_string(round) + ": its fit is not usable; the previous round is kept"
+                             : "rejected round " + std::to_string(round) + ": the validation error rose from " +
+                                   std::to_string(*state.validation_mse) + " to " + std::to_string(*r.validation_mse) +
+                                   " (mean square, image units); the previous round is kept";
+            log::info(out.stop);
+            break;
+        }
+        state.solve_options = std::move(lo);
+        state.solve = std::move(solve);
+        state.residuals = std::move(residuals);
+        state.fit = std::move(fit);
+        state.validation_mse = r.validation_mse;
+        out.rounds.push_back(r);
+        ++out.accepted;
+        log::info("joint round " + std::to_string(round) + ": material changed by " + std::to_string(100.0 * r.max_relative_change) +
+                  "%" + (r.validation_mse ? ", validation mean square " + std::to_string(*r.validation_mse) : std::string()));
+        previous = next;
+        if (r.max_relative_change < options.tolerance) {
+            out.stop = "converged: the material changed by less than " + std::to_string(100.0 * options.tolerance) + "%";
             break;
         }
     }

@@ -1,19 +1,27 @@
 #pragma once
-// The joint estimate of albedo and lobe (an addition to the thesis; docs/pipeline.md 5.5).
+// The joint estimate of albedo and material (an addition to the thesis; docs/pipeline.md 5.5).
 // The diffuse solve absorbs the part of a broad lobe that its highlight test cannot separate,
-// which biases the residuals low. Each round subtracts the fitted lobe's light from the
-// samples (LambertOptions::lobe), re-solves the albedo, recomputes the residuals and refits,
-// until no lobe parameter changes by more than `tolerance` (relative) or `rounds` is reached.
+// which biases the residuals low; and a coated material's diffuse factor is only known once
+// its index is. Each round solves the albedo with the last fitted material subtracted and its
+// diffuse factor applied (LambertOptions::material), recomputes the residuals and refits, until
+// no parameter changes by more than `tolerance` (relative) or `rounds` is reached.
+//
+// Monotone: when a validation step is given (frames held out of the solve and the fit), every
+// round's result (albedo, material) is scored on them, and a round whose validation error is
+// higher than the previous one's is rejected: the state goes back to the previous round and the
+// loop stops, saying so. Without it the rounds run as before (the final fit of the winner on
+// all train frames runs as many rounds as its validated estimate accepted).
 //
 // The loop is separate from the stages that run its steps (pipeline/stages.cpp gives them the
 // pipeline's backend, timing and report), so it can be tested with any steps.
 #include "diffuse/lambert_solve.h"
-#include "specular/lafortune_fit.h"
+#include "specular/material_fit.h"
 #include "specular/residuals.h"
 
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,39 +32,57 @@ struct JointOptions {
     double tolerance = 0.005;  ///< stop when no parameter changes by more than this (relative)
 };
 
-/// What the estimate advances: the last solve with its options (their lobe is the one that
-/// solve subtracted), the residual samples of that solve, and the fit to them.
+/// What the estimate advances: the last solve with its options (their material is the one that
+/// solve subtracted), the residual samples of that solve, the fit to them, and (with a
+/// validation step) the validation error of (that solve's albedo, that fit's model).
 struct JointState {
     LambertOptions solve_options;
     LambertOutputs solve;
     ResidualSamples residuals;
-    LafortuneFitRgb fit;
+    MaterialFit fit;
+    std::optional<double> validation_mse;
 };
 
-/// The three steps of a round; `tag` names the round (" (joint round 2)") for stage labels.
+/// The steps of a round; `tag` names the round (" (joint round 2)") for stage labels.
 struct JointSteps {
     std::function<LambertOutputs(const LambertOptions&, const std::string& tag)> solve;
-    std::function<ResidualSamples(const LambertOutputs&, const std::string& tag)> residuals;
-    std::function<LafortuneFitRgb(std::vector<LafortuneSample>, const std::string& tag)> fit;
+    /// The residual samples of a solve, computed with the material that solve assumed.
+    std::function<ResidualSamples(const LambertOutputs&, const LambertOptions&, const std::string& tag)> residuals;
+    std::function<MaterialFit(const ResidualSamples&, const std::string& tag)> fit;
+    /// Optional: the mean square error (image units^2) on the validation frames of a solve's
+    /// albedo with a model.
+    std::function<double(const LambertOutputs&, const SpecularModel&, const std::string& tag)> validate;
 };
 
 struct JointRound {
     std::uint32_t round = 0;
-    double max_relative_change = 0.0; ///< largest relative change of Cx, Cz or N over the channels
-    std::size_t residual_samples = 0; ///< samples the round's fit used
+    double max_relative_change = 0.0;       ///< largest relative parameter change
+    std::size_t residual_samples = 0;       ///< samples the round's residual pass kept
+    std::optional<double> validation_mse;   ///< with a validation step
+    bool rejected = false;                  ///< the validation error rose: the round was undone
 };
 
 struct JointResult {
     std::vector<JointRound> rounds;
-    std::string stop; ///< why the loop ended
+    std::uint32_t accepted = 0;             ///< rounds kept
+    std::optional<double> first_validation_mse; ///< of the first fit, before any round
+    std::string stop;                       ///< why the loop ended
 };
 
-/// The largest relative change |next - previous| / max(1e-6, |previous|) of Cx, Cz and N over
-/// the three channels.
-[[nodiscard]] double max_relative_change(const LafortuneRgb& next, const LafortuneRgb& previous) noexcept;
+/// The validation frames of the material choice and of the joint rounds: train frames held out
+/// of the solve and the fit. Every view with at least `min_frames` train frames gives one, its
+/// (view index mod count)-th, so the held-out light turns from view to view and every light of
+/// the rig is held out somewhere; views with fewer keep all theirs (the photometric solve needs 3).
+struct ValidationSplit {
+    LambertInputs fit;        ///< the train frames less the validation frames
+    LambertInputs validation; ///< the validation frames alone (same particles, views and visibility)
+    std::size_t held_out = 0;
+};
+[[nodiscard]] ValidationSplit split_validation_frames(const LambertInputs& in, std::size_t min_frames = 4);
 
 /// Runs the rounds on `state` (which holds the first solve, residuals and fit on entry and the
-/// last ones on return).
+/// last accepted ones on return). The residual samples are released as each round starts: on
+/// return state.residuals holds the last accepted round's samples, or only its counts.
 JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps);
 
 } // namespace specula

@@ -17,6 +17,7 @@
 #include "geometry/atlas.h"
 #include "pipeline/planner.h"
 #include "specular/lafortune_fit.h"
+#include "specular/coated_fit.h"
 #include "specular/residuals.h"
 
 #include <nlohmann/json.hpp>
@@ -56,6 +57,10 @@ struct ReconstructConfig {
     double specular_energy_threshold = 4.0;
     /// The fit runs on a deterministic stride subsample of at most this many samples (0 = all).
     std::uint32_t max_fit_samples = 200000;
+    /// The material family: nullopt (auto) estimates every family and keeps the one of least
+    /// error on the validation frames; a family forces it (pipeline.md section 5.6).
+    std::optional<MaterialFamily> material;
+    CoatedFitOptions coated;        ///< the coated family's fit
     LafortuneFitOptions lafortune;  ///< noise_sigma is set from lambert.noise_sigma (weights make f_s noise image noise)
     /// Joint estimate: after a fit, at most this many rounds of (diffuse solve with the lobe's
     /// light subtracted, residuals, fit); 0 = the thesis's one pass.

@@ -97,6 +97,56 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, Backend ba
 
 json rgb(const double (&v)[3]) { return json::array({v[0], v[1], v[2]}); }
 
+json coated_json(const CoatedFit& c) {
+    return {{"eta", c.params.eta},
+            {"alpha", c.params.alpha},
+            {"tint", json::array({c.params.tint.x, c.params.tint.y, c.params.tint.z})},
+            {"status", to_string(c.status)},
+            {"reason", c.reason},
+            {"standard_errors", {{"eta", c.std_error_eta}, {"alpha", c.std_error_alpha}}},
+            {"determined", {{"eta", c.eta_determined}, {"alpha", c.alpha_determined}}},
+            {"condition", std::isfinite(c.condition) ? json(c.condition) : json(nullptr)},
+            {"cost", c.cost},
+            {"rms", c.rms},
+            {"iterations", c.iterations},
+            {"samples", c.samples},
+            {"seconds", c.seconds}};
+}
+
+json joint_json(const JointResult& joint) {
+    json rounds = json::array();
+    for (const JointRound& r : joint.rounds) {
+        json round = {{"round", r.round}, {"max_relative_change", r.max_relative_change}, {"residual_samples", r.residual_samples}};
+        if (r.validation_mse) round["validation_mse"] = *r.validation_mse;
+        if (r.rejected) round["rejected"] = true;
+        rounds.push_back(std::move(round));
+    }
+    json j = {{"rounds", rounds}, {"accepted", joint.accepted}, {"stop", joint.stop}};
+    if (joint.first_validation_mse) j["first_validation_mse"] = *joint.first_validation_mse;
+    return j;
+}
+
+// The model choice (pipeline.md section 5.6): every candidate's parameters, validation error and time.
+json material_choice_json(const SpecularStage& s) {
+    json candidates = json::array();
+    for (const MaterialCandidate& c : s.candidates) {
+        json m = {{"family", to_string(c.fit.family)},
+                  {"status", c.fit.status()},
+                  {"summary", c.fit.describe()},
+                  {"validation_mse", c.validation_mse ? json(*c.validation_mse) : json(nullptr)},
+                  {"validation_psnr_linear_db",
+                   c.validation_mse && *c.validation_mse > 0.0 ? json(-10.0 * std::log10(*c.validation_mse)) : json(nullptr)},
+                  {"seconds", c.seconds},
+                  {"joint", joint_json(c.joint)}};
+        if (c.fit.coated) m["coated"] = coated_json(*c.fit.coated);
+        candidates.push_back(std::move(m));
+    }
+    return {{"family", to_string(s.fit->family)},
+            {"choice", s.choice},
+            {"validation_frames", s.validation_frames},
+            {"candidates", candidates}};
+}
+
 json specular_json(const SpecularStage& s, double joint_tolerance) {
     if (!s.residuals_ran) return nullptr;
     const ResidualSamples& rs = s.residuals;
@@ -127,34 +177,41 @@ json specular_json(const SpecularStage& s, double joint_tolerance) {
     if (rs.gpu_ms) seconds["residuals_gpu_ms"] = *rs.gpu_ms;
     if (!s.fit) {
         j["lobe"] = nullptr;
+        j["material"] = nullptr;
         j["seconds"] = seconds;
         return j;
     }
     seconds["fit"] = s.fit_seconds;
-    double cx[3], cz[3], n[3], ecx[3], ecz[3], en[3], cond[3], cost[3], rms[3];
-    json status = json::array(), reason = json::array(), iterations = json::array();
-    for (int k = 0; k < 3; ++k) {
-        const LafortuneChannelFit& f = s.fit->channel[k];
-        cx[k] = f.cx, cz[k] = f.cz, n[k] = f.n;
-        ecx[k] = f.std_error_cx, ecz[k] = f.std_error_cz, en[k] = f.std_error_n;
-        cond[k] = f.condition, cost[k] = f.cost, rms[k] = f.rms;
-        status.push_back(to_string(f.status));
-        reason.push_back(f.reason);
-        iterations.push_back(f.iterations);
+    j["material"] = material_choice_json(s);
+    if (s.fit->lafortune) {
+        const LafortuneFitRgb& fit = *s.fit->lafortune;
+        double cx[3], cz[3], n[3], ecx[3], ecz[3], en[3], cond[3], cost[3], rms[3];
+        json status = json::array(), reason = json::array(), iterations = json::array();
+        for (int k = 0; k < 3; ++k) {
+            const LafortuneChannelFit& f = fit.channel[k];
+            cx[k] = f.cx, cz[k] = f.cz, n[k] = f.n;
+            ecx[k] = f.std_error_cx, ecz[k] = f.std_error_cz, en[k] = f.std_error_n;
+            cond[k] = f.condition, cost[k] = f.cost, rms[k] = f.rms;
+            status.push_back(to_string(f.status));
+            reason.push_back(f.reason);
+            iterations.push_back(f.iterations);
+        }
+        j["lobe"] = {{"cx", rgb(cx)}, {"cz", rgb(cz)}, {"n", rgb(n)}, {"status", status}};
+        j["reason"] = reason;
+        j["standard_errors"] = {{"cx", rgb(ecx)}, {"cz", rgb(ecz)}, {"n", rgb(en)}};
+        j["condition"] = rgb(cond);
+        j["cost"] = rgb(cost);
+        j["rms"] = rgb(rms);
+        j["iterations"] = iterations;
+    } else {
+        j["lobe"] = nullptr;
+        j["coated"] = coated_json(*s.fit->coated);
     }
-    j["lobe"] = {{"cx", rgb(cx)}, {"cz", rgb(cz)}, {"n", rgb(n)}, {"status", status}};
-    j["reason"] = reason;
-    j["standard_errors"] = {{"cx", rgb(ecx)}, {"cz", rgb(ecz)}, {"n", rgb(en)}};
-    j["condition"] = rgb(cond);
-    j["cost"] = rgb(cost);
-    j["rms"] = rgb(rms);
-    j["iterations"] = iterations;
     j["seconds"] = seconds;
     j["samples"]["fitted"] = s.fit_samples; // stride subsample (max_fit_samples)
-    json rounds = json::array();
-    for (const JointRound& r : s.joint.rounds)
-        rounds.push_back({{"round", r.round}, {"max_relative_change", r.max_relative_change}, {"residual_samples", r.residual_samples}});
-    j["joint"] = {{"rounds", rounds}, {"stop", s.joint.stop}, {"tolerance", joint_tolerance}, {"seconds", s.seconds}}; // fits and joint rounds
+    j["joint"] = joint_json(s.joint);
+    j["joint"]["tolerance"] = joint_tolerance;
+    j["joint"]["seconds"] = s.seconds; // the candidates, the final fit and its joint rounds
     return j;
 }
 

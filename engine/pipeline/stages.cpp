@@ -37,17 +37,6 @@ std::optional<double> probe_ray_seconds(const RayScene& scene, std::span<const P
     return watch.seconds() / static_cast<double>(rays.size());
 }
 
-// At most max_samples of `all`, by a deterministic stride (0: all).
-std::vector<LafortuneSample> stride_subsample(std::vector<LafortuneSample> all, std::size_t max_samples) {
-    if (max_samples != 0 && all.size() > max_samples) {
-        const std::size_t stride = (all.size() + max_samples - 1) / max_samples;
-        std::size_t k = 0;
-        for (std::size_t i = 0; i < all.size(); i += stride) all[k++] = all[i];
-        all.resize(k);
-    }
-    return all;
-}
-
 // The occlusion-ray decision's detail and cost, once visibility has run.
 void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, const VisibilityStage& vis, bool cast_rays) {
     const VisibilityStats& stats = vis.visibility.stats;
@@ -74,15 +63,18 @@ void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, cons
                        "maps, skipped too, are not included";
 }
 
-// The residual samples of `solve` on the run's per-particle backend, timed as `name`.
-ResidualSamples run_residuals(PipelineRun& run, const DiffuseStage& diffuse, const LambertOutputs& solve, const std::string& name) {
-    const ResidualOptions options{.min_light_cos = diffuse.options.min_light_cos,
-                                  .tap_irradiance = diffuse.options.tap_irradiance,
-                                  .max_binding_bytes = 0,
-                                  .max_albedo_spread = 0.02f};
+// The residual samples of `solve` (solved with `options`, whose material it subtracted) on the
+// run's per-particle backend, timed as `name`.
+ResidualSamples run_residuals(PipelineRun& run, const LambertInputs& inputs, const LambertOutputs& solve,
+                              const LambertOptions& options, const std::string& name) {
+    const ResidualOptions ro{.min_light_cos = options.min_light_cos,
+                             .material = options.material,
+                             .tap_irradiance = options.tap_irradiance,
+                             .max_binding_bytes = 0,
+                             .max_albedo_spread = 0.02f};
     ResidualSamples rs = run.stage(name, [&] {
         return run.on_particle_backend("residual samples", [&](Backend b) {
-            return residual_samples(diffuse.inputs, solve, options, b, run.compute_context());
+            return residual_samples(inputs, solve, ro, b, run.compute_context());
         });
     });
     if (rs.gpu_ms) run.add_gpu_dispatch(name, "residuals (" + std::to_string(rs.chunks) + " dispatches)", *rs.gpu_ms);
@@ -206,6 +198,68 @@ DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const Geome
     return d;
 }
 
+namespace {
+
+// The steps of the joint estimate of one family on `inputs` (labels end in `label`), with a
+// validation step when `validation` is given. The fits' time and samples add up in `s`.
+JointSteps material_steps(PipelineRun& run, SpecularStage& s, const LambertInputs& inputs, const LambertInputs* validation,
+                          MaterialFamily family, const MaterialFitOptions& fo, const std::string& label) {
+    JointSteps steps;
+    steps.solve = [&run, &inputs, label](const LambertOptions& o, const std::string& tag) {
+        return run_solve(run, inputs, o, "diffuse solve" + label + tag);
+    };
+    steps.residuals = [&run, &inputs, label](const LambertOutputs& solve, const LambertOptions& o, const std::string& tag) {
+        return run_residuals(run, inputs, solve, o, "residual samples" + label + tag);
+    };
+    steps.fit = [&run, &s, family, fo, label](const ResidualSamples& rs, const std::string& tag) {
+        return run.stage(std::string(to_string(family)) + " fit" + (label.empty() ? "" : " (validation split)") + tag, [&] {
+            MaterialFit f = fit_material(family, rs.samples, fo);
+            s.fit_seconds += f.seconds;
+            s.fit_samples = f.samples;
+            return f;
+        });
+    };
+    if (validation != nullptr)
+        steps.validate = [&run, validation, label, base = run.config.lambert](const LambertOutputs& solve, const SpecularModel& m,
+                                                                             const std::string& tag) {
+            LambertOptions o = base;
+            o.material = m;
+            const ResidualSamples rs = run_residuals(run, *validation, solve, o, "validation" + label + tag);
+            return material_mean_square_error(m, to_material_samples(rs.samples));
+        };
+    return steps;
+}
+
+// PSNR of a mean square error in image units (images in [0, 1]), for the logs and the report.
+double psnr_of(double mse) { return mse > 0.0 ? -10.0 * std::log10(mse) : 99.0; }
+
+// Which family wins: the least validation error, or the forced one; the sentence says why.
+std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std::vector<MaterialFamily>& families,
+                            std::span<const ResidualSample> train) {
+    std::vector<double> error(s.candidates.size());
+    for (std::size_t k = 0; k < s.candidates.size(); ++k) {
+        const std::optional<SpecularModel> m = s.candidates[k].fit.model();
+        // No usable fit: scored as the diffuse term alone (a zero lobe).
+        const SpecularModel scored = m ? *m : SpecularModel(LafortuneRgb{});
+        error[k] = s.candidates[k].validation_mse ? *s.candidates[k].validation_mse
+                                                  : material_mean_square_error(scored, to_material_samples(train));
+    }
+    const std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
+    std::string scores;
+    for (std::size_t k = 0; k < s.candidates.size(); ++k)
+        scores += std::string(k ? ", " : "") + to_string(families[k]) + " " + std::to_string(error[k]) + " (" +
+                  std::to_string(psnr_of(error[k])).substr(0, 5) + " dB)";
+    const std::string basis = s.validation_frames > 0
+                                  ? "mean square error on " + std::to_string(s.validation_frames) + " validation frames (one light of each view, held out): "
+                                  : "no validation frames (every view has fewer than 4 train frames): mean square error on the "
+                                    "train residuals, which favours the more flexible model: ";
+    if (run.config.material) s.choice = std::string("forced (--material ") + to_string(*run.config.material) + "); " + basis + scores;
+    else s.choice = std::string(to_string(families[best])) + " has the least " + basis + scores;
+    return best;
+}
+
+} // namespace
+
 SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     const ReconstructConfig& config = run.config;
     SpecularStage s;
@@ -217,20 +271,20 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
         return s;
     }
     s.residuals_ran = true;
-    ResidualSamples rs = run_residuals(run, diffuse, diffuse.solve, "residual samples");
+    ResidualSamples rs = run_residuals(run, diffuse.inputs, diffuse.solve, diffuse.options, "residual samples");
     s.energy = residual_energy(rs.samples, static_cast<double>(diffuse.options.noise_sigma), config.specular_energy_threshold);
     const Toggle toggle = config.specular == SpecularMode::On ? Toggle::On : Toggle::Auto;
     const PlanDecision& decision = run.plan().add(decide_specular(s.energy, toggle));
     log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + decision.reason);
-    LafortuneFitOptions fo = config.lafortune;
-    fo.noise_sigma = static_cast<double>(diffuse.options.noise_sigma);
-    std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
+    MaterialFitOptions fo{.lafortune = config.lafortune, .coated = config.coated, .max_samples = config.max_fit_samples};
+    fo.lafortune.noise_sigma = static_cast<double>(diffuse.options.noise_sigma);
     if (decision.skipped) {
         run.leave_out("specular fit, factorization and specular pass", decision.reason);
         s.decision = "skipped: no specular energy (--specular auto)";
+        const std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
         const std::size_t would_fit =
             config.max_fit_samples != 0 ? std::min<std::size_t>(all.size(), config.max_fit_samples) : all.size();
-        probe_fit_cost(run, all, fo, would_fit);
+        probe_fit_cost(run, all, fo.lafortune, would_fit);
         s.backend = run.particle_backend();
         rs.samples = {};
         s.residuals = std::move(rs);
@@ -238,35 +292,76 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     }
 
     const Stopwatch watch;
-    const auto fit = [&](std::vector<LafortuneSample> samples, const std::string& tag) {
-        return run.stage("lafortune fit" + tag, [&] {
-            const std::vector<LafortuneSample> sub = stride_subsample(std::move(samples), config.max_fit_samples);
-            s.fit_samples = sub.size();
+    const JointOptions jo{.rounds = config.joint_rounds, .tolerance = config.joint_tolerance};
+    std::vector<MaterialFamily> families;
+    if (config.material) families = {*config.material};
+    else for (std::size_t f = 0; f < kMaterialFamilyCount; ++f) families.push_back(static_cast<MaterialFamily>(f));
+
+    // 1. Each family on the train frames less the validation frames, scored on those.
+    const ValidationSplit split = split_validation_frames(diffuse.inputs);
+    s.validation_frames = split.held_out;
+    if (split.held_out > 0) {
+        const LambertOutputs solve0 = run_solve(run, split.fit, diffuse.options, "diffuse solve (validation split)");
+        const ResidualSamples rs0 = run_residuals(run, split.fit, solve0, diffuse.options, "residual samples (validation split)");
+        for (const MaterialFamily family : families) {
             const Stopwatch w;
-            LafortuneFitRgb f = fit_lafortune(sub, fo);
-            s.fit_seconds += w.seconds();
-            return f;
-        });
-    };
-    JointState state{.solve_options = diffuse.options, .solve = std::move(diffuse.solve), .residuals = std::move(rs), .fit = {}};
-    state.fit = fit(std::move(all), "");
-    const JointSteps steps{
-        .solve = [&](const LambertOptions& o, const std::string& tag) { return run_solve(run, diffuse.inputs, o, "diffuse solve" + tag); },
-        .residuals = [&](const LambertOutputs& solve, const std::string& tag) {
-            return run_residuals(run, diffuse, solve, "residual samples" + tag);
-        },
-        .fit = fit};
-    s.joint = joint_estimate(state, JointOptions{.rounds = config.joint_rounds, .tolerance = config.joint_tolerance}, steps);
-    if (config.joint_rounds == 0) run.leave_out("joint albedo and lobe estimate", "--joint-rounds 0: the thesis's one-pass estimate");
+            const std::string label = std::string(" (") + to_string(family) + ", validation split)";
+            const JointSteps steps = material_steps(run, s, split.fit, &split.validation, family, fo, label);
+            JointState state{.solve_options = diffuse.options, .solve = solve0, .residuals = {}, .fit = steps.fit(rs0, ""),
+                             .validation_mse = std::nullopt};
+            state.residuals.counts = rs0.counts;
+            MaterialCandidate c;
+            c.joint = joint_estimate(state, jo, steps);
+            c.fit = std::move(state.fit);
+            c.validation_mse = state.validation_mse;
+            c.seconds = w.seconds();
+            log::info("material candidate " + c.fit.describe() +
+                      (c.validation_mse ? "; validation PSNR " + std::to_string(psnr_of(*c.validation_mse)) + " dB" : std::string()));
+            s.candidates.push_back(std::move(c));
+        }
+    } else {
+        for (const MaterialFamily family : families) {
+            const Stopwatch w;
+            MaterialCandidate c;
+            c.fit = fit_material(family, rs.samples, fo);
+            s.fit_seconds += c.fit.seconds;
+            c.seconds = w.seconds();
+            s.candidates.push_back(std::move(c));
+        }
+    }
+    const std::size_t best = choose_material(run, s, families, rs.samples);
+    const MaterialFamily winner = families[best];
+    log::info("material: " + s.choice);
+    {
+        PlanDecision d{.name = "material", .value = to_string(winner), .forced = config.material.has_value(), .reason = s.choice};
+        double seconds = 0.0;
+        for (std::size_t k = 0; k < s.candidates.size(); ++k) {
+            seconds += s.candidates[k].seconds;
+            d.detail[to_string(families[k])] = {{"seconds", s.candidates[k].seconds},
+                                                {"validation_mse", s.candidates[k].validation_mse ? nlohmann::json(*s.candidates[k].validation_mse)
+                                                                                                  : nlohmann::json(nullptr)}};
+        }
+        d.measured_seconds = seconds;
+        d.cost_basis = "measured: each candidate's joint estimate on the train frames less the validation frames";
+        run.plan().add(std::move(d));
+        for (std::size_t k = 0; k < families.size(); ++k)
+            if (k != best) run.leave_out(std::string("the ") + to_string(families[k]) + " material", s.choice);
+    }
+
+    // 2. The winner on all the train frames, as many rounds as its validated estimate kept.
+    const JointSteps steps = material_steps(run, s, diffuse.inputs, nullptr, winner, fo, "");
+    JointState state{.solve_options = diffuse.options, .solve = std::move(diffuse.solve), .residuals = {}, .fit = steps.fit(rs, ""),
+                     .validation_mse = std::nullopt};
+    state.residuals = std::move(rs);
+    JointOptions final_rounds = jo;
+    if (split.held_out > 0) final_rounds.rounds = s.candidates[best].joint.accepted;
+    s.joint = joint_estimate(state, final_rounds, steps);
+    if (config.joint_rounds == 0) run.leave_out("joint albedo and material estimate", "--joint-rounds 0: the thesis's one-pass estimate");
     s.seconds = watch.seconds();
     diffuse.solve = std::move(state.solve);
     diffuse.options = state.solve_options;
-    for (int k = 0; k < 3; ++k) {
-        const LafortuneChannelFit& c = state.fit.channel[k];
-        log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(c.cx) + " Cz " + std::to_string(c.cz) + " N " +
-                  std::to_string(c.n) + " (" + to_string(c.status) + ")");
-    }
-    s.fit = state.fit;
+    log::info("material " + state.fit.describe());
+    s.fit = std::move(state.fit);
     s.decision = config.specular == SpecularMode::On ? "fitted (--specular on)" : "fitted: residuals above the noise (--specular auto)";
     s.backend = run.particle_backend();
     state.residuals.samples = {};
@@ -294,7 +389,7 @@ RefineStage refine_stage(PipelineRun& run, const Capture& capture, const Geometr
     }
     r.refined = run.stage("albedo refinement", [&] {
         return refine_albedo(*rc, capture, geometry.atlas, geometry.particles.particles, diffuse.inputs, diffuse.solve,
-                             diffuse.options.lobe, r.rounds, [&](const LambertInputs& in) {
+                             diffuse.options.material, r.rounds, [&](const LambertInputs& in) {
                                  return run.on_particle_backend("diffuse solve", [&](Backend b) {
                                      return lambert_solve(in, diffuse.options, b, run.compute_context());
                                  });
@@ -321,23 +416,27 @@ AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, con
 FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& specular) {
     const ReconstructConfig& config = run.config;
     FactorizationStage f;
-    // Channels whose fit did not converge carry no lobe (they render diffuse only, and say so).
+    // Lafortune channels whose fit did not converge carry no lobe (they render diffuse only, and say so).
     if (specular.fit) {
-        for (const LafortuneChannelFit& c : specular.fit->channel) f.lobe_status.push_back(to_string(c.status));
-        const LafortuneRgb l = specular.fit->converged_lobe();
-        if (!l.is_zero()) f.lobe = l;
-        else run.leave_out("specular lobe in the bundle", "no channel's fit converged: the bundle is diffuse only");
+        f.status = specular.fit->status();
+        f.material = specular.fit->model();
+        if (!f.material)
+            run.leave_out("specular term in the bundle", "the " + std::string(to_string(specular.fit->family)) +
+                                                             " fit gave no usable model: the bundle is diffuse only");
     }
-    if (!f.lobe) {
+    const LafortuneRgb* lafortune = f.material ? std::get_if<LafortuneRgb>(&*f.material) : nullptr;
+    if (!lafortune) {
         run.plan().add(PlanDecision{.name = "factorization_grid",
                                     .value = "none",
                                     .forced = false,
                                     .skipped = true,
-                                    .reason = specular.fit ? "no channel's fit converged: no lobe to factorize"
-                                                           : "no lobe: the specular stages were left out"});
+                                    .reason = f.material   ? "the coated family is rendered from its formula (its factorization is not built yet)"
+                                              : specular.fit ? "no usable fit: no specular to factorize"
+                                                             : "no specular: the specular stages were left out"});
+        if (f.material) run.leave_out("factorization cube-maps", "the coated family is rendered from its formula");
         return f;
     }
-    const LafortuneRgb& lobe = *f.lobe;
+    const LafortuneRgb& lobe = *lafortune;
     run.plan().add(decide_factorization_grid(lobe, config.factorization_grid_h, config.factorization_grid_d));
     const factorization::FactorizationResolution res = decided_grid(lobe, config.factorization_grid_h, config.factorization_grid_d);
     f.cubes = run.stage("factorization", [&] {
@@ -403,8 +502,8 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
                     const FactorizationStage& factorization) {
     return run.stage("bundle", [&] {
         Material material;
-        if (factorization.lobe) material.specular = *factorization.lobe;
-        material.status = factorization.lobe_status;
+        material.specular = factorization.material;
+        material.status = factorization.status;
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
         b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};

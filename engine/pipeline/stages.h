@@ -61,17 +61,29 @@ struct DiffuseStage {
                                          const VisibilityStage& visibility, const LambertOptions& options);
 
 /// 6. Residual samples and their energy, then (when the residuals hold specular energy, or
-///    forced) the Lafortune fit and the joint estimate, which updates `diffuse`.
+///    forced) the material: every applicable family (or the forced one) is estimated jointly
+///    with the albedo on the train frames less the validation frames (one light of each view,
+///    split_validation_frames), scored on those, and the winner of least validation error is
+///    estimated again on all the train frames; that last estimate updates `diffuse`.
+struct MaterialCandidate {
+    MaterialFit fit;                      ///< the last accepted fit on the train frames less the validation frames
+    JointResult joint;                    ///< its rounds, each with its validation error
+    std::optional<double> validation_mse; ///< of the kept round (image units^2); absent without validation frames
+    double seconds = 0.0;                 ///< its solves, residuals, fits and validation passes
+};
 struct SpecularStage {
     bool residuals_ran = false;           ///< false: --specular off
     ResidualSamples residuals;            ///< the last residual samples' counts and timings (samples dropped)
     ResidualEnergy energy;
-    std::optional<LafortuneFitRgb> fit;   ///< the last fit, when the fit ran
+    std::optional<MaterialFit> fit;       ///< the winner's fit on all the train frames, when the fit ran
     std::string decision;                 ///< report.json specular.decision
-    double fit_seconds = 0.0;             ///< the fits alone
+    std::vector<MaterialCandidate> candidates; ///< every family estimated, in MaterialFamily order
+    std::string choice;                   ///< why the winner won (or was forced)
+    std::size_t validation_frames = 0;    ///< frames held out for the choice and the joint rounds
+    double fit_seconds = 0.0;             ///< the fits alone (all candidates and the final fit)
     std::size_t fit_samples = 0;          ///< samples of the last fit (stride subsample)
-    JointResult joint;
-    double seconds = 0.0;                 ///< the fits and the joint rounds
+    JointResult joint;                    ///< the final estimate's rounds
+    double seconds = 0.0;                 ///< the candidates, the final fit and its joint rounds
     Backend backend = Backend::Cpu;       ///< where the per-particle passes ran
 };
 [[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse);
@@ -91,11 +103,11 @@ struct RefineStage {
 [[nodiscard]] AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse,
                                           const RefineStage& refine);
 
-/// 9. The lobe of the converged channels, and its Kautz-McCool factorization on the grid the
-///    planner chose from its width, in the parametrization of least error.
+/// 9. The chosen material, and its Kautz-McCool factorization on the grid the planner chose
+///    from its width, in the parametrization of least error.
 struct FactorizationStage {
-    std::optional<LafortuneRgb> lobe;          ///< absent: no lobe (specular left out, or no channel converged)
-    std::vector<std::string> lobe_status;      ///< per channel, when fitted
+    std::optional<SpecularModel> material;     ///< absent: no specular (left out, or no usable fit)
+    std::vector<std::string> status;           ///< the fit's status words, when fitted
     std::optional<factorization::Factorization> cubes;
     std::vector<factorization::DirectError> per_term; ///< error of the first k terms, k = 1..K
 };

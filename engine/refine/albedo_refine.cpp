@@ -12,7 +12,7 @@ namespace specula {
 
 AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, const Atlas& atlas,
                                  std::span<const Particle> particles, const LambertInputs& inputs, const LambertOutputs& solve,
-                                 const LafortuneRgb& lobe, std::uint32_t rounds, const SolveFn& solve_fn,
+                                 const std::optional<SpecularModel>& material, std::uint32_t rounds, const SolveFn& solve_fn,
                                  const AlbedoRefineOptions& options) {
     const std::size_t n = particles.size();
     if (solve.particles.size() != n) throw Error("refine_albedo: the solve has " + std::to_string(solve.particles.size()) +
@@ -54,7 +54,7 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
         const Stopwatch render_watch;
         const AlbedoTexture texture = make_albedo_texture(atlas, particles, out.albedo, out.valid);
         render::Renderer renderer(ctx, render::Scene{.mesh = &capture.mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image,
-                                                     .material = {.specular = lobe}});
+                                                     .material = {.specular = material}});
         std::vector<FrameImage> images(capture.desc.frames.size());
         for (std::size_t v = 0; v < inputs.views.size(); ++v)
             for (const std::uint32_t f : inputs.views[v].frames) {

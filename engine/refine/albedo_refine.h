@@ -14,7 +14,7 @@
 ///
 /// What. With S the solve's robust combination (the mean over the views that see a
 /// particle, weighted by their used samples: LambertParticleResult::albedo_robust) and
-/// R(A) the train frames rendered from atlas A with the lobe the solve subtracted, the
+/// R(A) the train frames rendered from atlas A with the material the solve knew, the
 /// albedo that reproduces the captured images through the solve's own sampling satisfies
 /// S(R(A)) = S(captured). Each round moves toward it:
 ///     A <- A + S(captured) - S(R(A))          per particle, rho in linear RGB
@@ -104,11 +104,12 @@ struct AlbedoRefineResult {
 using SolveFn = std::function<LambertOutputs(const LambertInputs&)>;
 
 /// `rounds` rounds of the update above. `inputs` and `solve` are the pipeline's last diffuse
-/// solve (its images are the capture's) and `lobe` the lobe that solve subtracted (zero:
+/// solve (its images are the capture's) and `material` the material that solve knew (absent:
 /// diffuse renders). rounds == 0 returns the solve's albedo unchanged.
 [[nodiscard]] AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, const Atlas& atlas,
                                                std::span<const Particle> particles, const LambertInputs& inputs,
-                                               const LambertOutputs& solve, const LafortuneRgb& lobe, std::uint32_t rounds,
+                                               const LambertOutputs& solve, const std::optional<SpecularModel>& material,
+                                               std::uint32_t rounds,
                                                const SolveFn& solve_fn, const AlbedoRefineOptions& options = {});
 
 } // namespace specula

@@ -109,10 +109,12 @@ gpu::Image upload_cube(gpu::Context& ctx, const CubeMap& cube, const char* name)
     return image;
 }
 
-// The Lafortune lobe the analytic passes evaluate (zero: no specular term).
+// The Lafortune lobe the analytic passes evaluate (zero: no specular term; the coated family is
+// not drawn by these passes yet).
 LafortuneRgb lobe_of(const std::optional<SpecularModel>& specular) {
     if (!specular) return {};
-    return std::visit([](const auto& model) -> LafortuneRgb { return model; }, *specular);
+    if (const auto* l = std::get_if<LafortuneRgb>(&*specular)) return *l;
+    return {};
 }
 
 } // namespace

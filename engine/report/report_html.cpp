@@ -5,6 +5,7 @@
 #include "core/format.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -90,21 +91,36 @@ std::string quality_section(const json& report) {
     const json& ev = report.value("evaluation", json());
     std::string out = "<h2 id=\"quality\">Quality</h2>\n";
     if (!ev.is_object()) return out + "<p>No evaluation in this run (see <a href=\"#left-out\">left out</a>).</p>\n";
+    // Q1 and PSNR on display values (the capture's own encoding, evaluate.h) beside the linear
+    // ones, display first for an sRGB integer capture (the figures the field reports).
+    const json& enc = at(ev, {"display_encoding"});
+    const std::string encoding = enc.is_string() ? enc.get<std::string>() : std::string();
+    const bool display_first = encoding.rfind("srgb", 0) == 0 && encoding.size() > 4 &&
+                               std::isdigit(static_cast<unsigned char>(encoding.back())) != 0;
     out += "<p>Every frame re-rendered from <code>object.glb</code> with its camera and light and compared with the "
            "captured image (thesis chapter 5). <b>masked</b>: the object's pixels (primary); <b>full</b>: the whole "
            "frame, background included (comparable with the thesis's figures, Q1 89.3 to 93.0). "
-           "Q1 = 100 &minus; mean RMS%, Q2 = 100 &minus; mean DDE%.</p>\n<table>\n";
-    out += row({"split", "pixels", "frames", "Q1", "Q2", "RMS %", "DDE %", "PSNR dB", "SSIM", "NCC", "L1", "L2", "Hausdorff"}, true);
+           "Q1 = 100 &minus; mean RMS%, Q2 = 100 &minus; mean DDE%. <b>display</b>: both images in the capture's own "
+           "encoding (" + (encoding.empty() ? std::string("&mdash;") : "<code>" + html_escape(encoding) + "</code>") +
+           ": transfer function, clipped to [0, 1], quantized like the stored images), G = 1; <b>linear</b>: linear "
+           "values. The other measures are on linear values.</p>\n<table>\n";
+    const std::string d_q1 = "Q1 display", d_psnr = "PSNR display dB", l_q1 = "Q1 linear", l_psnr = "PSNR linear dB";
+    out += row({"split", "pixels", "frames", display_first ? d_q1 : l_q1, display_first ? d_psnr : l_psnr,
+                display_first ? l_q1 : d_q1, display_first ? l_psnr : d_psnr, "Q2", "RMS %", "DDE %", "SSIM", "NCC", "L1",
+                "L2", "Hausdorff"},
+               true);
     for (const char* split : {"train", "test"})
         for (const char* set : {"masked", "full"}) {
             const json& m = at(ev, {split, set});
             if (!m.is_object()) {
-                out += row({split, set, "0", "&mdash;", "", "", "", "", "", "", "", "", ""});
+                out += row({split, set, "0", "&mdash;", "", "", "", "", "", "", "", "", "", "", ""});
                 continue;
             }
-            out += row({split, set, num(m.value("frames", json())), num(m.value("q1", json()), "%.2f"),
-                        num(m.value("q2", json()), "%.2f"), num(m.value("rms_percent", json()), "%.3f"),
-                        num(m.value("dde_percent", json()), "%.3f"), num(m.value("psnr", json()), "%.2f"),
+            const std::string dq = num(m.value("q1_display", json()), "%.2f"), dp = num(m.value("psnr_display", json()), "%.2f");
+            const std::string lq = num(m.value("q1", json()), "%.2f"), lp = num(m.value("psnr", json()), "%.2f");
+            out += row({split, set, num(m.value("frames", json())), display_first ? dq : lq, display_first ? dp : lp,
+                        display_first ? lq : dq, display_first ? lp : dp, num(m.value("q2", json()), "%.2f"),
+                        num(m.value("rms_percent", json()), "%.3f"), num(m.value("dde_percent", json()), "%.3f"),
                         num(m.value("ssim", json()), "%.4f"), num(m.value("ncc", json()), "%.4f"), num(m.value("l1", json())),
                         num(m.value("l2", json())), num(m.value("hausdorff", json()))});
         }
@@ -203,10 +219,35 @@ std::string counts_section(const json& r) {
     return out + "</table>\n";
 }
 
+// The model choice (report.json specular.material): every candidate family with its parameters,
+// validation error and time, and why the winner won.
+std::string material_section(const json& r) {
+    const json& m = at(r, {"specular", "material"});
+    if (!m.is_object()) return {};
+    std::string out = "<h2 id=\"material\">Material model</h2>\n<p>Chosen: <b>" + str(m.value("family", json())) + "</b>. " +
+                      str(m.value("choice", json())) + ".</p>\n<table>\n";
+    out += row({"family", "fit", "validation mean square", "validation PSNR (linear, dB)", "joint rounds kept", "seconds"}, true);
+    const json& candidates = m.value("candidates", json());
+    if (candidates.is_array())
+        for (const json& c : candidates)
+            out += row({str(c.value("family", json())), str(c.value("summary", json())), num(c.value("validation_mse", json()), "%.3g"),
+                        num(c.value("validation_psnr_linear_db", json()), "%.2f"), num(at(c, {"joint", "accepted"}), "%g"),
+                        num(c.value("seconds", json()), "%.2f")});
+    out += "</table>\n";
+    const json& coated = at(r, {"specular", "coated"});
+    if (coated.is_object())
+        out += "<p>Coated: eta " + num(coated.value("eta", json()), "%.4g") + " &plusmn; " +
+               num(at(coated, {"standard_errors", "eta"}), "%.2g") + ", alpha " + num(coated.value("alpha", json()), "%.4g") +
+               " &plusmn; " + num(at(coated, {"standard_errors", "alpha"}), "%.2g") + ", status " +
+               str(coated.value("status", json())) + ": " + str(coated.value("reason", json())) + ".</p>\n";
+    return out;
+}
+
 std::string lobe_section(const json& r) {
     std::string out = "<h2 id=\"lobe\">Specular lobe</h2>\n";
     const json& sp = r.value("specular", json());
     const json& lobe = at(r, {"specular", "lobe"});
+    if (at(r, {"specular", "coated"}).is_object()) return {}; // the coated family: the material section
     if (!sp.is_object() || !lobe.is_object()) {
         out += "<p>No lobe fitted";
         if (sp.is_object()) out += ": " + str(sp.value("decision", json()));
@@ -321,12 +362,13 @@ std::string report_html(const json& r, const ReportHtmlOptions& o) {
            "<code>object.glb</code>, <code>albedo.png</code>, <code>albedo.exr</code>, <code>evaluation.json</code>, "
            "<code>sheets/</code>, <code>report.json</code>.</p>\n";
     out += "<nav><a href=\"#quality\">quality</a><a href=\"#planner\">planner</a><a href=\"#left-out\">left out</a>"
-           "<a href=\"#time\">time</a><a href=\"#counts\">counts</a><a href=\"#lobe\">lobe</a><a href=\"#sheets\">sheets</a></nav>\n";
+           "<a href=\"#time\">time</a><a href=\"#counts\">counts</a><a href=\"#material\">material</a><a href=\"#lobe\">lobe</a><a href=\"#sheets\">sheets</a></nav>\n";
     out += quality_section(r);
     out += planner_section(r);
     out += left_out_section(r);
     out += time_section(r);
     out += counts_section(r);
+    out += material_section(r);
     out += lobe_section(r);
     out += sheets_section(r, o);
     const json& tex = r.value("albedo_texture", json());

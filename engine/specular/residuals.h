@@ -36,6 +36,9 @@ using ResidualSample = shared::ResidualSample;
 
 struct ResidualOptions {
     float min_light_cos = 0.1f; ///< drop n.u below this (the diffuse solve's min_light_cos)
+    /// The material of the solve the albedo came from (LambertOptions::material): its diffuse
+    /// factor k_d weights rho / pi (shared/residuals.h). Absent: Lambertian (k_d = 1).
+    std::optional<SpecularModel> material;
     /// Per-tap irradiance as in the diffuse solve (LambertOptions::tap_irradiance): keep the two equal.
     bool tap_irradiance = true;
     /// Vulkan: upper bound on the bytes of one images or samples binding (0 = maxStorageBufferRange); tests lower it.

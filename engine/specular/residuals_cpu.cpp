@@ -34,6 +34,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     ResidualCounts& cnt = out.counts;
     const double min_cos = static_cast<double>(o.min_light_cos);
     const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
+    const shared::MaterialGpu known = material_gpu(o.material);
     for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
         const LambertView& view = in.views[vi];
         if (view.frames.empty()) continue;
@@ -56,7 +57,9 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             const glm::dvec3 xc(w2c * glm::dvec4(P, 1.0));
             const glm::dvec2 pos(kf.z + kf.x * xc.x / (-xc.z), kf.w - kf.y * xc.y / (-xc.z));
             const f64::LambertTaps t = f64::lambert_taps(pos, k.w, k.h);
-            const glm::dvec3 vl = f64::to_tangent_frame(n, glm::normalize(center - P));
+            const glm::dvec3 vdir = glm::normalize(center - P);
+            const glm::dvec3 vl = f64::to_tangent_frame(n, vdir);
+            const double nv = glm::dot(n, vdir);
             for (std::uint32_t f : view.frames) {
                 if (!vis.lights(p, f)) {
                     ++cnt.dropped_shadow;
@@ -88,7 +91,8 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 }
                 const glm::dvec3 c = read.c;
                 const glm::dvec3 E = glm::dvec3(glm::vec3(light.intensity)) * (std::max(0.0, cosl) / d2);
-                const glm::dvec3 r = c - rpi * E;
+                const double kd = f64::material_diffuse_factor(known, cosl, nv);
+                const glm::dvec3 r = c - (rpi * kd) * E;
                 const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);
                 const double ebar = (E.x + E.y + E.z) / 3.0;
                 ResidualSample s{};
@@ -96,6 +100,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 s.v = glm::vec4(glm::vec3(vl), static_cast<float>(ebar));
                 s.f = glm::vec3(fs);
                 s.status = shared::kResidualUsed;
+                s.d = glm::vec4(glm::vec3(rpi), static_cast<float>(kd));
                 out.samples.push_back(s);
                 if (sample_particle != nullptr) sample_particle->push_back(p);
                 ++cnt.used;

@@ -137,7 +137,10 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
             gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, chunk_keys.size(), "residual pair keys");
             keys_buf.upload(chunk_keys);
             gpu::Buffer samples_buf = gpu::Buffer::of<ResidualSample>(ctx, n_slots, "residual samples");
-            const shared::ResidualPush push{.dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos};
+            const shared::ResidualPush push{.dispatch = {},
+                                            .frame_words = vis.frame_words,
+                                            .min_light_cos = o.min_light_cos,
+                                            .material = material_gpu(o.material)};
             gpu::Sequence seq(ctx, 2);
             seq.dispatch_1d(m_impl->kernel,
                             {particles_buf, lit_buf, rpi_buf, views_buf, frames_buf, pixels_buf, keys_buf, samples_buf},

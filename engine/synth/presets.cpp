@@ -120,6 +120,14 @@ std::vector<glm::vec2> inner_wall(const std::vector<glm::vec2>& outer, float thi
 
 LafortuneRgb lobe_rgb(glm::vec3 cx, glm::vec3 cz, glm::vec3 n) { return LafortuneRgb{cx, cz, n}; }
 
+// A clear coating (tint 1): each preset's eta and alpha are chosen below for the surface it
+// models, all in the plausible range (eta 1.3 to 1.7, alpha 0.05 to 0.4) and distinct
+// from each other, so captures of different presets exercise different shapes of the coated
+// model. Indices: the usual refractive indices of the coating materials near 590 nm.
+// At these eta the coated family's largest energy-conserving albedo (coated_max_albedo, about
+// 0.99 at eta 1.7 up to 1.03 at 1.3) stays above the textures' 0.9.
+CoatedParams clear_coat(float eta, float alpha) { return CoatedParams{eta, alpha, glm::vec3(1.0f)}; }
+
 // ---- can (the thesis's "coke"/pepsi) -----------------------------------------------------
 
 Preset make_can() {
@@ -162,6 +170,9 @@ Preset make_can() {
         return red;
     });
     p.material.lobe = lobe_rgb({-0.8962f, -0.9050f, -0.9130f}, {0.7587f, 0.7650f, 0.7720f}, {10.11f, 10.50f, 10.90f});
+    // The can's print under its clear lacquer (acrylic or epoxy, n about 1.5): glossy but not a
+    // mirror, the highlight blurred by the lacquer's orange-peel (the pepsi lobe's N of 10 is broad).
+    p.coated = clear_coat(1.5f, 0.12f);
     return p;
 }
 
@@ -203,6 +214,9 @@ Preset make_cologne() {
         return glass;
     });
     p.material.lobe = lobe_rgb({-0.8874f, -0.8950f, -0.9020f}, {1.1162f, 1.1100f, 1.1050f}, {18.09f, 18.50f, 18.90f});
+    // Soda-lime glass (n 1.52), polished: the smoothest preset (alpha 0.05, the range's low end),
+    // the case where the highlight is narrow and few samples see it.
+    p.coated = clear_coat(1.52f, 0.05f);
     return p;
 }
 
@@ -238,6 +252,9 @@ Preset make_vase() {
         return glaze * (0.93f + 0.1f * periodic_fbm(u, v, 4, 3, 41u));
     });
     p.material.lobe = lobe_rgb({-1.2127f, -1.2050f, -1.1980f}, {0.5653f, 0.5700f, 0.5750f}, {20.36f, 20.00f, 19.70f});
+    // A glossy ceramic glaze: glazes are silicate glasses with fluxes, n about 1.55 to 1.65;
+    // fired smooth, slightly rougher than polished glass.
+    p.coated = clear_coat(1.6f, 0.08f);
     return p;
 }
 
@@ -265,6 +282,9 @@ Preset make_woodenpot() {
         return glm::mix(early, late, std::pow(grain, 3.0f)) * (0.92f + 0.12f * fine);
     });
     p.material.lobe = lobe_rgb({-1.4299f, -1.4200f, -1.4100f}, {-0.7763f, -0.7700f, -0.7650f}, {9.74f, 9.90f, 10.10f});
+    // An oil or wax finish on turned wood (n about 1.45): satin rather than gloss, so a broad
+    // highlight (alpha 0.3) that grows toward grazing angles with the Fresnel term.
+    p.coated = clear_coat(1.45f, 0.3f);
     return p;
 }
 
@@ -286,6 +306,9 @@ Preset make_knot(bool hd) {
         return c;
     });
     p.material.lobe = lobe_rgb({-1.02f, -1.00f, -0.98f}, {0.95f, 0.96f, 0.97f}, {14.0f, 14.5f, 15.0f});
+    // A rough plastic: polypropylene (n 1.49, the interior index Mitsuba's plastic and
+    // roughplastic default to), moulded with a light texture. knot_hd is the same object.
+    p.coated = clear_coat(1.49f, 0.2f);
     return p;
 }
 
@@ -300,6 +323,10 @@ Preset make_sphere() {
         return ((cu + cv) % 2 == 0) ? glm::vec3(0.75f, 0.70f, 0.62f) : glm::vec3(0.25f, 0.35f, 0.55f);
     });
     p.material.lobe = thesis_lobe("pepsi");
+    // The range's far corner for closed-form checks: a high-index coating (dense flint glass or a
+    // polycarbonate-like clear coat, n 1.7: the strongest Fresnel falloff of the diffuse term) that
+    // is rough (alpha 0.4: a highlight broad enough to cover much of the sphere).
+    p.coated = clear_coat(1.7f, 0.4f);
     return p;
 }
 
@@ -337,12 +364,18 @@ std::vector<PresetInfo> list_presets() {
     return out;
 }
 
-Preset make_preset(std::string_view name, bool lambertian) {
+Preset make_preset(std::string_view name, bool lambertian, MaterialFamily family) {
+    if (lambertian && family == MaterialFamily::Coated)
+        throw UsageError("--lambertian applies to the lafortune family only: the coated family's diffuse term is not Lambertian");
     for (const PresetEntry& e : kPresets) {
         if (name != e.name) continue;
         Preset p = e.make();
         p.description = e.description;
         if (lambertian) p.material.lobe = LafortuneRgb{};
+        if (family == MaterialFamily::Coated) {
+            p.material.lobe = LafortuneRgb{};
+            p.material.coated = p.coated;
+        }
         return p;
     }
     std::string names;

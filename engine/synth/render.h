@@ -5,10 +5,16 @@
 // direction v, distance d to the light (capture-format.md, "Radiometry"):
 //     pixel = f(u, v) * I * max(0, n.u) / d^2     when the light is visible
 //     pixel = 0                                   when it is shadowed
-//     f     = albedo(uv) / pi + lafortune_eval_rgb(Cx, Cz, N, u_local, v_local)
-// with u_local, v_local in the tangent frame of shaders/shared/tangent_frame.h,
-// the very definitions the GPU kernels use. No noise and no clipping here (noise.h).
+//     f     = albedo(uv) / pi * k_d(n.u, n.v) + f_s(u, v)
+// with k_d = material_diffuse_factor and f_s from shaders/shared/material.h, the one
+// evaluation of every family that the kernels use (engine/material/material.h):
+//   lafortune: k_d = 1, f_s = lafortune_eval_rgb(Cx, Cz, N, u_local, v_local), u_local and
+//              v_local in the tangent frame of shaders/shared/tangent_frame.h;
+//   coated:    k_d = T(n.u) T(n.v) / T(1)^2, f_s = tint F D G1 G1 / (4 (n.u) (n.v))
+//              (shared/coated.h), material_specular in double.
+// No noise and no clipping here (noise.h).
 #include "material/lafortune.h"
+#include "material/material.h"
 #include "capture/camera.h"
 #include "capture/capture.h"
 #include "capture/mesh.h"
@@ -18,6 +24,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace specula::synth {
@@ -25,13 +32,22 @@ namespace specula::synth {
 /// One isotropic Lafortune lobe per RGB channel (thesis eq. 2.1, table 5.2 form).
 using LafortuneRgb = specula::LafortuneRgb; // engine/material/lafortune.h
 
-/// The known surface of a synthetic object: albedo (texture or constant) and one lobe.
+/// The known surface of a synthetic object: albedo (texture or constant) and a specular model
+/// of one family: a Lafortune lobe (the default), or coated parameters.
 struct Material {
     /// Linear RGB albedo texture sampled at the mesh's texture coordinates
     /// (see sample_albedo). Empty: `albedo_value` everywhere.
     Image albedo_texture;
     glm::vec3 albedo_value{0.5f};
+    /// The lafortune family's lobe (zero: Lambertian). Must be zero when `coated` is set: a
+    /// material has one family, and nothing reading `lobe` may take it for a coated truth.
     LafortuneRgb lobe;
+    /// Set: the coated family (shared/coated.h) with these parameters, and rho the albedo.
+    std::optional<CoatedParams> coated;
+
+    [[nodiscard]] MaterialFamily family() const noexcept { return coated ? MaterialFamily::Coated : MaterialFamily::Lafortune; }
+    /// The specular model rendered: `*coated` when set, `lobe` otherwise.
+    [[nodiscard]] SpecularModel specular() const { return coated ? SpecularModel(*coated) : SpecularModel(lobe); }
 };
 
 /// Bilinear lookup with the texel centre convention: texel (i, j) is centred at

@@ -5,6 +5,7 @@
 #include "geometry/ray_scene.h"
 
 #include "shared/lafortune.h"
+#include "shared/material.h"
 #include "shared/tangent_frame.h"
 
 #include <glm/gtc/constants.hpp>
@@ -40,6 +41,7 @@ glm::vec3 sample_albedo(const Image& texture, const glm::vec2& uv) {
 struct Renderer::Impl {
     Mesh mesh;
     Material material;
+    shared::MaterialGpu gpu{}; // material_gpu(material.specular())
     std::unique_ptr<RayScene> scene; // the engine's one Embree owner (engine/geometry)
     float epsilon = 1e-4f;
 
@@ -100,10 +102,19 @@ struct Renderer::Impl {
                 const glm::vec2 uv = b0 * mesh.texcoords[tri.x] + b1 * mesh.texcoords[tri.y] + b2 * mesh.texcoords[tri.z];
                 albedo = sample_albedo(material.albedo_texture, uv);
             }
-            glm::vec3 f = albedo / glm::pi<float>();
-            if (!material.lobe.is_zero()) {
+            // f = (rho / pi) k_d + f_s (shared/material.h).
+            const glm::dvec3 v = -ray_dir;
+            const double co = glm::dot(glm::dvec3(n), v);
+            glm::vec3 f = albedo / glm::pi<float>() * shared::material_diffuse_factor(gpu, static_cast<float>(cos_theta), static_cast<float>(co));
+            if (material.coated) {
+                // In double: the truth is as exact as the formula (shared/coated.h's f64 instance).
+                f += glm::vec3(shared::f64::material_specular(gpu, cos_theta, co, glm::dot(u, v)));
+            } else if (!material.lobe.is_zero()) {
+                // The lobe in the tangent frame (lafortune_eval_rgb, the same lafortune_eval_ab that
+                // material_specular calls): its float products round differently from material_specular's
+                // u.v - (n.u)(n.v), and this form keeps the lafortune captures byte for byte as they were.
                 const glm::vec3 u_local = shared::to_tangent_frame(n, glm::vec3(u));
-                const glm::vec3 v_local = shared::to_tangent_frame(n, glm::vec3(-ray_dir));
+                const glm::vec3 v_local = shared::to_tangent_frame(n, glm::vec3(v));
                 f += shared::lafortune_eval_rgb(material.lobe.cx, material.lobe.cz, material.lobe.n, u_local, v_local);
             }
             const glm::dvec3 radiance = glm::dvec3(f) * light.intensity * (cos_theta / (d * d));
@@ -123,6 +134,13 @@ Renderer::Renderer(Mesh mesh, Material material) : m_impl(std::make_unique<Impl>
         if (!mesh.has_texcoords()) throw Error("synth renderer: an albedo texture needs texture coordinates (TEXCOORD_0) on the mesh");
         if (material.albedo_texture.channels < 1) throw Error("synth renderer: the albedo texture has no channels");
     }
+    if (material.coated) {
+        if (!material.lobe.is_zero())
+            throw Error("synth renderer: a coated material cannot also have a Lafortune lobe (one family per material)");
+        if (const std::optional<std::string> why = invalid_parameters(*material.coated))
+            throw Error("synth renderer: coated material: " + *why);
+    }
+    m_impl->gpu = material_gpu(material.specular());
     const Bounds b = mesh_bounds(mesh);
     // Scale-relative: well above float rounding at the hit, well below any feature of the object.
     m_impl->epsilon = std::max(1e-4f * b.radius(), 1e-7f);

@@ -39,6 +39,25 @@ glm::dvec3 around_camera(const glm::dmat4& c2w, double radius, double angle, dou
 
 } // namespace
 
+RigKind parse_rig_kind(std::string_view text) {
+    if (text == "spread") return RigKind::Spread;
+    if (text == "thesis") return RigKind::Thesis;
+    throw UsageError("--rig: unknown rig '" + std::string(text) + "' (spread, thesis)");
+}
+
+std::string_view to_string(RigKind kind) {
+    switch (kind) {
+    case RigKind::Spread: return "spread";
+    case RigKind::Thesis: return "thesis";
+    }
+    return "?";
+}
+
+std::vector<double> RigOptions::train_light_angles_deg() const {
+    if (kind == RigKind::Thesis) return {thesis_angle_deg};
+    return light_angles_deg;
+}
+
 std::size_t Rig::frame_count() const {
     std::size_t n = 0;
     for (const RigView& v : views) n += v.lights.size();
@@ -72,6 +91,8 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     require(o.ring_radius > 0.0 && o.test_ring_radius > 0.0, "light ring radii must be positive");
     for (double a : o.light_angles_deg)
         require(std::isfinite(a) && a >= 0.0 && a <= 150.0, "--light-angles must be between 0 and 150 degrees");
+    require(std::isfinite(o.thesis_angle_deg) && o.thesis_angle_deg > 0.0 && o.thesis_angle_deg <= 150.0,
+            "the thesis rig's light angle must be in (0, 150] degrees");
     require(std::isfinite(o.exposure) && o.exposure > 0.0, "--exposure must be positive");
     require(o.target_value > 0.0 && o.reference_albedo > 0.0, "target value and reference albedo must be positive");
     if (mesh.positions.empty()) throw Error("make_rig: the mesh is empty");
@@ -98,21 +119,26 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
         return view;
     };
 
+    // A light `off` radians off the camera direction seen from the object's centre, at the
+    // camera's distance, at `azimuth` about that direction (from camera +X toward +Y).
+    const auto off_camera = [&](const RigView& view, double off, double azimuth) {
+        const glm::dmat4& c2w = view.camera.camera_to_world;
+        const glm::dvec3 back(c2w[2]); // from the object toward the camera
+        const glm::dvec3 side = std::cos(azimuth) * glm::dvec3(c2w[0]) + std::sin(azimuth) * glm::dvec3(c2w[1]);
+        return rig.center + rig.camera_distance * (std::cos(off) * back + std::sin(off) * side);
+    };
+    const std::vector<double> angles = o.train_light_angles_deg();
+
     const double az_step = glm::two_pi<double>() / o.views;
     for (int i = 0; i < o.views; ++i) {
         RigView view = make_view(i, Split::Train, az_step * i, glm::mix(e0, e1, elevation_level(i)));
         for (int l = 0; l < o.lights; ++l) {
             const double angle = glm::two_pi<double>() * l / o.lights;
             PointLight light;
-            if (o.light_angles_deg.empty()) {
+            if (angles.empty())
                 light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
-            } else {
-                const glm::dmat4& c2w = view.camera.camera_to_world;
-                const double off = o.light_angles_deg[std::size_t(l) % o.light_angles_deg.size()] * kDeg;
-                const glm::dvec3 back(c2w[2]); // from the object toward the camera
-                const glm::dvec3 side = std::cos(angle) * glm::dvec3(c2w[0]) + std::sin(angle) * glm::dvec3(c2w[1]);
-                light.position = rig.center + rig.camera_distance * (std::cos(off) * back + std::sin(off) * side);
-            }
+            else
+                light.position = off_camera(view, angles[std::size_t(l) % angles.size()] * kDeg, angle);
             light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
             view.lights.push_back(light);
         }
@@ -127,8 +153,11 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
         for (int l = 0; l < o.test_lights; ++l) {
             const double angle = glm::two_pi<double>() * (l + 0.5) / o.test_lights + glm::pi<double>() / o.lights;
             PointLight light;
-            light.position = around_camera(view.camera.camera_to_world, o.test_ring_radius * rig.camera_distance, angle,
-                                           o.test_forward * rig.camera_distance);
+            if (o.kind == RigKind::Thesis)
+                light.position = off_camera(view, o.thesis_angle_deg * kDeg, angle);
+            else
+                light.position = around_camera(view.camera.camera_to_world, o.test_ring_radius * rig.camera_distance, angle,
+                                               o.test_forward * rig.camera_distance);
             light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
             view.lights.push_back(light);
         }

@@ -36,6 +36,7 @@ RigOptions SynthOptions::rig_options() const {
     r.lights = lights;
     r.test_views = test_views;
     r.test_lights = test_lights;
+    r.kind = rig;
     r.light_angles_deg = light_angles_deg;
     r.exposure = exposure;
     return r;
@@ -54,6 +55,32 @@ LafortuneRgb lobe_from_json(const nlohmann::json& j) {
         return glm::vec3(j[key][0].get<float>(), j[key][1].get<float>(), j[key][2].get<float>());
     };
     return LafortuneRgb{vec("cx"), vec("cz"), vec("n")};
+}
+
+nlohmann::json material_to_json(const SpecularModel& model) {
+    const auto arr = [](const glm::vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); };
+    nlohmann::json j;
+    if (const auto* lobe = std::get_if<LafortuneRgb>(&model)) {
+        j = lobe_to_json(*lobe);
+    } else {
+        const CoatedParams& c = std::get<CoatedParams>(model);
+        j = {{"eta", c.eta}, {"alpha", c.alpha}, {"tint", arr(c.tint)}};
+    }
+    j["family"] = to_string(family_of(model));
+    return j;
+}
+
+SpecularModel material_from_json(const nlohmann::json& j) {
+    if (!j.is_object() || !j.contains("family") || !j["family"].is_string()) throw Error("material: 'family' must be a string");
+    const std::optional<MaterialFamily> family = material_family_from_string(j["family"].get<std::string>());
+    if (!family) throw Error("material: unknown family '" + j["family"].get<std::string>() + "' (lafortune, coated)");
+    if (*family == MaterialFamily::Lafortune) return lobe_from_json(j);
+    const auto number = [&](const char* key) {
+        if (!j.contains(key) || !j[key].is_number()) throw Error(std::string("material: '") + key + "' must be a number");
+        return j[key].get<float>();
+    };
+    if (!j.contains("tint") || !j["tint"].is_array() || j["tint"].size() != 3) throw Error("material: 'tint' must be 3 numbers");
+    return CoatedParams{number("eta"), number("alpha"), glm::vec3(j["tint"][0].get<float>(), j["tint"][1].get<float>(), j["tint"][2].get<float>())};
 }
 
 namespace {
@@ -185,6 +212,8 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
     const RigOptions rig_options = options.rig_options();
     const Rig rig = make_rig(object.mesh, rig_options);
     Material material = object.material;
+    if (options.lambertian && material.coated)
+        throw UsageError("--lambertian applies to the lafortune family only: the coated family's diffuse term is not Lambertian");
     if (options.lambertian) material.lobe = LafortuneRgb{};
     clock.add("rig", sw.seconds());
 
@@ -280,8 +309,10 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
 
         desc.ground_truth = {
             {"preset", object.name},
-            {"lobe", lobe_to_json(material.lobe)},
-            {"lambertian", material.lobe.is_zero()},
+            {"material", material_to_json(material.specular())},
+            // Lafortune and Lambertian only in the lafortune family: a coated capture has no lobe
+            // to compare a fit with, and its diffuse term is not Lambertian.
+            {"lambertian", !material.coated && material.lobe.is_zero()},
             {"albedo_texture", "truth/albedo.exr"},
             {"albedo_sampling", "bilinear at texel centres over mesh TEXCOORD_0; u repeats, v clamps; v = 0 is the top row (glTF)"},
             {"noise",
@@ -293,7 +324,8 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
             {"format", std::string(to_string(options.format))},
             {"clipped_pixels", result.clipped_pixels},
             {"rig",
-             {{"views", options.views},
+             {{"name", std::string(to_string(rig_options.kind))},
+              {"views", options.views},
               {"lights", options.lights},
               {"test_views", options.test_views},
               {"test_lights", options.test_lights},
@@ -301,12 +333,14 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
               {"camera_distance", rig.camera_distance},
               {"object_center", {rig.center.x, rig.center.y, rig.center.z}},
               {"object_radius", rig.radius},
-              {"light_angles_deg", rig_options.light_angles_deg},
-              {"light_ring_radius", rig_options.light_angles_deg.empty() ? nlohmann::json(rig_options.ring_radius * rig.camera_distance)
-                                                                         : nlohmann::json(nullptr)},
+              {"light_angles_deg", rig_options.train_light_angles_deg()},
+              {"light_ring_radius", rig_options.train_light_angles_deg().empty()
+                                        ? nlohmann::json(rig_options.ring_radius * rig.camera_distance)
+                                        : nlohmann::json(nullptr)},
               {"exposure_rule", "I = exposure * 0.6 * pi * d_min^2 / 0.8 (d_min: light to nearest vertex)"}}},
             {"generator", "specula synth"},
         };
+        if (!material.coated) desc.ground_truth["lobe"] = lobe_to_json(material.lobe);
         sw.restart();
         write_capture_json(desc);
         clock.add("capture.json", sw.seconds());
@@ -332,6 +366,7 @@ void export_preset(const Preset& preset, const fs::path& out, bool force) {
             {"albedo_preview", "albedo.png"},
             {"albedo_size", {albedo.width, albedo.height}},
             {"lobe", lobe_to_json(preset.material.lobe)},
+            {"coated", material_to_json(preset.coated)},
         };
         write_text_file(tmp / "preset.json", j.dump(2) + "\n");
     });

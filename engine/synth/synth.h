@@ -1,6 +1,6 @@
 #pragma once
-// Synthetic captures: a known object (mesh, albedo texture, Lafortune lobe)
-// rendered under the thesis's rig (rig.h) by the ground-truth renderer
+// Synthetic captures: a known object (mesh, albedo texture, and a Lafortune lobe or a
+// coated material) rendered under a rig (rig.h: spread or thesis) by the ground-truth renderer
 // (render.h), with seeded sensor noise and clipping (noise.h), written in the
 // capture format (capture-format.md) with the truth recorded in ground_truth.
 #include "capture/capture.h"
@@ -29,14 +29,15 @@ struct SynthOptions {
     int lights = 6;
     int test_views = 4;
     int test_lights = 2;
-    std::vector<double> light_angles_deg = RigOptions{}.light_angles_deg; // train lights off the camera (rig.h)
+    RigKind rig = RigKind::Spread; // spread (light_angles_deg) or thesis (a 15-degree ring), rig.h
+    std::vector<double> light_angles_deg = RigOptions{}.light_angles_deg; // spread: train lights off the camera (rig.h)
     double noise_sigma = 0.0; // Gaussian read noise, relative to full scale 1.0
     double shot_noise = 0.0;  // variance = shot_noise * value
     double exposure = 1.0;
     ImageFormat format = ImageFormat::Png8;
     std::uint64_t seed = 1;
     int threads = 2;
-    bool lambertian = false; // zero the lobe
+    bool lambertian = false; // zero the lobe (lafortune family only: refused for a coated material)
     bool force = false;      // replace an existing non-empty output folder (only once the new one is complete)
     /// Called after each frame is rendered and queued for writing (done, total); may throw
     /// to abort (nothing is then left at the output path).
@@ -74,12 +75,20 @@ struct SynthResult {
 SynthResult write_synthetic_capture(const SynthObject& object, const std::filesystem::path& out, const SynthOptions& options);
 
 /// Writes a preset's mesh.glb, albedo.exr (linear truth), albedo.png (sRGB preview)
-/// and preset.json (lobe, description, counts) into `out`, atomically as above.
+/// and preset.json (lobe, coated parameters, description, counts) into `out`, atomically as above.
 void export_preset(const Preset& preset, const std::filesystem::path& out, bool force);
 
 /// ground_truth.lobe's JSON form: {"cx": [r, g, b], "cz": [...], "n": [...]}.
 [[nodiscard]] nlohmann::json lobe_to_json(const LafortuneRgb& lobe);
 [[nodiscard]] LafortuneRgb lobe_from_json(const nlohmann::json& j);
+
+/// ground_truth.material's JSON form: the family and its exact parameters,
+///   {"family": "lafortune", "cx": [r, g, b], "cz": [...], "n": [...]}
+///   {"family": "coated", "eta": e, "alpha": a, "tint": [r, g, b]}
+/// Floats are written as the doubles they convert to, so reading back gives the same floats.
+[[nodiscard]] nlohmann::json material_to_json(const SpecularModel& model);
+/// The inverse of material_to_json; throws Error naming what is missing or unknown.
+[[nodiscard]] SpecularModel material_from_json(const nlohmann::json& j);
 
 /// The absolute, normalized output folder; throws UsageError when it exists and is
 /// not a folder, or is a non-empty folder and `force` is not set.

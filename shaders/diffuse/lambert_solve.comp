@@ -81,13 +81,11 @@ void main() {
         if (smp.status == kLambertSampleGrazing) { ++grazing; continue; }
         si[ns] = fr.intensity.xyz;
         se[ns] = fr.intensity.xyz * (cosl / d2);
-        float lb = cosl * nv;
-        float la = dot(u, vdir) - lb;
-        vec3 spec = vec3(lafortune_eval_ab(pc.lobe[0], pc.lobe[3], pc.lobe[6], la, lb),
-                         lafortune_eval_ab(pc.lobe[1], pc.lobe[4], pc.lobe[7], la, lb),
-                         lafortune_eval_ab(pc.lobe[2], pc.lobe[5], pc.lobe[8], la, lb));
-        sc[ns] = smp.c - spec * se[ns];
-        sa[ns] = u / d2;
+        float kd = material_diffuse_factor(pc.material, cosl, nv);
+        if (!(kd > 0.0)) { ++grazing; continue; } // the known diffuse term is dark here (shared/lambert.h)
+        sc[ns] = smp.c - material_specular(pc.material, cosl, nv, dot(u, vdir)) * se[ns];
+        se[ns] *= kd;
+        sa[ns] = (u / d2) * kd;
         ses[ns] = se[ns].x + se[ns].y + se[ns].z;
         sq[ns] = (sc[ns].x + sc[ns].y + sc[ns].z) / ses[ns];
         skept[ns] = true;

@@ -40,11 +40,14 @@
 // is (rho_j / pi) E, so the mix is the mix of the taps' albedos, lit like the particle.
 // The specular residuals (shared/residuals.h) apply the same gains, so the lobe fit sees the
 // samples the albedo came from.
-// Known lobe (joint estimate, an addition to the thesis): when a Lafortune lobe is given
-// (the previous round's fit), its light f_s(u_i, v) E_i is subtracted from every sample
-// before the highlight test and the solve, so the albedo no longer absorbs the part of a
-// broad lobe that the highlight test cannot tell from diffuse light. A zero lobe changes
-// nothing.
+// Known material (joint estimate, an addition to the thesis): when a material is given (the
+// previous round's fit, shared/material.h), its specular light f_s(u_i, v) E_i is subtracted
+// from every sample before the highlight test and the solve, so the albedo no longer absorbs
+// the part of a broad lobe that the highlight test cannot tell from diffuse light, and its
+// diffuse angular factor k_d(n.u_i, n.v) multiplies E_i (and the photometric rows), so the
+// solve gives rho of f = (rho / pi) k_d + f_s: the coated family's Fresnel-weighted diffuse
+// term (shared/coated.h) is folded into each sample's irradiance factor. A sample whose k_d is 0
+// is dropped as grazing. The zero material (lafortune, all parameters 0) changes nothing.
 // Then, on the kept samples, per channel:
 //   albedo mode        rho/pi = sum c E / sum E^2                         (needs 1 sample)
 //   photometric mode   g = (rho/pi) n from c_i = g . (I_i u_i / d_i^2)    (eq. 3.1; shared/solve3.h)
@@ -67,7 +70,7 @@
 #define SPECULA_SHARED_LAMBERT_H
 #include "shared/prelude.h"
 #include "shared/dispatch.h"
-#include "shared/lafortune.h"
+#include "shared/material.h"
 
 SPECULA_SHARED_BEGIN
 
@@ -173,7 +176,9 @@ struct LambertPairPush {
     float k_sigma;
     float min_rcond;
     uint global_view_base; // global index of the batch's first view
-    float lobe[9];         // known lobe: cx rgb, cz rgb, n rgb (zero: none; see "known lobe" above)
+    uint pad0;
+    uint pad1;
+    MaterialGpu material;  // the known material (the zero material: none; see "Known material" above)
 };
 
 // Push constants of the combine step (diffuse/lambert_solve_combine.comp).
@@ -208,7 +213,7 @@ static_assert(sizeof(specula::shared::LambertFrameGpu) == 48);
 static_assert(sizeof(specula::shared::LambertPairKey) == 12);
 static_assert(sizeof(specula::shared::LambertPairResult) == 48);
 static_assert(sizeof(specula::shared::LambertParticleResult) == 96);
-static_assert(sizeof(specula::shared::LambertPairPush) == 76 && offsetof(specula::shared::LambertPairPush, lobe) == 40);
+static_assert(sizeof(specula::shared::LambertPairPush) == 112 && offsetof(specula::shared::LambertPairPush, material) == 48);
 static_assert(sizeof(specula::shared::LambertCombinePush) == 20);
 namespace specula::shared::f64 {
 using namespace glm;

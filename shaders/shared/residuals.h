@@ -8,6 +8,10 @@
 //                                                   tap scaled to the particle's irradiance
 //                                                   as the diffuse solve does, shared/lambert.h)
 //     f_s = r_i / E_i = r_i d_i^2 / (I_i n.u_i)     specular BRDF sample
+// With a known material (ResidualPush::material, shared/material.h: the model of the solve the
+// albedo came from) the diffuse term is (rho / pi) k_d(n.u_i, n.v) E_i (k_d = 1 for the
+// Lambertian base of the lafortune family), and each sample also keeps rho / pi and k_d (d),
+// so a fit of another model can rebuild the observed c_i / E_i = f_s + (rho / pi) k_d.
 // The thesis's "r = c / d^2" is a slip (pipeline.md section 4): undoing the falloff
 // multiplies by d^2, and the cosine and the intensity divide.
 // u, v: unit light and view directions in the particle's tangent frame (shared/tangent_frame.h).
@@ -30,6 +34,7 @@
 #define SPECULA_SHARED_RESIDUALS_H
 #include "shared/prelude.h"
 #include "shared/dispatch.h"
+#include "shared/material.h"
 #include "shared/tangent_frame.h"
 
 SPECULA_SHARED_BEGIN
@@ -39,12 +44,13 @@ const uint kResidualGrazing = 1u;
 const uint kResidualMissing = 2u;
 const uint kResidualClipped = 3u;
 
-// One sample slot (std430, 48 bytes).
+// One sample slot (std430, 64 bytes).
 struct ResidualSample {
     vec4 u; // xyz: light direction (tangent frame); w: weight (Ebar^2; 0 when dropped)
     vec4 v; // xyz: view direction (tangent frame); w: Ebar
     vec3 f; // f_s per channel
     uint status; // kResidual*
+    vec4 d; // rgb: the particle's rho / pi; w: the known material's diffuse factor k_d at this sample
 };
 
 // Push constants of specular/residuals.comp.
@@ -52,6 +58,7 @@ struct ResidualPush {
     DispatchHeader dispatch;
     uint frame_words;
     float min_light_cos;
+    MaterialGpu material; // the known material (the zero material: Lambertian, k_d = 1)
 };
 
 // Irradiance factor E = I max(0, n.u) / d^2 (the diffuse solve's, shared/lambert.h).
@@ -69,10 +76,10 @@ SPECULA_SHARED_END
 
 #ifdef __cplusplus
 #include <cstddef>
-static_assert(sizeof(specula::shared::ResidualSample) == 48);
+static_assert(sizeof(specula::shared::ResidualSample) == 64 && offsetof(specula::shared::ResidualSample, d) == 48);
 static_assert(offsetof(specula::shared::ResidualSample, v) == 16 && offsetof(specula::shared::ResidualSample, f) == 32 &&
               offsetof(specula::shared::ResidualSample, status) == 44);
-static_assert(sizeof(specula::shared::ResidualPush) == 16);
+static_assert(sizeof(specula::shared::ResidualPush) == 80 && offsetof(specula::shared::ResidualPush, material) == 16);
 #endif
 
 #endif

@@ -49,7 +49,9 @@ void main() {
     int w = int(view.width);
     int h = int(view.height);
     LambertTaps t = lambert_taps(pos, w, h);
-    vec3 vl = to_tangent_frame(n, normalize(view.center.xyz - P));
+    vec3 vdir = normalize(view.center.xyz - P);
+    vec3 vl = to_tangent_frame(n, vdir);
+    float nv = dot(n, vdir);
 
     uint slot = key.slot;
     for (uint k = 0u; k < view.frame_count; ++k) {
@@ -60,6 +62,7 @@ void main() {
         s.u = vec4(0.0);
         s.v = vec4(vl, 0.0);
         s.f = vec3(0.0);
+        s.d = vec4(0.0);
         vec3 L = fr.light.xyz - P;
         float d2 = dot(L, L);
         vec3 u = L / sqrt(d2);
@@ -82,7 +85,9 @@ void main() {
         vec3 c = smp.c;
         vec3 E = residual_irradiance(fr.intensity.xyz, cosl, d2);
         float ebar = (E.x + E.y + E.z) / 3.0;
-        s.f = residual_brdf(c, rpi, E);
+        float kd = material_diffuse_factor(pc.material, cosl, nv);
+        s.f = residual_brdf(c, rpi * kd, E);
+        s.d = vec4(rpi, kd);
         s.u.w = ebar * ebar;
         s.v.w = ebar;
         s.status = kResidualUsed;

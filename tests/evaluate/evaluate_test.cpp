@@ -19,6 +19,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -114,6 +115,24 @@ TEST_F(EvaluateTest, JsonHasEverySplitAndNoNaN) {
     ASSERT_TRUE(j["frames"].is_array());
     EXPECT_EQ(j["frames"].size(), 14u);
     EXPECT_TRUE(j["frames"][0].contains("masked") && j["frames"][0]["masked"]["psnr"].is_number());
+    // Display and linear figures side by side; the unsuffixed keys are the linear ones. An EXR
+    // capture has no display encoding of its own: sRGB, clipped, not quantized.
+    EXPECT_EQ(j["display_encoding"], "srgb");
+    for (const char* split : {"train", "test"})
+        for (const char* set : {"masked", "full"}) {
+            const nlohmann::json& m = j[split][set];
+            EXPECT_EQ(m["display_encoding"], "srgb");
+            for (const std::string key : {"q1", "rms", "rms_percent", "psnr"}) {
+                EXPECT_TRUE(m[key + "_display"].is_number()) << split << "." << set << "." << key;
+                EXPECT_EQ(m[key + "_linear"], m[key]) << split << "." << set << "." << key;
+            }
+            EXPECT_NE(m["psnr_display"], m["psnr_linear"]);
+        }
+    for (const std::string key : {"rms", "rms_percent", "psnr"}) {
+        EXPECT_TRUE(j["frames"][0]["masked"][key + "_display"].is_number()) << key;
+        EXPECT_EQ(j["frames"][0]["masked"][key + "_linear"], j["frames"][0]["masked"][key]) << key;
+    }
+    EXPECT_EQ(j["frames"][0]["display_encoding"], "srgb");
     EXPECT_TRUE(all_finite(j));
     EXPECT_TRUE(j.contains("timings") && j["timings"]["per_frame_ms"].is_number());
 }
@@ -149,6 +168,81 @@ TEST_F(EvaluateTest, CpuAndVulkanMetricsAgree) {
     EXPECT_NEAR(vk.metrics.test_masked.q1, cpu.metrics.test_masked.q1, 1e-4);
     EXPECT_NEAR(vk.metrics.train_full.q2, cpu.metrics.train_full.q2, 1e-4);
     EXPECT_NEAR(vk.metrics.train_masked.ssim, cpu.metrics.train_masked.ssim, 1e-4);
+}
+
+// An 8-bit sRGB capture (synth png8) of the same sphere: the display figures are those of the
+// stored codes. Checked against an independent computation: the frame rendered again, encoded
+// with the sRGB formula written out here (IEC 61966-2-1) and rounded to 8 bits, against the
+// codes read raw from the PNG file, over the capture's masked pixels, in double.
+TEST_F(EvaluateTest, DisplayFiguresOfAn8BitCaptureAreThoseOfTheStoredCodes) {
+    const SphereCapture& s = sphere();
+    TempDir dir("evaluate_png8");
+    synth::SynthOptions o;
+    o.size = 96;
+    o.views = 2;
+    o.lights = 2;
+    o.test_views = 1;
+    o.test_lights = 1;
+    o.format = synth::ImageFormat::Png8;
+    o.seed = 3;
+    (void)synth::write_synthetic_capture(synth::to_object(s.preset), dir / "cap", o);
+    const Capture cap = load_capture(dir / "cap");
+    const EvaluationResult r = evaluate(ctx(), s.truth, cap, {.metrics_backend = Backend::Cpu});
+    std::printf("%s", format_summary(r).c_str());
+    EXPECT_EQ(r.display_encoding, "srgb8");
+    EXPECT_TRUE(r.display_first);
+    const std::string table = format_summary(r);
+    ASSERT_NE(table.find("Q1 disp"), std::string::npos) << table;
+    EXPECT_LT(table.find("Q1 disp"), table.find("Q1 lin")) << "display first for an sRGB capture\n" << table;
+
+    const auto encode8 = [](double v) { // linear -> 8-bit code, clipped
+        v = std::clamp(v, 0.0, 1.0);
+        const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
+        return std::floor(std::clamp(e, 0.0, 1.0) * 255.0 + 0.5);
+    };
+    BundleRenderer renderer(ctx(), s.truth, "truth");
+    ASSERT_FALSE(r.frames.empty());
+    for (const FrameEvaluation& fe : r.frames) {
+        EXPECT_EQ(fe.display_encoding, "srgb8");
+        const FrameDesc& fd = cap.desc.frames[fe.frame];
+        const FrameImage& im = cap.images[fe.frame];
+        const Image codes = read_image(cap.desc.resolve(fd.file_path), ColorSpace::Linear); // code / 255, no transfer
+        const Image ren = renderer.render(fd.camera(), fd.light, {}).color;
+        double sum_sq = 0.0, sum_sq_linear = 0.0;
+        std::size_t n = 0;
+        for (int y = 0; y < ren.height; ++y)
+            for (int x = 0; x < ren.width; ++x) {
+                const std::size_t p = static_cast<std::size_t>(y) * ren.width + x;
+                if ((im.flags[p] & (kOutsideMask | kMissing)) != 0) continue;
+                ++n;
+                for (int c = 0; c < 3; ++c) {
+                    const double stored = std::round(codes.at(x, y, c) * 255.0);
+                    const double d = (encode8(ren.at(x, y, c)) - stored) / 255.0;
+                    sum_sq += d * d;
+                    const double dl = std::min(ren.at(x, y, c), im.saturation) - im.color.at(x, y, c);
+                    sum_sq_linear += dl * dl;
+                }
+            }
+        ASSERT_EQ(fe.masked_display.pixels, n) << fe.file;
+        const double mse = sum_sq / (3.0 * static_cast<double>(n));
+        EXPECT_NEAR(fe.masked_display.mse, mse, 1e-6 * mse + 1e-12) << fe.file;
+        if (mse > 0.0) {
+            EXPECT_NEAR(fe.masked_display.psnr, 10.0 * std::log10(1.0 / mse), 1e-4) << fe.file;
+        }
+        EXPECT_NEAR(fe.masked.mse, sum_sq_linear / (3.0 * static_cast<double>(n)), 1e-6 * fe.masked.mse + 1e-12) << fe.file;
+    }
+    // Q1 on display values: 100 - the mean over frames of 100 RMS (G = 1).
+    double mean_rms = 0.0;
+    std::size_t test_frames = 0;
+    for (const FrameEvaluation& fe : r.frames)
+        if (fe.split == Split::Test) {
+            mean_rms += fe.masked_display.rms;
+            ++test_frames;
+        }
+    ASSERT_GT(test_frames, 0u);
+    EXPECT_NEAR(r.display_metrics.test_masked.q1, 100.0 - 100.0 * mean_rms / static_cast<double>(test_frames), 1e-9);
+    // The truth against its own 8-bit capture: within a code or so on display values.
+    EXPECT_LT(r.display_metrics.test_masked.rms, 1.5 / 255.0);
 }
 
 TEST_F(EvaluateTest, WritesSheetsOfChosenFrames) {
@@ -292,10 +386,18 @@ TEST_F(EvaluateTest, CliEvaluateWritesJsonAndSheets) {
             for (const char* key : {"q1", "q2", "rms_percent", "dde_percent", "psnr", "ssim", "frames"})
                 EXPECT_TRUE(j[split][set][key].is_number()) << split << "." << set << "." << key;
     EXPECT_GE(j["test"]["masked"]["q1"].get<double>(), 99.0);
+    EXPECT_TRUE(j["test"]["masked"]["q1_display"].is_number());
+    EXPECT_TRUE(j["test"]["masked"]["psnr_linear"].is_number());
     EXPECT_EQ(j["frames"].size(), 14u);
     EXPECT_TRUE(all_finite(j));
     EXPECT_EQ(j["sheets"].size(), 2u);
     EXPECT_NE(read_text_file(out / "stdout.txt").find("test masked"), std::string::npos);
+    // An EXR capture: linear figures first, then display ones.
+    const std::string table = read_text_file(out / "stdout.txt");
+    ASSERT_NE(table.find("Q1 lin"), std::string::npos) << table;
+    ASSERT_NE(table.find("Q1 disp"), std::string::npos) << table;
+    EXPECT_LT(table.find("Q1 lin"), table.find("Q1 disp")) << table;
+    EXPECT_NE(table.find("display values: srgb"), std::string::npos) << table;
 }
 #endif
 

@@ -16,7 +16,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <future>
+#include <limits>
+#include <numbers>
 #include <set>
 #include <tuple>
 
@@ -333,7 +336,7 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     d["materials"][0]["extensions"]["SPECULA_lafortune"].erase("cubeG");
     expect_field(d, ext + ".cubeG");
     d = good;
-    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 5;
+    d["materials"][0]["extensions"]["SPECULA_lafortune"]["version"] = 6; // beyond the reader's (5)
     expect_field(d, ext + ".version");
     // The parametrization: "gshd", "mirrored" (version 3) or "warped" (version 4, with its warp
     // and the lobe), with cube-maps.
@@ -418,7 +421,9 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(8, 1), test::random_cube(8, 2)},
                                                          {test::random_cube(8, 3), test::random_cube(8, 4)}}}; // version 2, cubeTerms
     TempDir dir("bundle");
-    for (const int kind : {0, 1, 2, 3}) { // lobe; mirrored (version 3); warped (version 4); diffuse only
+    // lobe; mirrored (version 3); warped (version 4); diffuse only; coated (version 5, with
+    // KHR_materials_ior and KHR_materials_specular, which the validator checks).
+    for (const int kind : {0, 1, 2, 3, 4}) {
         if (kind == 1) b.material.factorized->param = FactorParam::Mirrored;
         if (kind == 2) {
             b.material.factorized->param = FactorParam::Warped;
@@ -428,7 +433,12 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
             b.material.factorized->param = FactorParam::Gshd;
             b.material.specular.reset();
         }
-        const auto file = dir / (kind == 0 ? "lobe.glb" : kind == 1 ? "mirrored.glb" : kind == 2 ? "warped.glb" : "diffuse.glb");
+        if (kind == 4) b.material.specular = CoatedParams{.eta = 1.4537f, .alpha = 0.0837f, .tint = {0.91f, 1.0f, 1.23f}};
+        const auto file = dir / (kind == 0   ? "lobe.glb"
+                                 : kind == 1 ? "mirrored.glb"
+                                 : kind == 2 ? "warped.glb"
+                                 : kind == 3 ? "diffuse.glb"
+                                             : "coated.glb");
         write_bundle(file, b);
         const std::string cmd = "SPECULA_GLTF_VALIDATOR_PATHS='" + std::string(SPECULA_NODE_MODULES_DIR) +
                                 "' node '" + std::string(SPECULA_GLTF_VALIDATE_JS) + "' '" +
@@ -445,11 +455,13 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
 // ---- format compatibility -----------------------------------------------------------
 
 // tests/export/data/legacy_v{1,4}.glb were written by write_bundle before the glTF I/O moved
-// to capture/gltf_io (legacy_bundles.h): they read back bit for bit, including an integer in
-// "info" above 2^32, and writing what was read gives the same bytes: the format is unchanged.
+// to capture/gltf_io, legacy_v{0,3}.glb (Lambertian; mirrored with two terms) before the
+// extension's version 5 (the coated family) was added (legacy_bundles.h): they read back bit
+// for bit, including an integer in "info" above 2^32, and writing what was read gives the same
+// bytes: the format of every bundle without the coated family is unchanged.
 TEST(Bundle, LegacyBundlesReadExactlyAndRewriteByteForByte) {
     TempDir dir("bundle");
-    for (const int version : {1, 4}) {
+    for (const int version : {0, 1, 3, 4}) {
         const auto file = test::source_dir() / "tests" / "export" / "data" / ("legacy_v" + std::to_string(version) + ".glb");
         const Bundle want = test::legacy_bundle(version);
         const Bundle r = read_bundle(file);
@@ -461,23 +473,28 @@ TEST(Bundle, LegacyBundlesReadExactlyAndRewriteByteForByte) {
         EXPECT_EQ(r.albedo.width, 3);
         EXPECT_EQ(r.albedo.height, 2);
         EXPECT_TRUE(same_bits(r.albedo.pixels, want.albedo.pixels));
-        ASSERT_TRUE(r.material.specular.has_value());
-        EXPECT_EQ(lobe_of(r).cx, lobe_of(want).cx);
-        EXPECT_EQ(lobe_of(r).cz, lobe_of(want).cz);
-        EXPECT_EQ(lobe_of(r).n, lobe_of(want).n);
         EXPECT_EQ(r.material.status, want.material.status);
-        ASSERT_TRUE(r.material.factorized.has_value());
-        EXPECT_EQ(term(r, 0).g.resolution, 1u);
-        EXPECT_EQ(term(r, 0).h.resolution, 2u);
-        EXPECT_TRUE(same_bits(term(r, 0).g.texels, term(want, 0).g.texels));
-        EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(want, 0).h.texels));
-        ASSERT_EQ(further_terms(r), further_terms(want));
-        for (std::size_t k = 1; k <= further_terms(r); ++k) {
-            EXPECT_TRUE(same_bits(term(r, k).g.texels, term(want, k).g.texels));
-            EXPECT_TRUE(same_bits(term(r, k).h.texels, term(want, k).h.texels));
+        if (version == 0) { // Lambertian: no lobe, no cube-maps
+            EXPECT_FALSE(r.material.specular.has_value());
+            EXPECT_FALSE(r.material.factorized.has_value());
+        } else {
+            ASSERT_TRUE(r.material.specular.has_value());
+            EXPECT_EQ(lobe_of(r).cx, lobe_of(want).cx);
+            EXPECT_EQ(lobe_of(r).cz, lobe_of(want).cz);
+            EXPECT_EQ(lobe_of(r).n, lobe_of(want).n);
+            ASSERT_TRUE(r.material.factorized.has_value());
+            EXPECT_EQ(term(r, 0).g.resolution, 1u);
+            EXPECT_EQ(term(r, 0).h.resolution, 2u);
+            EXPECT_TRUE(same_bits(term(r, 0).g.texels, term(want, 0).g.texels));
+            EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(want, 0).h.texels));
+            ASSERT_EQ(further_terms(r), further_terms(want));
+            for (std::size_t k = 1; k <= further_terms(r); ++k) {
+                EXPECT_TRUE(same_bits(term(r, k).g.texels, term(want, k).g.texels));
+                EXPECT_TRUE(same_bits(term(r, k).h.texels, term(want, k).h.texels));
+            }
+            EXPECT_EQ(r.material.factorized->param, want.material.factorized->param);
+            EXPECT_EQ(r.material.factorized->warp, want.material.factorized->warp);
         }
-        EXPECT_EQ(r.material.factorized->param, want.material.factorized->param);
-        EXPECT_EQ(r.material.factorized->warp, want.material.factorized->warp);
         EXPECT_EQ(r.info, want.info);
         ASSERT_TRUE(r.info["texels"].is_number_unsigned());
         EXPECT_EQ(r.info["texels"].get<std::uint64_t>(), 5000000000ull); // not narrowed to int
@@ -509,6 +526,204 @@ std::string bundle_text_with(const std::filesystem::path& file, const std::strin
     EXPECT_NE(at, std::string::npos) << after;
     text.insert(at + after.size(), insert);
     return text;
+}
+
+// ---- the coated family (extension version 5) ------------------------------------------
+
+/// A coated material with parameters that are not round decimals (float bits matter).
+CoatedParams coated_params() {
+    CoatedParams c;
+    c.eta = 1.4537f;
+    c.alpha = 0.0837f;
+    c.tint = {0.91f, 1.0f, 1.23f}; // above 1 in one channel: glTF allows it (KHR_materials_specular)
+    return c;
+}
+
+TEST(BundleCoated, RoundTripIsExactAndWritesVersion5WithTheModel) {
+    const test::BundlePieces p = test::make_pieces();
+    const CoatedParams c = coated_params();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = c});
+    b.material.status = {"converged"};
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(4, 1), test::random_cube(4, 2)}}};
+    b.material.factorized->param = FactorParam::Mirrored; // a coated bundle may carry cube-maps too
+    b.info = {{"specula_version", "test"}};
+    TempDir dir("bundle");
+    const auto file = dir / "coated.glb";
+    write_bundle(file, b);
+    const json ext = test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"];
+    EXPECT_EQ(ext["version"], 5);
+    EXPECT_EQ(ext["model"], "coated");
+    EXPECT_FALSE(ext.contains("lobe"));
+    ASSERT_TRUE(ext["coated"].is_object());
+    EXPECT_EQ(ext["coated"]["eta"].get<double>(), static_cast<double>(c.eta));
+    EXPECT_EQ(ext["coated"]["alpha"].get<double>(), static_cast<double>(c.alpha));
+    EXPECT_EQ(ext["coated"]["tint"], json::array({static_cast<double>(c.tint.x), static_cast<double>(c.tint.y),
+                                                  static_cast<double>(c.tint.z)}));
+    EXPECT_EQ(ext["parametrization"], "mirrored");
+
+    const Bundle r = read_bundle(file);
+    EXPECT_TRUE(r.warnings.empty());
+    ASSERT_TRUE(r.material.specular.has_value());
+    ASSERT_TRUE(std::holds_alternative<CoatedParams>(*r.material.specular));
+    const CoatedParams& rc = std::get<CoatedParams>(*r.material.specular);
+    // Bit for bit: float -> shortest double decimal -> float.
+    EXPECT_EQ(std::memcmp(&rc.eta, &c.eta, sizeof(float)), 0);
+    EXPECT_EQ(std::memcmp(&rc.alpha, &c.alpha, sizeof(float)), 0);
+    EXPECT_EQ(rc.tint, c.tint);
+    EXPECT_EQ(r.material.status, b.material.status);
+    ASSERT_TRUE(r.material.factorized.has_value());
+    EXPECT_EQ(r.material.factorized->param, FactorParam::Mirrored);
+    EXPECT_TRUE(same_bits(term(r, 0).g.texels, term(b, 0).g.texels));
+    EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
+    EXPECT_EQ(r.info, b.info);
+    write_bundle(dir / "again.glb", r);
+    EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
+
+    // Without cube-maps: still version 5 (the model needs it).
+    b.material.factorized.reset();
+    write_bundle(dir / "plain.glb", b);
+    EXPECT_EQ(test::glb_json(dir / "plain.glb")["materials"][0]["extensions"]["SPECULA_lafortune"]["version"], 5);
+    EXPECT_TRUE(std::holds_alternative<CoatedParams>(*read_bundle(dir / "plain.glb").material.specular));
+}
+
+// The core material a viewer renders: the glTF 2.0 specification, appendix B (specular_brdf:
+// GGX with alpha = roughness^2), KHR_materials_ior (ior) and KHR_materials_specular
+// (dielectric_f0 = min(((ior - 1) / (ior + 1))^2 specularColorFactor, 1) specularFactor),
+// computed here from the written JSON as a viewer would, and compared with the coated model's own
+// GGX distribution and tinted Fresnel reflectance at normal incidence (shaders/shared/coated.h).
+TEST(BundleCoated, CoreMaterialCarriesRoughnessIorAndSpecularExactly) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    const CoatedParams c = coated_params();
+    TempDir dir("bundle");
+    write_bundle(dir / "c.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = c}));
+    const json doc = test::glb_json(dir / "c.glb");
+    EXPECT_EQ(doc["extensionsUsed"], json::array({"SPECULA_lafortune", "KHR_materials_ior", "KHR_materials_specular"}));
+    EXPECT_FALSE(doc.contains("extensionsRequired")); // a plain viewer still loads it
+    const json& mat = doc["materials"][0];
+    const json& pbr = mat["pbrMetallicRoughness"];
+    EXPECT_EQ(pbr["metallicFactor"].get<double>(), 0.0);
+    const double roughness = pbr["roughnessFactor"].get<double>();
+    EXPECT_EQ(roughness, std::sqrt(static_cast<double>(c.alpha)));
+    EXPECT_NEAR(roughness * roughness, static_cast<double>(c.alpha), 1e-15);
+    const double ior = mat["extensions"]["KHR_materials_ior"]["ior"].get<double>();
+    EXPECT_EQ(ior, static_cast<double>(c.eta));
+    const json& spec = mat["extensions"]["KHR_materials_specular"];
+    EXPECT_EQ(spec.value("specularFactor", 1.0), 1.0);
+    ASSERT_EQ(spec["specularColorFactor"].size(), 3u);
+
+    // The viewer's GGX distribution (glTF appendix B, alpha = roughness^2) is the model's.
+    const double a = roughness * roughness;
+    for (const double nh : {1.0, 0.99, 0.9, 0.6, 0.2}) {
+        const double t = nh * nh * (a * a - 1.0) + 1.0;
+        const double d_gltf = a * a / (std::numbers::pi * t * t);
+        EXPECT_NEAR(d_gltf / shared::f64::coated_ggx_d(nh, static_cast<double>(c.alpha)), 1.0, 1e-12) << nh;
+    }
+    // The viewer's F0 (both extensions) is the coated reflection's tint times its exact Fresnel
+    // reflectance at normal incidence.
+    for (int ch = 0; ch < 3; ++ch) {
+        const double f0_gltf = std::min(std::pow((ior - 1.0) / (ior + 1.0), 2.0) * spec["specularColorFactor"][ch].get<double>(), 1.0) *
+                               spec.value("specularFactor", 1.0);
+        const double f0_model = static_cast<double>(c.tint[ch]) * shared::f64::coated_fresnel(1.0, static_cast<double>(c.eta));
+        EXPECT_NEAR(f0_gltf, f0_model, 1e-12) << ch;
+    }
+    // A Lafortune bundle keeps its single extension and no KHR_materials_* object.
+    write_bundle(dir / "l.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe)));
+    const json ldoc = test::glb_json(dir / "l.glb");
+    EXPECT_EQ(ldoc["extensionsUsed"], json::array({"SPECULA_lafortune"}));
+    EXPECT_EQ(ldoc["materials"][0]["extensions"].size(), 1u);
+}
+
+TEST(BundleCoated, WritingRefusesParametersOutOfRangeNamingTheField) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    const auto file = dir / "bad.glb";
+    auto expect_write_refusal = [&](const CoatedParams& c, const std::string& field) {
+        Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = c});
+        try {
+            write_bundle(file, b);
+            ADD_FAILURE() << "expected InputError on " << field;
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.file(), file);
+            EXPECT_EQ(e.field(), field) << e.what();
+        }
+        EXPECT_FALSE(std::filesystem::exists(file));
+    };
+    CoatedParams c = coated_params();
+    c.eta = 1.0f; // no interface: below shared::kCoatedMinEta
+    expect_write_refusal(c, "material.specular.coated.eta");
+    c = coated_params();
+    c.alpha = std::numeric_limits<float>::quiet_NaN();
+    expect_write_refusal(c, "material.specular.coated.alpha");
+    c = coated_params();
+    c.tint.y = -0.5f;
+    expect_write_refusal(c, "material.specular.coated.tint");
+    // Warped cube-maps hold a Lafortune lobe over its radial factor: not a coated model's.
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = coated_params()});
+    b.material.factorized = FactorizedSpecular{.param = FactorParam::Warped, .warp = glm::vec4(-1.0f, 0.5f, 0.5f, 0.5f),
+                                               .terms = {{test::random_cube(2, 1), test::random_cube(2, 2)}}};
+    EXPECT_THROW(write_bundle(file, b), InputError);
+}
+
+TEST(BundleCoated, ReadingRefusesUnknownModelsVersionsAndBadParametersNamingTheField) {
+    const test::BundlePieces p = test::make_pieces(3, 4);
+    TempDir dir("bundle");
+    const auto file = dir / "c.glb";
+    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = coated_params()}));
+    const json good = test::glb_json(file);
+    const std::string ext = "materials[0].extensions.SPECULA_lafortune";
+    const auto with = [&](const std::function<void(json&)>& edit) {
+        json d = good;
+        edit(d["materials"][0]["extensions"]["SPECULA_lafortune"]);
+        test::rewrite_glb_json(file, d);
+    };
+    with([](json&) {}); // the control: the unedited file reads
+    EXPECT_NO_THROW((void)read_bundle(file));
+
+    with([](json& e) { e["model"] = "velvet"; });
+    expect_bundle_refusal(file, ext + ".model", "unknown model \"velvet\"");
+    with([](json& e) { e["model"] = 1; });
+    expect_bundle_refusal(file, ext + ".model", "unknown model");
+    with([](json& e) { e["version"] = 6; }); // a future version
+    expect_bundle_refusal(file, ext + ".version", "unsupported version");
+    with([](json& e) { e["version"] = 4; }); // the model needs version 5
+    expect_bundle_refusal(file, ext + ".model", "needs version 5");
+    with([](json& e) { e["coated"]["eta"] = 0.5; });
+    expect_bundle_refusal(file, ext + ".coated.eta", "outside");
+    with([](json& e) { e["coated"]["eta"] = 3.5; });
+    expect_bundle_refusal(file, ext + ".coated.eta", "outside");
+    with([](json& e) { e["coated"]["eta"] = 1e300; }); // beyond float: refused, not narrowed
+    expect_bundle_refusal(file, ext + ".coated.eta", "finite");
+    with([](json& e) { e["coated"]["alpha"] = 0.0; });
+    expect_bundle_refusal(file, ext + ".coated.alpha", "outside");
+    with([](json& e) { e["coated"]["alpha"] = 1.5; });
+    expect_bundle_refusal(file, ext + ".coated.alpha", "outside");
+    with([](json& e) { e["coated"]["tint"] = json::array({1.0, -0.25, 1.0}); });
+    expect_bundle_refusal(file, ext + ".coated.tint", "non-negative");
+    with([](json& e) { e["coated"]["tint"] = json::array({1.0, 1.0}); });
+    expect_bundle_refusal(file, ext + ".coated.tint", "missing or not an array of 3 numbers");
+    for (const char* key : {"eta", "alpha", "tint"}) {
+        with([&](json& e) { e["coated"].erase(key); });
+        expect_bundle_refusal(file, ext + ".coated." + key, "missing");
+    }
+    with([](json& e) { e["coated"]["eta"] = "1.5"; });
+    expect_bundle_refusal(file, ext + ".coated.eta", "not a number");
+    with([](json& e) { e.erase("coated"); });
+    expect_bundle_refusal(file, ext + ".coated", "missing");
+    with([](json& e) { e["coated"] = json::array({1.5, 0.1}); });
+    expect_bundle_refusal(file, ext + ".coated", "not an object");
+    with([](json& e) { e.erase("model"); }); // coated parameters without the model
+    expect_bundle_refusal(file, ext + ".coated", "without \"model\": \"coated\"");
+    with([](json& e) { e["lobe"] = {{"cx", {-1, -1, -1}}, {"cz", {1, 1, 1}}, {"n", {10, 10, 10}}}; });
+    expect_bundle_refusal(file, ext + ".lobe", "in a \"coated\" model");
+    // An explicit "lafortune" model in version 5 reads as the lobe it carries.
+    with([](json& e) {
+        e["model"] = "lafortune";
+        e.erase("coated");
+        e["lobe"] = {{"cx", {-1, -1, -1}}, {"cz", {1, 1, 1}}, {"n", {10, 10, 10}}};
+    });
+    const Bundle r = read_bundle(file);
+    ASSERT_TRUE(r.material.specular && std::holds_alternative<LafortuneRgb>(*r.material.specular));
+    EXPECT_EQ(lobe_of(r).n, glm::vec3(10.0f));
 }
 
 TEST(BundleGuard, JsonNestingInTheExtensionIsRefusedWithoutCrashing) {

@@ -1,8 +1,10 @@
 #pragma once
-// The bundles behind tests/export/data/legacy_v1.glb and legacy_v4.glb: small, explicit
-// bundles (no atlas, no random numbers) written by write_bundle before the glTF I/O moved to
-// engine/capture/gltf_io (commit 55e0ad6). The test reads the files and compares them, bit
-// for bit, with these; and writes them again to check the format did not change.
+// The bundles behind tests/export/data/legacy_v{0,1,3,4}.glb: small, explicit bundles (no
+// atlas, no random numbers). legacy_v1 and legacy_v4 were written by write_bundle before the
+// glTF I/O moved to engine/capture/gltf_io (commit 55e0ad6), legacy_v0 and legacy_v3 before
+// the extension's version 5 (the coated family, commit c405134's write_bundle). The test reads
+// the files and compares them, bit for bit, with these; and writes them again to check the
+// format did not change.
 #include "export/bundle.h"
 
 #include <cstdint>
@@ -18,7 +20,9 @@ inline CubeMap ramp_cube(std::uint32_t res, float start, float step) {
     return c;
 }
 
-/// version 1: one factorization term; version 4: the warped parametrization with a second term.
+/// version 1: one factorization term; version 3: the mirrored parametrization with a second
+/// term; version 4: the warped parametrization with a second term; version 0: version 1's
+/// bundle without lobe and cube-maps (a Lambertian bundle, written as version 1).
 inline Bundle legacy_bundle(int version) {
     Bundle b;
     b.mesh.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0.25f}, {0, 1, 0}, {0.5f, 0.5f, -0.125f}};
@@ -37,6 +41,15 @@ inline Bundle legacy_bundle(int version) {
         b.material.factorized->terms.push_back({ramp_cube(1, -0.25f, 0.0625f), ramp_cube(2, 1.0f, 0.015625f)});
         b.material.factorized->param = FactorParam::Warped;
         b.material.factorized->warp = glm::vec4(-1.0f, 0.5f, 0.75f, 1.25f);
+    }
+    if (version == 3) {
+        b.material.factorized->terms.push_back({ramp_cube(1, 0.75f, -0.0625f), ramp_cube(2, 0.5f, 0.03125f)});
+        b.material.factorized->param = FactorParam::Mirrored;
+    }
+    if (version == 0) {
+        b.material.specular.reset();
+        b.material.status.clear();
+        b.material.factorized.reset();
     }
     return b;
 }

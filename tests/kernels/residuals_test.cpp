@@ -55,6 +55,7 @@ void expect_same_samples(const ResidualSamples& ref, const ResidualSamples& vk) 
         }
         ASSERT_NEAR(a.u.w, b.u.w, 1e-5 * std::abs(a.u.w) + 1e-12) << "sample " << i;
         ASSERT_NEAR(a.v.w, b.v.w, 1e-5 * std::abs(a.v.w) + 1e-12) << "sample " << i;
+        for (int c = 0; c < 4; ++c) ASSERT_NEAR(a.d[c], b.d[c], 1e-5 * std::abs(a.d[c]) + 1e-7) << "sample " << i << " d " << c;
     }
     std::printf("residuals: %zu samples, worst |df| Ebar = %.3g\n", ref.samples.size(), worst);
 }
@@ -91,6 +92,20 @@ TEST_F(ResidualsConformance, VulkanMatchesCpuReference) {
     const ResidualSamples vk_plain = kernel.run(in, diffuse(), {.tap_irradiance = false});
     expect_same_counts(ref_plain.counts, vk_plain.counts);
     expect_same_samples(ref_plain, vk_plain);
+    // A known coated material: its diffuse factor k_d in each sample's diffuse term and in d.w.
+    const ResidualOptions coated{.material = CoatedParams{.eta = 1.5f, .alpha = 0.12f}};
+    const ResidualSamples ref_coated = residual_samples_cpu(in, diffuse(), coated);
+    const ResidualSamples vk_coated = kernel.run(in, diffuse(), coated);
+    expect_same_counts(ref_coated.counts, vk_coated.counts);
+    expect_same_samples(ref_coated, vk_coated);
+    bool below_one = false;
+    for (const ResidualSample& q : ref_coated.samples)
+        if (q.status == shared::kResidualUsed) {
+            ASSERT_GT(q.d.w, 0.0f);
+            ASSERT_LE(q.d.w, 1.0001f);
+            below_one = below_one || q.d.w < 0.95f;
+        }
+    EXPECT_TRUE(below_one); // the coating's fall-off reaches the samples
 }
 
 TEST_F(ResidualsConformance, BatchedAndChunkedUnderASmallBindingLimit) {

@@ -194,6 +194,25 @@ TEST(ReportHtml, ShowsPlannerLeftOutAndBothPixelSetsWithEscapedStrings) {
     EXPECT_EQ(html.find("http://"), html.find("http://www.w3.org/2000/svg")); // no external asset
 }
 
+// The quality table shows Q1 and PSNR on display and linear values (evaluate.h), display
+// first for an sRGB integer capture, linear first for a float one.
+TEST(ReportHtml, QualityShowsDisplayAndLinearFiguresDisplayFirstForSrgbCaptures) {
+    json q = {{"frames", 3}, {"q1", 93.5}, {"q2", 97.0}, {"rms_percent", 6.5}, {"psnr", 30.1},
+              {"q1_display", 91.25}, {"psnr_display", 27.75}};
+    for (const char* encoding : {"srgb8", "srgb"}) {
+        const json r = {{"evaluation", {{"display_encoding", encoding}, {"test", {{"masked", q}, {"full", q}}}}}};
+        const std::string html = report::report_html(r);
+        ASSERT_NE(html.find("<th>Q1 display</th>"), std::string::npos);
+        ASSERT_NE(html.find("<th>Q1 linear</th>"), std::string::npos);
+        EXPECT_NE(html.find("<td>91.25</td><td>27.75</td>"), std::string::npos) << encoding;
+        EXPECT_NE(html.find("<td>93.50</td><td>30.10</td>"), std::string::npos) << encoding;
+        const bool display_first = std::string(encoding) == "srgb8";
+        EXPECT_EQ(html.find("<th>Q1 display</th>") < html.find("<th>Q1 linear</th>"), display_first) << encoding;
+        EXPECT_EQ(html.find("<td>91.25</td>") < html.find("<td>93.50</td>"), display_first) << encoding;
+        EXPECT_NE(html.find(std::string("<code>") + encoding + "</code>"), std::string::npos) << encoding;
+    }
+}
+
 TEST(SvgPlot, MarksTheDefaultAndDrawsTheFront) {
     const std::vector<report::PlotPoint> pts{{1.0, 5.0, "fast", false, true}, {2.0, 3.0, "default <1>", true, true},
                                              {3.0, 4.0, "slow", false, false}};

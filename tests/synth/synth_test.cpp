@@ -1,10 +1,13 @@
 // Closed-form checks of the synthetic-capture renderer and writer:
 // radiometry against an analytic sphere, the capture format's projection,
-// shadows, a Lafortune highlight, determinism, noise statistics, a whole
-// capture read back with load_capture, and the atomic write.
+// shadows, a Lafortune highlight, the spread and thesis rigs, determinism, noise
+// statistics, a whole capture read back with load_capture, a coated capture against
+// its model, ground_truth, the unchanged default, and the atomic write.
 #include "capture/capture.h"
 #include "core/error.h"
 #include "core/image.h"
+#include "material/material.h"
+#include "shared/material.h"
 #include "shared/prelude.h"
 #include "synth/noise.h"
 #include "synth/presets.h"
@@ -20,6 +23,9 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <optional>
+#include <variant>
 
 namespace specula::synth {
 namespace {
@@ -250,6 +256,58 @@ TEST(SynthRig, LightsAtTheStatedAnglesAndExposureAsStated) {
     EXPECT_GT(covered, 64u * 64u / 2u) << "the object should fill most of the image";
 }
 
+// The thesis rig (Erdem 2003 section 3.1: six point lights around the camera; the judged rig: a
+// ring about 15 degrees around each camera): every light, train and test, 15 degrees off the
+// camera direction seen from the object's centre, at the camera's distance; six per train view,
+// 60 degrees apart in azimuth about that direction; the test lights between the train ring's.
+// The cameras are the spread rig's.
+TEST(SynthRig, ThesisRigPutsSixLightsOnA15DegreeRing) {
+    const Mesh sphere = make_uv_sphere(glm::vec3(0.2f, 0.5f, -0.1f), 0.5f, 64, 32);
+    RigOptions ro;
+    ro.size = 64;
+    ro.kind = RigKind::Thesis;
+    const Rig rig = make_rig(sphere, ro);
+    RigOptions spread_options = ro;
+    spread_options.kind = RigKind::Spread;
+    const Rig spread = make_rig(sphere, spread_options);
+    ASSERT_EQ(rig.views.size(), 24u);
+    ASSERT_EQ(spread.views.size(), rig.views.size());
+    EXPECT_EQ(rig.frame_count(Split::Train), 120u) << "the thesis's 20 views x 6 lights";
+    EXPECT_EQ(rig.frame_count(Split::Test), 8u);
+    const auto degrees = [](const glm::dvec3& a, const glm::dvec3& b) {
+        return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)) * 180.0 / kPi;
+    };
+    for (std::size_t i = 0; i < rig.views.size(); ++i) {
+        const RigView& v = rig.views[i];
+        EXPECT_EQ(v.camera.camera_to_world, spread.views[i].camera.camera_to_world) << "view " << i;
+        ASSERT_EQ(v.lights.size(), v.split == Split::Train ? 6u : 2u) << "view " << i;
+        const glm::dvec3 to_eye = v.camera.center() - rig.center;
+        std::vector<double> azimuths;
+        for (const PointLight& l : v.lights) {
+            const glm::dvec3 to_light = l.position - rig.center;
+            EXPECT_NEAR(degrees(to_light, to_eye), 15.0, 1.0) << "view " << i;   // the bound
+            EXPECT_NEAR(degrees(to_light, to_eye), 15.0, 1e-6) << "view " << i;  // and exactly as built
+            EXPECT_NEAR(glm::length(to_light), rig.camera_distance, 1e-9);
+            const glm::dvec3 lc = v.camera.to_camera(l.position);
+            azimuths.push_back(std::atan2(lc.y, lc.x) * 180.0 / kPi);
+        }
+        for (std::size_t l = 0; l < azimuths.size(); ++l) {
+            const double first = v.split == Split::Train ? 0.0 : 90.0 + 30.0; // (l + 0.5) 360 / 2 + 180 / 6
+            const double step = v.split == Split::Train ? 60.0 : 180.0;
+            EXPECT_NEAR(std::remainder(azimuths[l] - (first + step * double(l)), 360.0), 0.0, 1e-6) << "view " << i << " light " << l;
+        }
+    }
+    // --lights sets the lights per ring; the ring's angle stays.
+    ro.lights = 4;
+    const Rig four = make_rig(sphere, ro);
+    EXPECT_EQ(four.frame_count(Split::Train), 80u);
+    EXPECT_NEAR(degrees(four.views[5].lights[3].position - four.center, four.views[5].camera.center() - four.center), 15.0, 1e-6);
+    // Names.
+    EXPECT_EQ(parse_rig_kind("thesis"), RigKind::Thesis);
+    EXPECT_EQ(parse_rig_kind(to_string(RigKind::Spread)), RigKind::Spread);
+    EXPECT_THROW((void)parse_rig_kind("ring"), UsageError);
+}
+
 // (e) Same inputs, same bytes: thread count and repeated runs do not change anything.
 TEST(SynthDeterminism, ThreadsAndSeedsGiveIdenticalResults) {
     const Preset knot = make_preset("knot");
@@ -361,6 +419,242 @@ TEST(SynthCapture, WrittenCaptureLoadsBackWithItsTruth) {
     for (std::size_t i = 0; i < img.pixels.size(); ++i)
         max_err = std::max(max_err, std::abs(img.pixels[i] - std::min(ref.color.pixels[i], 1.0f)) / (std::min(ref.color.pixels[i], 1.0f) + 0.05));
     EXPECT_LT(max_err, 0.01);
+}
+
+// The first hit of a ray on a mesh, in double, by testing every triangle (Moller and Trumbore
+// 1997): the surface point and the interpolated unit normal the renderer shades, known
+// independently of Embree.
+struct MeshHit {
+    double t = 0.0;
+    glm::dvec3 point{0.0}, normal{0.0}, geometric_normal{0.0};
+};
+std::optional<MeshHit> first_hit(const Mesh& mesh, const glm::dvec3& o, const glm::dvec3& d) {
+    std::optional<MeshHit> best;
+    for (const glm::uvec3& tri : mesh.triangles) {
+        const glm::dvec3 p0(mesh.positions[tri.x]), e1 = glm::dvec3(mesh.positions[tri.y]) - p0, e2 = glm::dvec3(mesh.positions[tri.z]) - p0;
+        const glm::dvec3 pv = glm::cross(d, e2);
+        const double det = glm::dot(e1, pv);
+        if (std::abs(det) < 1e-15) continue;
+        const glm::dvec3 tv = o - p0;
+        const double b1 = glm::dot(tv, pv) / det;
+        if (b1 < 0.0 || b1 > 1.0) continue;
+        const glm::dvec3 qv = glm::cross(tv, e1);
+        const double b2 = glm::dot(d, qv) / det, t = glm::dot(e2, qv) / det;
+        if (b2 < 0.0 || b1 + b2 > 1.0 || t <= 0.0 || (best && t >= best->t)) continue;
+        const double b0 = 1.0 - b1 - b2;
+        glm::dvec3 ng = glm::normalize(glm::cross(e1, e2));
+        if (glm::dot(ng, d) > 0.0) ng = -ng;
+        best = MeshHit{t, o + t * d,
+                       glm::normalize(b0 * glm::dvec3(mesh.normals[tri.x]) + b1 * glm::dvec3(mesh.normals[tri.y]) +
+                                      b2 * glm::dvec3(mesh.normals[tri.z])),
+                       ng};
+    }
+    return best;
+}
+
+// (i) A coated capture's pixels are the model's: a sphere of constant (dark) albedo under a
+// tinted coating, lit by the thesis rig (its highlights near the middle of every frame),
+// written as png16 and decoded by the capture reader. At the surface point each pixel's centre
+// ray hits (found here by first_hit), the pixel equals I max(0, n.u) / d^2 (rho / pi k_d + f_s),
+// with k_d = material_diffuse_factor and f_s = material_specular (shared/material.h, double),
+// within one code of the 16-bit sRGB encoding.
+TEST(SynthCapture, CoatedPixelsAreTheModelTimesTheIrradiance) {
+    test::TempDir tmp("synth-coated");
+    SynthObject ball;
+    ball.name = "ball";
+    ball.mesh = make_uv_sphere(glm::vec3(0.1f, 0.2f, -0.1f), 0.5f, 32, 16);
+    ball.material.albedo_value = glm::vec3(0.2f, 0.15f, 0.1f); // dark: the highlight stands out
+    ball.material.coated = CoatedParams{1.5f, 0.12f, glm::vec3(1.0f, 0.9f, 0.8f)};
+    SynthOptions o;
+    o.size = 40;
+    o.views = 2;
+    o.test_views = 1;
+    o.rig = RigKind::Thesis;
+    o.format = ImageFormat::Png16;
+    (void)write_synthetic_capture(ball, tmp / "cap", o);
+    const Capture cap = load_capture(tmp / "cap");
+    ASSERT_EQ(cap.desc.frames.size(), 14u);
+    const shared::MaterialGpu gpu = material_gpu(SpecularModel(*ball.material.coated));
+    const glm::dvec3 rho(ball.material.albedo_value);
+
+    std::size_t compared = 0, highlights = 0;
+    double worst = 0.0; // error / tolerance
+    for (std::size_t k = 0; k < cap.desc.frames.size(); ++k) {
+        const FrameDesc& f = cap.desc.frames[k];
+        const Camera cam = f.camera();
+        const Image& img = cap.images[k].color;
+        for (int y = 0; y < img.height; y += 2) {
+            for (int x = 0; x < img.width; x += 2) {
+                const glm::dvec3 dir = cam.ray_direction(x + 0.5, y + 0.5);
+                const std::optional<MeshHit> hit = first_hit(cap.mesh, cam.center(), dir);
+                if (!hit) continue;
+                const glm::dvec3 to_light = f.light.position - hit->point;
+                const double d = glm::length(to_light);
+                const glm::dvec3 u = to_light / d, v = -dir;
+                const double ci = glm::dot(hit->normal, u), co = glm::dot(hit->normal, v);
+                // Away from the terminator, where the faceted surface decides what is lit.
+                if (ci < 0.05 || glm::dot(hit->geometric_normal, u) < 0.05) continue;
+                const double kd = shared::f64::material_diffuse_factor(gpu, ci, co);
+                const glm::dvec3 fs = shared::f64::material_specular(gpu, ci, co, glm::dot(u, v));
+                highlights += fs.x > rho.x / kPi * kd;
+                for (int c = 0; c < 3; ++c) {
+                    const double expected = f.light.intensity[c] * ci / (d * d) * (rho[c] / kPi * kd + fs[c]);
+                    if (expected >= 0.99) continue; // clipped at saturation 1.0
+                    // One code of the encoding at this value (16-bit sRGB): covers its rounding and
+                    // the renderer's float rounding.
+                    const float s = linear_to_srgb(static_cast<float>(expected));
+                    const double tolerance = srgb_to_linear(std::min(s + 1.0f / 65535.0f, 1.0f)) - expected;
+                    worst = std::max(worst, std::abs(img.at(x, y, c) - expected) / tolerance);
+                    ++compared;
+                }
+            }
+        }
+    }
+    EXPECT_GT(compared, 3000u);
+    EXPECT_GT(highlights, 30u) << "no pixel where the highlight outshines the diffuse term was compared";
+    EXPECT_LE(worst, 1.0);
+    std::printf("coated sphere: %zu values compared (%zu pixels in highlights), worst error %.3f of one code\n", compared,
+                highlights, worst);
+}
+
+// (j) ground_truth records the family and its exact parameters, and the rig; a coated capture
+// has no Lafortune lobe. The frames' lights are the thesis rig's: six per train view, each 15
+// degrees off the camera direction seen from the recorded object centre.
+TEST(SynthCapture, GroundTruthRecordsTheCoatedMaterialAndTheThesisRig) {
+    test::TempDir tmp("synth-gt");
+    SynthOptions o;
+    o.size = 32;
+    o.views = 3;
+    o.test_views = 1;
+    o.rig = RigKind::Thesis;
+    const Preset can = make_preset("can", false, MaterialFamily::Coated);
+    ASSERT_TRUE(can.material.coated.has_value());
+    (void)write_synthetic_capture(to_object(can), tmp / "cap", o);
+    const Capture cap = load_capture(tmp / "cap", {.load_images = false});
+    const nlohmann::json& gt = cap.desc.ground_truth;
+    EXPECT_EQ(gt.at("material").at("family"), "coated");
+    const SpecularModel back = material_from_json(gt.at("material"));
+    ASSERT_TRUE(std::holds_alternative<CoatedParams>(back));
+    const CoatedParams& c = std::get<CoatedParams>(back);
+    EXPECT_EQ(c.eta, can.coated.eta); // exactly: the floats survive JSON
+    EXPECT_EQ(c.alpha, can.coated.alpha);
+    EXPECT_EQ(c.tint, can.coated.tint);
+    EXPECT_EQ(c.eta, 1.5f);
+    EXPECT_EQ(c.alpha, 0.12f);
+    EXPECT_FALSE(gt.contains("lobe")) << "a coated capture has no lobe to compare a fit with";
+    EXPECT_EQ(gt.at("lambertian"), false);
+    EXPECT_EQ(gt.at("rig").at("name"), "thesis");
+    EXPECT_EQ(gt.at("rig").at("light_angles_deg"), nlohmann::json::array({15.0}));
+
+    const nlohmann::json& oc = gt.at("rig").at("object_center");
+    const glm::dvec3 center(oc[0].get<double>(), oc[1].get<double>(), oc[2].get<double>());
+    std::map<int, int> lights_per_view;
+    for (const FrameDesc& f : cap.desc.frames) {
+        if (f.split == Split::Train) ++lights_per_view[f.view_index];
+        const glm::dvec3 a = glm::normalize(f.light.position - center), b = glm::normalize(f.camera().center() - center);
+        EXPECT_NEAR(std::acos(std::clamp(glm::dot(a, b), -1.0, 1.0)) * 180.0 / kPi, 15.0, 1.0) << f.file_path;
+    }
+    ASSERT_EQ(lights_per_view.size(), 3u);
+    for (const auto& [view, n] : lights_per_view) EXPECT_EQ(n, 6) << "view " << view;
+
+    // Both families round-trip, and a broken record is refused.
+    const LafortuneRgb lobe = thesis_lobe("vase");
+    EXPECT_EQ(material_to_json(lobe).at("family"), "lafortune");
+    const SpecularModel lb = material_from_json(material_to_json(lobe));
+    ASSERT_TRUE(std::holds_alternative<LafortuneRgb>(lb));
+    EXPECT_EQ(std::get<LafortuneRgb>(lb).cz, lobe.cz);
+    EXPECT_EQ(std::get<LafortuneRgb>(lb).n, lobe.n);
+    EXPECT_THROW((void)material_from_json({{"family", "glossy"}}), Error);
+    EXPECT_THROW((void)material_from_json({{"family", "coated"}, {"eta", 1.5}}), Error);
+}
+
+// (k) The default is today's capture: --material lafortune and --rig spread, given or not,
+// write the same bytes, with the lafortune ground_truth keys; the coated family changes the
+// images but not the mask.
+TEST(SynthCapture, LafortuneSpreadIsTheDefaultAndUnchanged) {
+    test::TempDir tmp("synth-default");
+    SynthOptions o;
+    o.size = 40;
+    o.views = 2;
+    o.lights = 3;
+    o.test_views = 1;
+    o.format = ImageFormat::Png16;
+    (void)write_synthetic_capture(to_object(make_preset("vase")), tmp / "default", o);
+    SynthOptions explicit_options = o;
+    explicit_options.rig = RigKind::Spread;
+    (void)write_synthetic_capture(to_object(make_preset("vase", false, MaterialFamily::Lafortune)), tmp / "lafortune", explicit_options);
+    (void)write_synthetic_capture(to_object(make_preset("vase", false, MaterialFamily::Coated)), tmp / "coated", o);
+    std::size_t images = 0;
+    for (const auto& e : fs::directory_iterator(tmp / "default" / "images")) {
+        const fs::path rel = fs::path("images") / e.path().filename();
+        EXPECT_TRUE(file_bytes(tmp / "default" / rel) == file_bytes(tmp / "lafortune" / rel)) << rel;
+        EXPECT_TRUE(file_bytes(tmp / "default" / rel) != file_bytes(tmp / "coated" / rel)) << rel;
+        ++images;
+    }
+    EXPECT_EQ(images, 8u);
+    EXPECT_TRUE(file_bytes(tmp / "default" / "masks/v01.png") == file_bytes(tmp / "coated" / "masks/v01.png"));
+    EXPECT_TRUE(file_bytes(tmp / "default" / "capture.json") == file_bytes(tmp / "lafortune" / "capture.json"));
+    const nlohmann::json gt = nlohmann::json::parse(std::ifstream(tmp / "default" / "capture.json"))["ground_truth"];
+    const Preset vase = make_preset("vase");
+    EXPECT_EQ(lobe_from_json(gt.at("lobe")).n, vase.material.lobe.n);
+    EXPECT_EQ(gt.at("lambertian"), false);
+    EXPECT_EQ(gt.at("material").at("family"), "lafortune");
+    EXPECT_EQ(std::get<LafortuneRgb>(material_from_json(gt.at("material"))).cx, vase.material.lobe.cx);
+    EXPECT_EQ(gt.at("rig").at("name"), "spread");
+    EXPECT_EQ(gt.at("rig").at("light_angles_deg"), nlohmann::json(RigOptions{}.light_angles_deg));
+}
+
+// (l) Every preset's coated material: tint 1, eta in [1.3, 1.7], alpha in [0.05, 0.4], distinct
+// from the other presets' (knot_hd is the knot), valid for the model, and energy-conserving with
+// the preset's own albedo (at most coated_max_albedo). The coated family zeroes the lobe and
+// keeps the albedo; --lambertian is refused with it, and so is a coated material with a lobe.
+TEST(SynthPresets, CoatedMaterialsArePlausibleAndDistinct) {
+    std::vector<std::pair<std::string, CoatedParams>> seen;
+    for (const PresetInfo& info : list_presets()) {
+        if (info.name == "knot_hd") continue; // the knot's mesh at high resolution (checked below)
+        const Preset lafortune = make_preset(info.name);
+        const Preset coated = make_preset(info.name, false, MaterialFamily::Coated);
+        const CoatedParams& c = lafortune.coated;
+        EXPECT_FALSE(lafortune.material.coated.has_value()) << info.name;
+        ASSERT_TRUE(coated.material.coated.has_value()) << info.name;
+        EXPECT_EQ(coated.material.coated->eta, c.eta);
+        EXPECT_EQ(coated.material.coated->alpha, c.alpha);
+        EXPECT_TRUE(coated.material.lobe.is_zero()) << info.name;
+        EXPECT_EQ(coated.material.albedo_texture.pixels, lafortune.material.albedo_texture.pixels) << info.name;
+        EXPECT_EQ(coated.material.family(), MaterialFamily::Coated);
+        EXPECT_EQ(c.tint, glm::vec3(1.0f)) << info.name;
+        EXPECT_GE(c.eta, 1.3f) << info.name;
+        EXPECT_LE(c.eta, 1.7f) << info.name;
+        EXPECT_GE(c.alpha, 0.05f) << info.name;
+        EXPECT_LE(c.alpha, 0.4f) << info.name;
+        EXPECT_FALSE(invalid_parameters(SpecularModel(c)).has_value()) << info.name;
+        const float max_albedo = *std::max_element(lafortune.material.albedo_texture.pixels.begin(),
+                                                   lafortune.material.albedo_texture.pixels.end());
+        EXPECT_LE(max_albedo, coated_max_albedo(c.eta)) << info.name;
+        for (const auto& [name, other] : seen) {
+            EXPECT_FALSE(other.eta == c.eta && other.alpha == c.alpha) << info.name << " and " << name;
+        }
+        seen.emplace_back(info.name, c);
+    }
+    EXPECT_EQ(seen.size(), 6u);
+    EXPECT_EQ(make_preset("knot_hd").coated.alpha, make_preset("knot").coated.alpha);
+    EXPECT_THROW((void)make_preset("can", true, MaterialFamily::Coated), UsageError);
+
+    test::TempDir tmp("synth-refuse");
+    SynthOptions o;
+    o.size = 16;
+    o.views = 1;
+    o.lights = 1;
+    o.test_views = 0;
+    o.lambertian = true;
+    EXPECT_THROW((void)write_synthetic_capture(to_object(make_preset("sphere", false, MaterialFamily::Coated)), tmp / "a", o), UsageError);
+    Material both = make_preset("sphere").material;
+    both.coated = CoatedParams{};
+    const Mesh sphere = make_uv_sphere(glm::vec3(0.0f), 1.0f, 16, 8);
+    EXPECT_THROW((void)Renderer(sphere, both), Error);
+    Material bad;
+    bad.coated = CoatedParams{0.9f, 0.1f, glm::vec3(1.0f)};
+    EXPECT_THROW((void)Renderer(sphere, bad), Error);
 }
 
 // (h) A failed write leaves no output folder and no temporary folder; an existing

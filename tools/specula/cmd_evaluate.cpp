@@ -82,10 +82,13 @@ void add_evaluate_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "evaluate",
         "Re-render every frame of a capture from a bundle and compare (thesis chapter 5: Q1, Q2, RMS%, DDE%, NCC,\n"
-        "L1, L2, Hausdorff, PSNR, SSIM) over the object's pixels (the mask) and the full frame, per split (train/test).");
+        "L1, L2, Hausdorff, PSNR, SSIM) over the object's pixels (the mask) and the full frame, per split (train/test).\n"
+        "Q1, RMS and PSNR are given on linear values and on display values (both images in the capture's own\n"
+        "encoding, e.g. sRGB 8-bit: the figures the field reports), display first for sRGB captures.");
     cmd->add_option("bundle", a->bundle, "Bundle written by reconstruct (.glb)")->required();
     cmd->add_option("capture", a->capture, "Capture folder, or its capture.json")->required();
-    cmd->add_option("--json", a->json, "Write the aggregates (train/test x masked/full) and per-frame measures here");
+    cmd->add_option("--json", a->json,
+                    "Write the aggregates (train/test x masked/full) and per-frame measures here (psnr_display, psnr_linear, ...)");
     cmd->add_option("--sheets", a->sheets,
                     "Write captured | rendered | difference sheets (PNG) here; difference = 0.5 + 4 x (rendered - captured)\n"
                     "in sRGB display values");

@@ -26,6 +26,8 @@ struct ReconstructArgs {
     std::uint32_t texture_size = 4096;
     std::string atlas = "charts";
     std::string specular = "auto";
+    std::string material = "auto";
+    bool coated_tint = false;
     std::string factor_param = "auto";
 };
 
@@ -53,6 +55,8 @@ void run_reconstruct(ReconstructArgs& args) {
     c.factor_param = factor_param_from_string(args.factor_param); // "auto": nullopt
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
+    c.material = material_family_from_string(args.material); // "auto": nullopt (CLI11 checked the name)
+    c.coated.fit_tint = args.coated_tint;
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
     c.atlas.mode = atlas_mode_from_string(args.atlas).value_or(AtlasMode::Charts); // CLI11 checked the name
@@ -123,6 +127,16 @@ void add_reconstruct_command(CLI::App& app) {
                     "on: always fit (the report gives its cost); off: no residual samples, no fit")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
+    cmd->add_option("--material", args->material,
+                    "the specular model family: lafortune (the thesis: Lambert + one Lafortune lobe per channel),\n"
+                    "coated (a Lambertian base under a dielectric coating of index eta: its diffuse falls with the\n"
+                    "Fresnel transmission at the light and the viewer, plus a GGX reflection of roughness alpha), or\n"
+                    "auto: estimate both on the train frames less one light of each view and keep the one with the\n"
+                    "least error on those held-out frames (the report gives both, with their times)")
+        ->check(CLI::IsMember({"auto", "lafortune", "coated"}))
+        ->capture_default_str();
+    cmd->add_flag("--coated-tint", args->coated_tint,
+                  "coated: fit a specular tint per channel (default: 1, a clear dielectric coating)");
     cmd->add_option("--joint-rounds", args->config.joint_rounds,
                     "After a fit: rounds of (diffuse solve minus the lobe's light, residuals, refit) until the "
                     "lobe settles; 0 = the thesis's single pass")

@@ -6,11 +6,13 @@
 #include "core/error.h"
 #include "core/image.h"
 #include "core/log.h"
+#include "material/material.h"
 #include "synth/synth.h"
 
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,9 @@ struct SynthArgs {
     std::vector<double> lobe;
     std::vector<double> lobe_rgb;
     std::string format = "png8";
+    std::string material = "lafortune";
+    std::string rig = "spread";
+    bool light_angles_given = false;
     bool list_presets = false;
     synth::SynthOptions options;
 };
@@ -52,7 +57,16 @@ synth::LafortuneRgb parse_lobe(const SynthArgs& a) {
     return lobe;
 }
 
+MaterialFamily parse_family(const std::string& text) {
+    const std::optional<MaterialFamily> f = material_family_from_string(text);
+    if (!f) throw UsageError("--material: unknown material family '" + text + "' (lafortune, coated)");
+    return *f;
+}
+
 synth::SynthObject make_object(const SynthArgs& a) {
+    const MaterialFamily family = parse_family(a.material);
+    if (family == MaterialFamily::Coated && (!a.lobe.empty() || !a.lobe_rgb.empty()))
+        throw UsageError("--lobe and --lobe-rgb give a Lafortune lobe: they apply to --material lafortune only");
     synth::SynthObject object;
     if (!a.mesh.empty()) {
         MeshLoadResult loaded = load_mesh(a.mesh, "--mesh");
@@ -60,8 +74,13 @@ synth::SynthObject make_object(const SynthArgs& a) {
         object.name = std::filesystem::path(a.mesh).stem().string();
         object.mesh = std::move(loaded.mesh);
         object.material.albedo_value = glm::vec3(0.5f);
+        if (family == MaterialFamily::Coated) {
+            if (a.options.lambertian)
+                throw UsageError("--lambertian applies to the lafortune family only: the coated family's diffuse term is not Lambertian");
+            object.material.coated = CoatedParams{};
+        }
     } else {
-        object = synth::to_object(synth::make_preset(a.preset, a.options.lambertian));
+        object = synth::to_object(synth::make_preset(a.preset, a.options.lambertian, family));
     }
     if (!a.albedo.empty()) {
         if (!object.mesh.has_texcoords())
@@ -97,11 +116,15 @@ void run(SynthArgs& a) {
     }
     if (a.preset.empty() == a.mesh.empty()) throw UsageError("give exactly one of --preset NAME or --mesh FILE.glb (see --list-presets)");
     a.options.format = synth::parse_image_format(a.format);
+    a.options.rig = synth::parse_rig_kind(a.rig);
+    if (a.options.rig == synth::RigKind::Thesis && a.light_angles_given)
+        throw UsageError("--light-angles places the spread rig's lights; the thesis rig's are all 15 degrees off the camera");
     const synth::SynthObject object = make_object(a);
     const synth::SynthResult r = synth::write_synthetic_capture(object, a.out, a.options);
     std::printf("wrote %s\n", r.dir.c_str());
-    std::printf("  object %s: %zu triangles; %zu views, %zu train + %zu test frames at %dx%d (%s)\n", object.name.c_str(), r.triangles,
-                r.views, r.train_frames, r.test_frames, a.options.size, a.options.size, a.format.c_str());
+    std::printf("  object %s (%s material): %zu triangles; %zu views, %zu train + %zu test frames at %dx%d (%s, %s rig)\n",
+                object.name.c_str(), to_string(object.material.family()), r.triangles, r.views, r.train_frames, r.test_frames,
+                a.options.size, a.options.size, a.format.c_str(), a.rig.c_str());
     if (a.options.format != synth::ImageFormat::Exr)
         std::printf("  clipped object pixels (a channel at saturation 1.0): %zu of %zu (%.2f %%)\n", r.clipped_pixels, r.object_pixels,
                     r.object_pixels ? 100.0 * static_cast<double>(r.clipped_pixels) / static_cast<double>(r.object_pixels) : 0.0);
@@ -122,21 +145,37 @@ void add_synth_command(CLI::App& app) {
     sub->add_option("--export-preset", args->export_preset, "Write only NAME's mesh.glb and albedo texture into --out");
     sub->add_option("--size", args->options.size, "Image width and height in pixels")->capture_default_str();
     sub->add_option("--views", args->options.views, "Train views around the object")->capture_default_str();
-    sub->add_option("--lights", args->options.lights, "Lights per train view, around the camera (see --light-angles)")->capture_default_str();
-    sub->add_option("--light-angles", args->options.light_angles_deg,
-                    "Train lights' angles off the camera direction seen from the object, degrees (cycled over the "
-                    "lights; wide angles see grazing highlights)")
-        ->delimiter(',')
+    sub->add_option("--rig", args->rig,
+                    "Lights of each view: spread (train lights at --light-angles off the camera, test lights off the "
+                    "image-plane rings) or thesis (the thesis's six lights around the camera: every light, train and "
+                    "test, on one ring 15 degrees around the camera direction seen from the object, at the camera's "
+                    "distance)")
         ->capture_default_str();
+    sub->add_option("--lights", args->options.lights,
+                    "Lights per train view, equally spaced in azimuth around the camera direction; with --rig thesis, "
+                    "the lights on each view's 15-degree ring (6: the thesis's)")
+        ->capture_default_str();
+    sub->add_option("--light-angles", args->options.light_angles_deg,
+                    "--rig spread: train lights' angles off the camera direction seen from the object, degrees (cycled "
+                    "over the lights; wide angles see grazing highlights)")
+        ->delimiter(',')
+        ->capture_default_str()
+        ->each([args](const std::string&) { args->light_angles_given = true; });
     sub->add_option("--test-views", args->options.test_views, "Test views between train views")->capture_default_str();
-    sub->add_option("--test-lights", args->options.test_lights, "Lights per test view, off the rig's rings")->capture_default_str();
+    sub->add_option("--test-lights", args->options.test_lights,
+                    "Lights per test view, off the rig's rings (--rig thesis: on the 15-degree ring, between the train lights)")->capture_default_str();
     sub->add_option("--noise", args->options.noise_sigma, "Gaussian noise sigma, relative to full scale 1.0")->capture_default_str();
     sub->add_option("--shot-noise", args->options.shot_noise, "Shot noise: variance = K * value")->capture_default_str();
     sub->add_option("--exposure", args->options.exposure, "Light intensity factor (1: facing diffuse albedo 0.8 at 0.6)")->capture_default_str();
     sub->add_option("--format", args->format, "Image files: png8, png16 (sRGB) or exr (linear float)")->capture_default_str();
     sub->add_option("--seed", args->options.seed, "Noise seed")->capture_default_str();
     sub->add_option("--threads", args->options.threads, "Render threads")->capture_default_str();
-    sub->add_flag("--lambertian", args->options.lambertian, "No specular lobe (diffuse only)");
+    sub->add_option("--material", args->material,
+                    "Material family: lafortune (Lambert + the preset's Lafortune lobe) or coated (a Lambertian base "
+                    "under a clear dielectric coating with GGX reflection: the preset's eta and alpha, tint 1; "
+                    "eta 1.5, alpha 0.1 for --mesh); the albedo is the same")
+        ->capture_default_str();
+    sub->add_flag("--lambertian", args->options.lambertian, "No specular lobe (diffuse only; lafortune family only)");
     sub->add_flag("--force", args->options.force, "Replace a non-empty --out (only once the new capture is complete)");
     sub->add_option("--mesh", args->mesh, "Your own object: a glTF mesh (.glb/.gltf)");
     sub->add_option("--albedo", args->albedo, "Albedo texture for --mesh (needs TEXCOORD_0); sRGB-encoded if 8/16-bit");

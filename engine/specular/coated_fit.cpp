@@ -1,0 +1,328 @@
+// The coated family's fit: see coated_fit.h for the model, the parameters and the method.
+#include "specular/coated_fit.h"
+
+#include "core/parallel.h"
+#include "core/timer.h"
+#include "shared/material.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+namespace specula {
+namespace {
+
+namespace f64 = shared::f64;
+
+/// The per-sample quantities that do not depend on the parameters.
+struct Prepared {
+    double ci, co, cuv; // n.u, n.v, u.v
+    glm::dvec3 b, rho_pi;
+    double w; // Ebar^2 times the robust weight
+};
+
+std::vector<Prepared> prepare(std::span<const MaterialSample> samples, std::size_t stride) {
+    std::vector<Prepared> out;
+    out.reserve(samples.size() / stride + 1);
+    for (std::size_t i = 0; i < samples.size(); i += stride) {
+        const MaterialSample& s = samples[i];
+        if (!(s.weight > 0.0f) || !(s.u.z > 0.0f) || !(s.v.z > 0.0f)) continue;
+        out.push_back({double(s.u.z), double(s.v.z), double(glm::dot(s.u, s.v)), glm::dvec3(s.b), glm::dvec3(s.rho_over_pi),
+                       double(s.weight)});
+    }
+    return out;
+}
+
+/// Parameters in the fit's own coordinates.
+struct Point {
+    double log_alpha, eta;
+};
+
+double clamp_log_alpha(double x) {
+    return std::clamp(x, std::log(double(shared::kCoatedMinAlpha)), std::log(double(shared::kCoatedMaxAlpha)));
+}
+double clamp_eta(double x) { return std::clamp(x, double(shared::kCoatedMinEta), double(shared::kCoatedMaxEta)); }
+
+/// The model's two parts at one sample: the diffuse factor times rho / pi, and the untinted
+/// specular (the tint multiplies it).
+struct Parts {
+    glm::dvec3 diffuse;
+    double specular;
+};
+Parts parts(const Prepared& s, const Point& p) {
+    const double alpha = std::exp(p.log_alpha);
+    return {s.rho_pi * f64::coated_diffuse_factor(s.ci, s.co, p.eta), f64::coated_specular(s.ci, s.co, s.cuv, alpha, p.eta)};
+}
+
+/// The tint for fixed (alpha, eta): 1, or per channel the weighted least-squares scale of the
+/// specular to what the diffuse leaves (clamped at 0: a negative tint is no reflection).
+glm::dvec3 solve_tint(const std::vector<Prepared>& s, const Point& p, bool fit_tint) {
+    if (!fit_tint) return glm::dvec3(1.0);
+    glm::dvec3 num(0.0);
+    double den = 0.0;
+    for (const Prepared& x : s) {
+        const Parts q = parts(x, p);
+        num += x.w * q.specular * (x.b - q.diffuse);
+        den += x.w * q.specular * q.specular;
+    }
+    return den > 0.0 ? glm::max(num / den, glm::dvec3(0.0)) : glm::dvec3(0.0);
+}
+
+double cost_at(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint) {
+    double c = 0.0;
+    for (const Prepared& x : s) {
+        const Parts q = parts(x, p);
+        const glm::dvec3 r = q.diffuse + tint * q.specular - x.b;
+        c += x.w * glm::dot(r, r);
+    }
+    return c;
+}
+
+/// Cost with the tint projected out (variable projection).
+double projected_cost(const std::vector<Prepared>& s, const Point& p, bool fit_tint) {
+    return cost_at(s, p, solve_tint(s, p, fit_tint));
+}
+
+/// The Jacobian of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed tint, by
+/// central differences (the model's derivatives through Fresnel and Smith are long and the
+/// two columns are cheap), accumulated as J^T J and J^T r.
+struct Normal {
+    Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d jtr = Eigen::Vector2d::Zero();
+    double cost = 0.0;
+};
+Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint) {
+    constexpr double h = 1e-5;
+    Normal n;
+    for (const Prepared& x : s) {
+        const Parts q0 = parts(x, p);
+        const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
+        const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
+        const glm::dvec3 r = q0.diffuse + tint * q0.specular - x.b;
+        const glm::dvec3 ja = (qa.diffuse - qb.diffuse + tint * (qa.specular - qb.specular)) / (2.0 * h);
+        const glm::dvec3 je = (qe.diffuse - qf.diffuse + tint * (qe.specular - qf.specular)) / (2.0 * h);
+        n.jtj(0, 0) += x.w * glm::dot(ja, ja);
+        n.jtj(0, 1) += x.w * glm::dot(ja, je);
+        n.jtj(1, 1) += x.w * glm::dot(je, je);
+        n.jtr(0) += x.w * glm::dot(ja, r);
+        n.jtr(1) += x.w * glm::dot(je, r);
+        n.cost += x.w * glm::dot(r, r);
+    }
+    n.jtj(1, 0) = n.jtj(0, 1);
+    return n;
+}
+
+struct LmResult {
+    Point p;
+    glm::dvec3 tint;
+    double cost;
+    std::uint32_t iterations;
+    bool converged;
+};
+
+/// Levenberg-Marquardt in (ln alpha, eta), the tint re-solved after each accepted step.
+LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o) {
+    glm::dvec3 tint = solve_tint(s, p, o.fit_tint);
+    double cost = cost_at(s, p, tint);
+    double lambda = 1e-3;
+    LmResult r{p, tint, cost, 0, false};
+    for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
+        ++r.iterations;
+        const Normal n = normal_equations(s, p, tint);
+        bool accepted = false;
+        for (int tries = 0; tries < 12 && !accepted; ++tries) {
+            Eigen::Matrix2d a = n.jtj;
+            a.diagonal() += lambda * n.jtj.diagonal().cwiseMax(1e-30);
+            const Eigen::Vector2d step = a.ldlt().solve(-n.jtr);
+            if (!step.allFinite()) break;
+            const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
+            const glm::dvec3 t = solve_tint(s, q, o.fit_tint);
+            const double c = cost_at(s, q, t);
+            if (std::isfinite(c) && c < cost) {
+                const double decrease = (cost - c) / std::max(cost, 1e-300);
+                p = q;
+                tint = t;
+                cost = c;
+                lambda = std::max(lambda / 10.0, 1e-12);
+                accepted = true;
+                if (decrease < o.cost_tolerance) r.converged = true;
+            } else {
+                lambda *= 10.0;
+            }
+        }
+        if (!accepted) r.converged = std::isfinite(cost); // no step lowers the cost: a minimum (or a bound)
+        r.p = p;
+        r.tint = tint;
+        r.cost = cost;
+        if (r.converged) break;
+    }
+    return r;
+}
+
+/// Huber weights (k = 1.345 robust sigmas) from the residuals at p, folded into the weights.
+void reweight(std::vector<Prepared>& s, const std::vector<double>& base_w, const Point& p, const glm::dvec3& tint) {
+    std::vector<double> abs_r(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        const Parts q = parts(s[i], p);
+        const glm::dvec3 r = q.diffuse + tint * q.specular - s[i].b;
+        abs_r[i] = std::sqrt(base_w[i] * glm::dot(r, r) / 3.0);
+    }
+    std::vector<double> sorted = abs_r;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double sigma = 1.4826 * sorted[sorted.size() / 2];
+    const double k = 1.345 * std::max(sigma, 1e-12);
+    for (std::size_t i = 0; i < s.size(); ++i) s[i].w = base_w[i] * (abs_r[i] <= k ? 1.0 : k / abs_r[i]);
+}
+
+} // namespace
+
+std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples) {
+    std::vector<MaterialSample> out;
+    out.reserve(samples.size());
+    for (const ResidualSample& s : samples) {
+        if (s.status != shared::kResidualUsed) continue;
+        const glm::vec3 rho_pi(s.d);
+        out.push_back({.u = glm::vec3(s.u), .v = glm::vec3(s.v), .b = s.f + rho_pi * s.d.w, .rho_over_pi = rho_pi, .weight = s.u.w});
+    }
+    return out;
+}
+
+const char* to_string(CoatedFitStatus s) noexcept {
+    switch (s) {
+    case CoatedFitStatus::Converged: return "converged";
+    case CoatedFitStatus::Underdetermined: return "underdetermined";
+    case CoatedFitStatus::NotConverged: return "not_converged";
+    case CoatedFitStatus::TooFewSamples: return "too_few_samples";
+    }
+    return "?";
+}
+
+CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOptions& o) {
+    const Stopwatch watch;
+    CoatedFit fit;
+    std::vector<Prepared> all = prepare(samples, 1);
+    fit.samples = static_cast<std::uint32_t>(all.size());
+    const std::size_t params = o.fit_tint ? 5 : 2;
+    if (all.size() <= params * 3) {
+        fit.reason = std::to_string(all.size()) + " usable samples for " + std::to_string(params) + " parameters";
+        fit.seconds = watch.seconds();
+        return fit;
+    }
+
+    // Grid over (ln alpha, eta) on a subsample: alpha 0.005..1 in 24 log steps, eta 1.1..2.5.
+    const std::size_t stride = o.coarse_samples > 0 ? std::max<std::size_t>(1, all.size() / o.coarse_samples) : 1;
+    const std::vector<Prepared> coarse = prepare(samples, stride);
+    struct Cell {
+        Point p;
+        double cost;
+    };
+    std::vector<Cell> cells;
+    constexpr int kAlphaSteps = 24, kEtaSteps = 15;
+    for (int i = 0; i < kAlphaSteps; ++i)
+        for (int j = 0; j < kEtaSteps; ++j) {
+            const double la = std::log(0.005) + (std::log(1.0) - std::log(0.005)) * i / (kAlphaSteps - 1);
+            cells.push_back({{la, 1.1 + 0.1 * j}, 0.0});
+        }
+    parallel_for(cells.size(), o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency()), [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o.fit_tint); });
+    std::sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.cost < b.cost; });
+
+    // LM from the best cells (distinct starts), robustly reweighted on all samples.
+    std::vector<double> base_w(all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) base_w[i] = all[i].w;
+    LmResult best{{0.0, 0.0}, glm::dvec3(1.0), std::numeric_limits<double>::infinity(), 0, false};
+    const std::size_t starts = std::min<std::size_t>(cells.size(), std::max<std::uint32_t>(1, o.restarts));
+    for (std::size_t k = 0; k < starts; ++k) {
+        if (!std::isfinite(cells[k].cost)) continue;
+        const LmResult r = levenberg_marquardt(coarse, cells[k].p, o);
+        fit.iterations += r.iterations;
+        if (r.cost < best.cost) best = r;
+    }
+    if (!std::isfinite(best.cost)) {
+        fit.status = CoatedFitStatus::NotConverged;
+        fit.reason = "the cost is not finite at any start";
+        fit.seconds = watch.seconds();
+        return fit;
+    }
+    for (std::uint32_t pass = 0; pass <= o.robust_passes; ++pass) {
+        if (pass > 0) reweight(all, base_w, best.p, best.tint);
+        const LmResult r = levenberg_marquardt(all, best.p, o);
+        fit.iterations += r.iterations;
+        best = r;
+    }
+
+    // Uncertainty at the minimum (the robust weights kept).
+    const Normal n = normal_equations(all, best.p, best.tint);
+    const double m = 3.0 * double(all.size());
+    const double s2 = n.cost / std::max(1.0, m - double(params));
+    const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::Matrix2d scaled = scale.asDiagonal() * n.jtj * scale.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scaled);
+    const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().maxCoeff();
+    fit.condition = lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity();
+    const double alpha = std::exp(best.p.log_alpha);
+    if (lo > 0.0) {
+        const Eigen::Matrix2d cov = s2 * n.jtj.inverse();
+        fit.std_error_alpha = alpha * std::sqrt(std::max(0.0, cov(0, 0))); // d alpha = alpha d ln alpha
+        fit.std_error_eta = std::sqrt(std::max(0.0, cov(1, 1)));
+    } else {
+        fit.std_error_alpha = fit.std_error_eta = std::numeric_limits<double>::infinity();
+    }
+    if (o.fit_tint) {
+        // The tint is linear: its variance given (alpha, eta) is s^2 / sum w s_spec^2.
+        double den = 0.0;
+        for (const Prepared& x : all) den += x.w * std::pow(parts(x, best.p).specular, 2);
+        fit.std_error_tint = glm::dvec3(den > 0.0 ? std::sqrt(s2 / den) : std::numeric_limits<double>::infinity());
+    }
+    fit.params = CoatedParams{.eta = float(best.p.eta), .alpha = float(alpha), .tint = glm::vec3(best.tint)};
+    fit.cost = best.cost;
+    double sq = 0.0, wsum = 0.0;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const Parts q = parts(all[i], best.p);
+        const glm::dvec3 r = q.diffuse + best.tint * q.specular - all[i].b;
+        sq += base_w[i] * glm::dot(r, r) / 3.0;
+        wsum += base_w[i];
+    }
+    fit.rms = wsum > 0.0 ? std::sqrt(sq / wsum) : 0.0;
+    fit.alpha_determined = fit.std_error_alpha < o.max_relative_error * alpha;
+    fit.eta_determined = fit.std_error_eta < o.max_relative_error * best.p.eta;
+    if (!best.converged) {
+        fit.status = CoatedFitStatus::NotConverged;
+        fit.reason = "iteration limit (" + std::to_string(o.max_iterations) + ") reached";
+    } else if (!fit.alpha_determined || !fit.eta_determined) {
+        fit.status = CoatedFitStatus::Underdetermined;
+        fit.reason = std::string("the samples do not determine ") +
+                     (!fit.alpha_determined && !fit.eta_determined ? "alpha nor eta"
+                      : !fit.alpha_determined                      ? "alpha"
+                                                                   : "eta") +
+                     " (relative standard error above " + std::to_string(o.max_relative_error) +
+                     "): the rig's light and view directions do not vary " +
+                     (!fit.eta_determined ? "the Fresnel terms (grazing or wide half-angles)" : "the half-vector angle") +
+                     " enough";
+    } else {
+        fit.status = CoatedFitStatus::Converged;
+        fit.reason = "converged";
+    }
+    fit.seconds = watch.seconds();
+    return fit;
+}
+
+double material_mean_square_error(const SpecularModel& model, std::span<const MaterialSample> samples) {
+    const shared::MaterialGpu m = material_gpu(model);
+    double sq = 0.0, wsum = 0.0;
+    for (const MaterialSample& s : samples) {
+        if (!(s.weight > 0.0f)) continue;
+        const double ci = s.u.z, co = s.v.z, cuv = glm::dot(s.u, s.v);
+        const glm::dvec3 f = glm::dvec3(s.rho_over_pi) * f64::material_diffuse_factor(m, ci, co) +
+                             f64::material_specular(m, ci, co, cuv);
+        const glm::dvec3 r = f - glm::dvec3(s.b);
+        sq += double(s.weight) * glm::dot(r, r) / 3.0;
+        wsum += double(s.weight);
+    }
+    return wsum > 0.0 ? sq / wsum : 0.0;
+}
+
+} // namespace specula
