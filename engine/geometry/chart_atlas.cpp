@@ -937,43 +937,46 @@ bool square_meets_triangle(const glm::dvec2& center, const glm::dvec2 tri[3], do
     return true;
 }
 
-} // namespace
+// ---- build_chart_atlas's steps ----------------------------------------------------------
 
-Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options) {
+/// Step 4's results, with the per-triangle and per-chart inputs the later steps share.
+struct ChartSizes {
+    std::vector<std::vector<std::uint32_t>> members; ///< per chart: its triangles
+    std::vector<double> surface;                     ///< per triangle: its surface area
+    std::vector<double> scale;                       ///< per chart: texels per surface unit wanted
+    std::vector<ChartFrame> frames;                  ///< per chart: its smallest bounding rectangle
+    double unseen_texels = 0.0;                      ///< texels a triangle facing no camera asks for
+    bool fill_budget = false;                        ///< no cameras: texels follow surface area and fill the budget
+};
+
+/// 4. Desired texels per triangle, then per chart: the scale (texels per surface unit).
+/// Fills the summary's size_source, triangles_seen_by_no_camera and desired_texels.
+ChartSizes size_charts(const Mesh& mesh, const ChartSet& set, std::span<const Camera> cameras, const AtlasOptions& options,
+                       AtlasSummary& s) {
     const std::size_t tri_count = mesh.triangles.size();
-    const ChartSet set = make_charts(mesh);
-    Atlas atlas;
-    atlas.mode = AtlasMode::Charts;
-    AtlasSummary& s = atlas.summary;
-    s.mode = to_string(AtlasMode::Charts);
-    s.triangles = tri_count;
-    s.charts = set.charts;
-    s.seam_edges = set.seam_edges;
-    s.crease_edges = set.crease_edges;
-    s.mesh_vertices = mesh.positions.size();
-
-    std::vector<std::vector<std::uint32_t>> members(set.charts);
-    for (std::uint32_t t = 0; t < tri_count; ++t) members[set.chart_of[t]].push_back(t);
-    std::vector<double> surface(tri_count);
+    ChartSizes out;
+    out.members.resize(set.charts);
+    for (std::uint32_t t = 0; t < tri_count; ++t) out.members[set.chart_of[t]].push_back(t);
+    std::vector<double>& surface = out.surface;
+    surface.resize(tri_count);
     for (std::size_t t = 0; t < tri_count; ++t) {
         const glm::uvec3 tri = mesh.triangles[t];
         surface[t] = 0.5 * glm::length(glm::cross(glm::dvec3(mesh.positions[tri.y]) - glm::dvec3(mesh.positions[tri.x]),
                                                   glm::dvec3(mesh.positions[tri.z]) - glm::dvec3(mesh.positions[tri.x])));
     }
 
-    // 4. Desired texels per triangle, then per chart: the scale (texels per surface unit).
     std::vector<double> desired(tri_count, 0.0);
     const double budget_area = double(options.max_width) * double(options.max_height);
-    const double unseen_texels = 0.5 * double(options.min_patch) * double(options.min_patch);
-    const bool fill_budget = cameras.empty();
-    if (!fill_budget) {
+    out.unseen_texels = 0.5 * double(options.min_patch) * double(options.min_patch);
+    out.fill_budget = cameras.empty();
+    if (!out.fill_budget) {
         s.size_source = "cameras";
         const std::vector<double> pixels = best_pixel_footprint(mesh, cameras);
         for (std::size_t t = 0; t < tri_count; ++t) {
             if (pixels[t] > 0.0) {
                 desired[t] = kChartTexelsPerPatchTexel * options.texels_per_pixel * pixels[t];
             } else {
-                desired[t] = unseen_texels;
+                desired[t] = out.unseen_texels;
                 ++s.triangles_seen_by_no_camera;
             }
         }
@@ -985,112 +988,156 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
         for (std::size_t t = 0; t < tri_count; ++t) desired[t] = budget_area * surface[t] / total;
     }
     for (double d : desired) s.desired_texels += d;
-    std::vector<double> chart_scale(set.charts, 0.0);
-    std::vector<ChartFrame> frames(set.charts);
+    out.scale.assign(set.charts, 0.0);
+    out.frames.resize(set.charts);
     for (std::uint32_t c = 0; c < set.charts; ++c) {
         double want = 0.0, area = 0.0;
         std::vector<glm::dvec2> points;
-        points.reserve(3 * members[c].size());
-        for (std::uint32_t t : members[c]) {
+        points.reserve(3 * out.members[c].size());
+        for (std::uint32_t t : out.members[c]) {
             want += desired[t];
             area += surface[t];
             for (int k = 0; k < 3; ++k) points.push_back(set.corner_uv[3 * std::size_t(t) + std::size_t(k)]);
         }
-        chart_scale[c] = area > 0.0 ? std::sqrt(want / area) : 1.0;
-        frames[c] = chart_frame(points);
+        out.scale[c] = area > 0.0 ? std::sqrt(want / area) : 1.0;
+        out.frames[c] = chart_frame(points);
     }
+    return out;
+}
 
-    // 5. Packing; every chart scaled by one factor until the budget holds. A chart's own
-    // texel frame (orientation 0): p = k (rot q - lo) + kPad, q its flattening; its mask is
-    // padded to whole cells, Wt x Ht texels.
-    constexpr double kPad = kChartMargin + 1.0; // reserved texels (within kChartMargin + 0.5) start at index >= 0
-    struct Layout {
-        double k = 0.0;           ///< texels per surface unit
-        int wt = 0, ht = 0;       ///< texel size of the orientation-0 mask (whole cells)
-    };
-    std::vector<Layout> layout(set.charts);
+// 5. Packing; every chart scaled by one factor until the budget holds. A chart's own
+// texel frame (orientation 0): p = k (rot q - lo) + kPad, q its flattening; its mask is
+// padded to whole cells, Wt x Ht texels.
+constexpr double kPad = kChartMargin + 1.0; // reserved texels (within kChartMargin + 0.5) start at index >= 0
+
+struct ChartLayout {
+    double k = 0.0;     ///< texels per surface unit
+    int wt = 0, ht = 0; ///< texel size of the orientation-0 mask (whole cells)
+};
+
+/// Every chart's reserved cells, in the four orientations.
+struct ChartMasks {
+    std::vector<std::array<CellMask, 4>> masks;
+    int narrowest_fit = 1; ///< cells: every chart must fit the width in some orientation
+};
+
+/// Lays every chart out at `scale` times its own scale on cells of `cell` texels (filling
+/// `layout`) and builds its masks.
+ChartMasks chart_masks(const ChartSet& set, const ChartSizes& sizes, double scale, int cell, std::vector<ChartLayout>& layout) {
+    ChartMasks out;
+    out.masks.resize(set.charts);
+    for (std::uint32_t c = 0; c < set.charts; ++c) {
+        ChartLayout& l = layout[c];
+        const ChartFrame& frame = sizes.frames[c];
+        l.k = sizes.scale[c] * scale;
+        const glm::dvec2 e = frame.extent * l.k + 2.0 * kPad;
+        const int wc = std::max(1, int(std::ceil(e.x / cell))), hc = std::max(1, int(std::ceil(e.y / cell)));
+        l.wt = wc * cell;
+        l.ht = hc * cell;
+        // A cell is reserved when one of its texel centers lies within kChartMargin + 0.5
+        // of a triangle: the square of its centers grown by that distance meets it.
+        const double half = 0.5 * (cell - 1) + kChartMargin + 0.5;
+        CellMask m;
+        m.init(wc, hc);
+        for (std::uint32_t t : sizes.members[c]) {
+            glm::dvec2 tri[3];
+            for (int k = 0; k < 3; ++k) tri[k] = l.k * (frame.rot * set.corner_uv[3 * std::size_t(t) + std::size_t(k)] - frame.lo) + kPad;
+            const glm::dvec2 lo = glm::min(tri[0], glm::min(tri[1], tri[2])) - half;
+            const glm::dvec2 hi = glm::max(tri[0], glm::max(tri[1], tri[2])) + half;
+            const int x0 = std::max(0, int(std::floor(lo.x / cell))), x1 = std::min(wc - 1, int(std::floor(hi.x / cell)));
+            const int y0 = std::max(0, int(std::floor(lo.y / cell))), y1 = std::min(hc - 1, int(std::floor(hi.y / cell)));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x)
+                    if (!m.get(x, y) && square_meets_triangle({(x + 0.5) * cell, (y + 0.5) * cell}, tri, half)) m.set(x, y);
+        }
+        for (int q = 0; q < 4; ++q) out.masks[c][std::size_t(q)] = turn(m, q);
+        out.narrowest_fit = std::max(out.narrowest_fit, std::min(wc, hc));
+    }
+    return out;
+}
+
+/// One packing of the masks and the texture it needs.
+struct PackTrial {
+    std::optional<std::vector<Placement>> placed;
+    std::uint64_t area = std::numeric_limits<std::uint64_t>::max(); ///< width x height, texels
+    std::uint32_t width = 0, height = 0;                              ///< texels
+};
+
+/// The width: a square atlas at the expected fill (`estimate` texels at 0.8), at least the
+/// narrowest orientation of every chart, at most the budget; two widths tried, the smaller
+/// texture kept.
+PackTrial pack_smallest(const ChartMasks& m, const std::vector<ChartLayout>& layout, double estimate, int cell,
+                        const AtlasOptions& options) {
+    const int budget_cells = int(options.max_width) / cell;
+    PackTrial best;
+    const double base = std::sqrt(estimate / 0.8) / cell;
+    for (const double f : {1.0, 1.25}) {
+        const int width = std::clamp(int(std::ceil(base * f)), m.narrowest_fit, std::max(m.narrowest_fit, budget_cells));
+        std::vector<Placement> p = pack_masks(m.masks, width);
+        std::uint32_t w = 0, h = 0;
+        for (std::size_t c = 0; c < p.size(); ++c) {
+            const bool turned = p[c].quarter % 2 == 1;
+            w = std::max<std::uint32_t>(w, std::uint32_t(p[c].x * cell + (turned ? layout[c].ht : layout[c].wt)));
+            h = std::max<std::uint32_t>(h, std::uint32_t(p[c].y * cell + (turned ? layout[c].wt : layout[c].ht)));
+        }
+        const std::uint64_t a = std::uint64_t(w) * h;
+        if (a < best.area) {
+            best.placed = std::move(p);
+            best.area = a;
+            best.width = w;
+            best.height = h;
+        }
+    }
+    return best;
+}
+
+/// Step 5's result: where every chart went, at what scale, in how large a texture.
+struct ChartPacking {
+    std::vector<ChartLayout> layout;
     std::vector<Placement> placed;
-    int cell = 1;
-    double scale = 1.0;
-    std::uint32_t atlas_w = 0, atlas_h = 0;
+    int cell = 1;                        ///< texels per cell side
+    double scale = 1.0;                  ///< the factor every chart's scale was multiplied by
+    std::uint32_t width = 0, height = 0; ///< the atlas, texels
+};
+
+/// 5. Packs the charts, shrinking them all by one factor until the texture fits the budget.
+ChartPacking pack_charts(const ChartSet& set, const ChartSizes& sizes, const AtlasOptions& options) {
+    const double budget_area = double(options.max_width) * double(options.max_height);
+    ChartPacking out;
+    out.layout.resize(set.charts);
     for (int attempt = 0;; ++attempt) {
         // Cells: at most about 768 across the atlas, so the search stays cheap on big budgets.
         double estimate = 0.0;
         for (std::uint32_t c = 0; c < set.charts; ++c) {
-            const glm::dvec2 e = frames[c].extent * (chart_scale[c] * scale) + 2.0 * kPad;
+            const glm::dvec2 e = sizes.frames[c].extent * (sizes.scale[c] * out.scale) + 2.0 * kPad;
             estimate += e.x * e.y;
         }
-        cell = std::max(1, int(std::ceil(std::sqrt(estimate / 0.7) / 768.0)));
-        std::vector<std::array<CellMask, 4>> masks(set.charts);
-        int narrowest_fit = 1; // every chart must fit the width in some orientation
-        for (std::uint32_t c = 0; c < set.charts; ++c) {
-            Layout& l = layout[c];
-            l.k = chart_scale[c] * scale;
-            const glm::dvec2 e = frames[c].extent * l.k + 2.0 * kPad;
-            const int wc = std::max(1, int(std::ceil(e.x / cell))), hc = std::max(1, int(std::ceil(e.y / cell)));
-            l.wt = wc * cell;
-            l.ht = hc * cell;
-            // A cell is reserved when one of its texel centers lies within kChartMargin + 0.5
-            // of a triangle: the square of its centers grown by that distance meets it.
-            const double half = 0.5 * (cell - 1) + kChartMargin + 0.5;
-            CellMask m;
-            m.init(wc, hc);
-            for (std::uint32_t t : members[c]) {
-                glm::dvec2 tri[3];
-                for (int k = 0; k < 3; ++k)
-                    tri[k] = l.k * (frames[c].rot * set.corner_uv[3 * std::size_t(t) + std::size_t(k)] - frames[c].lo) + kPad;
-                const glm::dvec2 lo = glm::min(tri[0], glm::min(tri[1], tri[2])) - half;
-                const glm::dvec2 hi = glm::max(tri[0], glm::max(tri[1], tri[2])) + half;
-                const int x0 = std::max(0, int(std::floor(lo.x / cell))), x1 = std::min(wc - 1, int(std::floor(hi.x / cell)));
-                const int y0 = std::max(0, int(std::floor(lo.y / cell))), y1 = std::min(hc - 1, int(std::floor(hi.y / cell)));
-                for (int y = y0; y <= y1; ++y)
-                    for (int x = x0; x <= x1; ++x)
-                        if (!m.get(x, y) && square_meets_triangle({(x + 0.5) * cell, (y + 0.5) * cell}, tri, half)) m.set(x, y);
-            }
-            for (int q = 0; q < 4; ++q) masks[c][std::size_t(q)] = turn(m, q);
-            narrowest_fit = std::max(narrowest_fit, std::min(wc, hc));
-        }
-        // The width: a square atlas at the expected fill, at least the narrowest orientation of
-        // every chart, at most the budget; two widths tried, the smaller texture kept.
-        const int budget_cells = int(options.max_width) / cell;
-        std::optional<std::vector<Placement>> best;
-        std::uint64_t best_area = std::numeric_limits<std::uint64_t>::max();
-        std::uint32_t best_w = 0, best_h = 0;
-        const double base = std::sqrt(estimate / 0.8) / cell;
-        for (const double f : {1.0, 1.25}) {
-            const int width = std::clamp(int(std::ceil(base * f)), narrowest_fit, std::max(narrowest_fit, budget_cells));
-            std::vector<Placement> p = pack_masks(masks, width);
-            std::uint32_t w = 0, h = 0;
-            for (std::uint32_t c = 0; c < set.charts; ++c) {
-                const bool turned = p[c].quarter % 2 == 1;
-                w = std::max<std::uint32_t>(w, std::uint32_t(p[c].x * cell + (turned ? layout[c].ht : layout[c].wt)));
-                h = std::max<std::uint32_t>(h, std::uint32_t(p[c].y * cell + (turned ? layout[c].wt : layout[c].ht)));
-            }
-            const std::uint64_t a = std::uint64_t(w) * h;
-            if (a < best_area) {
-                best = std::move(p);
-                best_area = a;
-                best_w = w;
-                best_h = h;
-            }
-        }
-        if (best_w <= options.max_width && best_h <= options.max_height) {
-            placed = std::move(*best);
+        out.cell = std::max(1, int(std::ceil(std::sqrt(estimate / 0.7) / 768.0)));
+        const ChartMasks masks = chart_masks(set, sizes, out.scale, out.cell, out.layout);
+        PackTrial best = pack_smallest(masks, out.layout, estimate, out.cell, options);
+        if (best.width <= options.max_width && best.height <= options.max_height) {
+            out.placed = std::move(*best.placed);
             // Sides rounded up to multiples of 4 (within the budget): mip levels 1 and 2 then
             // halve exactly, so their texels cover the same texels of level 0 as their uv square.
             const auto round4 = [](std::uint32_t v, std::uint32_t limit) { return (v + 3u) / 4u * 4u <= limit ? (v + 3u) / 4u * 4u : v; };
-            atlas_w = round4(best_w, options.max_width);
-            atlas_h = round4(best_h, options.max_height);
-            break;
+            out.width = round4(best.width, options.max_width);
+            out.height = round4(best.height, options.max_height);
+            return out;
         }
-        if (attempt > 200 || scale < 1e-6)
+        if (attempt > 200 || out.scale < 1e-6)
             throw Error("atlas: " + std::to_string(set.charts) + " charts do not fit a " + std::to_string(options.max_width) + "x" +
                         std::to_string(options.max_height) + " texture even at the smallest scale; raise the budget");
-        const double needed = double(best_area) * std::max(1.0, double(best_w) / options.max_width);
-        scale *= std::clamp(std::sqrt(budget_area / needed), 0.5, 0.98);
+        const double needed = double(best.area) * std::max(1.0, double(best.width) / options.max_width);
+        out.scale *= std::clamp(std::sqrt(budget_area / needed), 0.5, 0.98);
     }
+}
+
+/// The summary's budget_scale and budget_clipped, and its notes on the budget and on
+/// triangles no camera sees.
+void note_budget(AtlasSummary& s, const ChartPacking& packing, const ChartSizes& sizes, const AtlasOptions& options) {
+    const double scale = packing.scale;
     s.budget_scale = scale;
-    s.budget_clipped = scale < 1.0 && !fill_budget;
+    s.budget_clipped = scale < 1.0 && !sizes.fill_budget;
     if (s.budget_clipped) {
         char line[256];
         std::snprintf(line, sizeof line,
@@ -1101,11 +1148,17 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
     if (s.triangles_seen_by_no_camera > 0) {
         char line[256];
         std::snprintf(line, sizeof line, "%zu triangles face no camera: they ask for %.3g texels each", s.triangles_seen_by_no_camera,
-                      unseen_texels);
+                      sizes.unseen_texels);
         s.notes.emplace_back(line);
     }
+}
 
-    // Charts renumbered in placement order (rows, then columns): particles follow it.
+/// Sizes the atlas and fills its chart_of, charts (renumbered in placement order: rows, then
+/// columns, which particles follow), corner_uv and corners.
+void place_charts(Atlas& atlas, const Mesh& mesh, const ChartSet& set, const ChartSizes& sizes, const ChartPacking& packing) {
+    const std::size_t tri_count = mesh.triangles.size();
+    const std::vector<Placement>& placed = packing.placed;
+    const int cell = packing.cell;
     std::vector<std::uint32_t> placement(set.charts);
     std::iota(placement.begin(), placement.end(), 0u);
     std::stable_sort(placement.begin(), placement.end(), [&](std::uint32_t a, std::uint32_t b) {
@@ -1114,31 +1167,31 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
     std::vector<std::uint32_t> new_id(set.charts);
     for (std::uint32_t i = 0; i < set.charts; ++i) new_id[placement[i]] = i;
 
-    atlas.width = atlas_w;
-    atlas.height = atlas_h;
+    atlas.width = packing.width;
+    atlas.height = packing.height;
     atlas.chart_of.resize(tri_count);
     atlas.charts.resize(set.charts);
     atlas.corners.resize(3 * tri_count);
     atlas.corner_uv.resize(3 * tri_count);
-    atlas.owner.assign(std::size_t(atlas.width) * atlas.height, Atlas::kEmpty);
     for (std::uint32_t t = 0; t < tri_count; ++t) atlas.chart_of[t] = new_id[set.chart_of[t]];
     for (std::uint32_t c = 0; c < set.charts; ++c) {
         ChartPlacement& cp = atlas.charts[new_id[c]];
+        const ChartLayout& l = packing.layout[c];
         const bool turned = placed[c].quarter % 2 == 1;
         cp.x = std::uint32_t(placed[c].x * cell);
         cp.y = std::uint32_t(placed[c].y * cell);
-        cp.width = std::min<std::uint32_t>(std::uint32_t(turned ? layout[c].ht : layout[c].wt), atlas.width - cp.x);
-        cp.height = std::min<std::uint32_t>(std::uint32_t(turned ? layout[c].wt : layout[c].ht), atlas.height - cp.y);
-        cp.triangles = static_cast<std::uint32_t>(members[c].size());
+        cp.width = std::min<std::uint32_t>(std::uint32_t(turned ? l.ht : l.wt), atlas.width - cp.x);
+        cp.height = std::min<std::uint32_t>(std::uint32_t(turned ? l.wt : l.ht), atlas.height - cp.y);
+        cp.triangles = static_cast<std::uint32_t>(sizes.members[c].size());
     }
     // Corner coordinates: the same double for every corner of a chart vertex (its texel
     // point), rounded once to the float uv; the texel coordinates are that float times the
     // size (exact in double), so the particles see what the renderer interpolates.
     for (std::uint32_t c = 0; c < set.charts; ++c) {
-        const ChartFrame& fr = frames[c];
-        const Layout& l = layout[c];
+        const ChartFrame& fr = sizes.frames[c];
+        const ChartLayout& l = packing.layout[c];
         const glm::dvec2 origin(double(placed[c].x * cell), double(placed[c].y * cell));
-        for (std::uint32_t t : members[c])
+        for (std::uint32_t t : sizes.members[c])
             for (int corner = 0; corner < 3; ++corner) {
                 const std::size_t i = 3 * std::size_t(t) + std::size_t(corner);
                 glm::dvec2 p = l.k * (fr.rot * set.corner_uv[i] - fr.lo) + kPad;
@@ -1154,32 +1207,37 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
             }
     }
     // Vertices per chart (distinct positions).
-    {
-        std::vector<std::uint32_t> seen(mesh.positions.size(), kNone);
-        for (std::uint32_t c = 0; c < set.charts; ++c) {
-            std::uint32_t n = 0;
-            for (std::uint32_t t : members[c])
-                for (int k = 0; k < 3; ++k) {
-                    const std::uint32_t p = mesh.triangles[t][k];
-                    if (seen[p] != c) {
-                        seen[p] = c;
-                        ++n;
-                    }
+    std::vector<std::uint32_t> seen(mesh.positions.size(), kNone);
+    for (std::uint32_t c = 0; c < set.charts; ++c) {
+        std::uint32_t n = 0;
+        for (std::uint32_t t : sizes.members[c])
+            for (int k = 0; k < 3; ++k) {
+                const std::uint32_t p = mesh.triangles[t][k];
+                if (seen[p] != c) {
+                    seen[p] = c;
+                    ++n;
                 }
-            atlas.charts[new_id[c]].vertices = n;
-        }
+            }
+        atlas.charts[new_id[c]].vertices = n;
     }
+}
 
-    // 6. Texels: interior (center in a triangle), then the gutter ring (within Chebyshev
-    // distance kChartGutterReach of the chart: what bilinear lookups inside it read, with a
-    // quarter texel to spare), owned by the closest triangle.
+/// The texels whose centers may lie in [lo, hi] along one axis of `limit` texels (first, last).
+std::pair<long, long> texel_range(double lo, double hi, std::uint32_t limit) {
+    const long a = std::max(0L, long(std::floor(lo - 0.5))), b = std::min(long(limit) - 1, long(std::ceil(hi - 0.5)));
+    return {a, b};
+}
+
+// 6. Texels: interior (center in a triangle), then the gutter ring (within Chebyshev
+// distance kChartGutterReach of the chart: what bilinear lookups inside it read, with a
+// quarter texel to spare), owned by the closest triangle.
+
+/// Sizes atlas.owner and gives each interior texel its triangle; returns which texels are interior.
+std::vector<std::uint8_t> assign_interior(Atlas& atlas) {
+    const std::size_t tri_count = atlas.chart_of.size();
     const std::size_t width = atlas.width;
-    std::vector<double> gutter_distance(atlas.owner.size(), std::numeric_limits<double>::infinity());
+    atlas.owner.assign(std::size_t(atlas.width) * atlas.height, Atlas::kEmpty);
     std::vector<std::uint8_t> interior(atlas.owner.size(), 0);
-    const auto texel_range = [&](double lo, double hi, std::uint32_t limit) {
-        const long a = std::max(0L, long(std::floor(lo - 0.5))), b = std::min(long(limit) - 1, long(std::ceil(hi - 0.5)));
-        return std::pair<long, long>(a, b);
-    };
     for (std::uint32_t t = 0; t < tri_count; ++t) {
         const glm::dvec2 c0 = atlas.corner_texel(t, 0), c1 = atlas.corner_texel(t, 1), c2 = atlas.corner_texel(t, 2);
         const glm::dvec2 lo = glm::min(c0, glm::min(c1, c2)), hi = glm::max(c0, glm::max(c1, c2));
@@ -1194,8 +1252,16 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
                 atlas.owner[i] = t;
             }
     }
-    // The owner of a gutter texel is its chart's triangle closest to it (Euclidean), which may
-    // lie farther than the reach in Chebyshev distance (at most sqrt(2) times it).
+    return interior;
+}
+
+/// Gives each gutter texel its owner and empties the other non-interior texels. The owner of
+/// a gutter texel is its chart's triangle closest to it (Euclidean), which may lie farther
+/// than the reach in Chebyshev distance (at most sqrt(2) times it).
+void assign_gutter(Atlas& atlas, const std::vector<std::uint8_t>& interior) {
+    const std::size_t tri_count = atlas.chart_of.size();
+    const std::size_t width = atlas.width;
+    std::vector<double> gutter_distance(atlas.owner.size(), std::numeric_limits<double>::infinity());
     std::vector<std::uint8_t> in_reach(atlas.owner.size(), 0);
     const double search = kChartGutterReach * std::sqrt(2.0);
     for (std::uint32_t t = 0; t < tri_count; ++t) {
@@ -1221,8 +1287,11 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
     }
     for (std::size_t i = 0; i < atlas.owner.size(); ++i)
         if (!interior[i] && !in_reach[i]) atlas.owner[i] = Atlas::kEmpty;
+}
 
-    // Summary.
+/// The summary's chart sizes, texture size, texel counts and ratios, and atlas vertices.
+void summarize_atlas(Atlas& atlas, const Mesh& mesh, const std::vector<std::uint8_t>& interior) {
+    AtlasSummary& s = atlas.summary;
     std::vector<std::uint32_t> sizes;
     for (const ChartPlacement& cp : atlas.charts) sizes.push_back(cp.triangles);
     std::sort(sizes.begin(), sizes.end());
@@ -1236,54 +1305,81 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
     s.fill_ratio = double(s.interior_texels + s.gutter_texels) / total;
     s.interior_ratio = double(s.interior_texels) / total;
     s.atlas_vertices = atlas_vertex_count(mesh, atlas);
-    // Distortion, per triangle relative to its chart's texels per surface area.
-    {
-        std::vector<double> chart_density(set.charts, 0.0), chart_area(set.charts, 0.0);
-        std::vector<double> texel_area(tri_count);
-        for (std::uint32_t t = 0; t < tri_count; ++t) {
-            const glm::dvec2 c0 = atlas.corner_texel(t, 0);
-            texel_area[t] = 0.5 * cross2(atlas.corner_texel(t, 1) - c0, atlas.corner_texel(t, 2) - c0);
-            chart_density[atlas.chart_of[t]] += texel_area[t];
-            chart_area[atlas.chart_of[t]] += surface[t];
+}
+
+/// The summary's distortion, per triangle relative to its chart's texels per surface area.
+void measure_distortion(Atlas& atlas, const Mesh& mesh, const std::vector<double>& surface) {
+    AtlasSummary& s = atlas.summary;
+    const std::size_t tri_count = mesh.triangles.size();
+    std::vector<double> chart_density(atlas.charts.size(), 0.0), chart_area(atlas.charts.size(), 0.0);
+    std::vector<double> texel_area(tri_count);
+    for (std::uint32_t t = 0; t < tri_count; ++t) {
+        const glm::dvec2 c0 = atlas.corner_texel(t, 0);
+        texel_area[t] = 0.5 * cross2(atlas.corner_texel(t, 1) - c0, atlas.corner_texel(t, 2) - c0);
+        chart_density[atlas.chart_of[t]] += texel_area[t];
+        chart_area[atlas.chart_of[t]] += surface[t];
+    }
+    std::vector<std::pair<double, double>> area_ratio; // (ratio, weight)
+    double angle_sum = 0.0, weight_sum = 0.0;
+    s.area_distortion_min = std::numeric_limits<double>::infinity();
+    for (std::uint32_t t = 0; t < tri_count; ++t) {
+        const std::uint32_t c = atlas.chart_of[t];
+        const glm::uvec3 tri = mesh.triangles[t];
+        const glm::dvec2 st = triangle_stretch(glm::dvec3(mesh.positions[tri.x]), glm::dvec3(mesh.positions[tri.y]),
+                                               glm::dvec3(mesh.positions[tri.z]), atlas.corner_texel(t, 0), atlas.corner_texel(t, 1),
+                                               atlas.corner_texel(t, 2));
+        const double angle = st.y > 0.0 ? st.x / st.y : std::numeric_limits<double>::infinity();
+        const double ratio = surface[t] > 0.0 && chart_density[c] > 0.0
+                                 ? (texel_area[t] / surface[t]) / (chart_density[c] / chart_area[c])
+                                 : 1.0;
+        angle_sum += surface[t] * angle;
+        weight_sum += surface[t];
+        s.angle_distortion_max = std::max(s.angle_distortion_max, angle);
+        s.area_distortion_min = std::min(s.area_distortion_min, ratio);
+        s.area_distortion_max = std::max(s.area_distortion_max, ratio);
+        area_ratio.emplace_back(ratio, surface[t]);
+    }
+    s.angle_distortion_mean = weight_sum > 0.0 ? angle_sum / weight_sum : 1.0;
+    std::sort(area_ratio.begin(), area_ratio.end());
+    double acc = 0.0;
+    s.area_distortion_p05 = area_ratio.front().first;
+    s.area_distortion_p95 = area_ratio.back().first;
+    bool have05 = false;
+    for (const auto& [r, w] : area_ratio) {
+        acc += w;
+        if (!have05 && acc >= 0.05 * weight_sum) {
+            s.area_distortion_p05 = r;
+            have05 = true;
         }
-        std::vector<std::pair<double, double>> area_ratio; // (ratio, weight)
-        double angle_sum = 0.0, weight_sum = 0.0;
-        s.area_distortion_min = std::numeric_limits<double>::infinity();
-        for (std::uint32_t t = 0; t < tri_count; ++t) {
-            const std::uint32_t c = atlas.chart_of[t];
-            const glm::uvec3 tri = mesh.triangles[t];
-            const glm::dvec2 st = triangle_stretch(glm::dvec3(mesh.positions[tri.x]), glm::dvec3(mesh.positions[tri.y]),
-                                                   glm::dvec3(mesh.positions[tri.z]), atlas.corner_texel(t, 0), atlas.corner_texel(t, 1),
-                                                   atlas.corner_texel(t, 2));
-            const double angle = st.y > 0.0 ? st.x / st.y : std::numeric_limits<double>::infinity();
-            const double ratio = surface[t] > 0.0 && chart_density[c] > 0.0
-                                     ? (texel_area[t] / surface[t]) / (chart_density[c] / chart_area[c])
-                                     : 1.0;
-            angle_sum += surface[t] * angle;
-            weight_sum += surface[t];
-            s.angle_distortion_max = std::max(s.angle_distortion_max, angle);
-            s.area_distortion_min = std::min(s.area_distortion_min, ratio);
-            s.area_distortion_max = std::max(s.area_distortion_max, ratio);
-            area_ratio.emplace_back(ratio, surface[t]);
-        }
-        s.angle_distortion_mean = weight_sum > 0.0 ? angle_sum / weight_sum : 1.0;
-        std::sort(area_ratio.begin(), area_ratio.end());
-        double acc = 0.0;
-        s.area_distortion_p05 = area_ratio.front().first;
-        s.area_distortion_p95 = area_ratio.back().first;
-        bool have05 = false;
-        for (const auto& [r, w] : area_ratio) {
-            acc += w;
-            if (!have05 && acc >= 0.05 * weight_sum) {
-                s.area_distortion_p05 = r;
-                have05 = true;
-            }
-            if (acc >= 0.95 * weight_sum) {
-                s.area_distortion_p95 = r;
-                break;
-            }
+        if (acc >= 0.95 * weight_sum) {
+            s.area_distortion_p95 = r;
+            break;
         }
     }
+}
+
+} // namespace
+
+Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options) {
+    const ChartSet set = make_charts(mesh); // 1 to 3
+    Atlas atlas;
+    atlas.mode = AtlasMode::Charts;
+    AtlasSummary& s = atlas.summary;
+    s.mode = to_string(AtlasMode::Charts);
+    s.triangles = mesh.triangles.size();
+    s.charts = set.charts;
+    s.seam_edges = set.seam_edges;
+    s.crease_edges = set.crease_edges;
+    s.mesh_vertices = mesh.positions.size();
+
+    const ChartSizes sizes = size_charts(mesh, set, cameras, options, s);  // 4
+    const ChartPacking packing = pack_charts(set, sizes, options);         // 5
+    note_budget(s, packing, sizes, options);
+    place_charts(atlas, mesh, set, sizes, packing);
+    const std::vector<std::uint8_t> interior = assign_interior(atlas);      // 6
+    assign_gutter(atlas, interior);
+    summarize_atlas(atlas, mesh, interior);
+    measure_distortion(atlas, mesh, sizes.surface);
     return atlas;
 }
 
