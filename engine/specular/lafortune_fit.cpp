@@ -342,7 +342,7 @@ Data stride_subsample(const Data& d, std::size_t count) {
 /// Fills standard errors, conditions, the peak test and the status from the final point,
 /// in the thesis's (Cx, Cz, N).
 void analyse(LafortuneChannelFit& out, const Data& d, const LafortuneFitOptions& o, const Mat3& internal_jtj,
-             double theta_max) {
+             double theta_max, Mat3* covariance = nullptr, bool* has_covariance = nullptr) {
     PlainModel thesis;
     thesis.prepare(Vec3(out.cx, out.cz, out.n));
     const Eval e = evaluate(thesis, d, true);
@@ -364,6 +364,8 @@ void analyse(LafortuneChannelFit& out, const Data& d, const LafortuneFitOptions&
         if (lmin > 0.0 && lmax > 0.0 && lmax / lmin < 1e30) {
             const double sigma2 = e.cost / std::max(1.0, m - 3.0);
             const Mat3 cov = sigma2 * e.jtj.inverse();
+            if (covariance) *covariance = cov;
+            if (has_covariance) *has_covariance = true;
             out.std_error_cx = std::sqrt(std::max(0.0, cov(0, 0)));
             out.std_error_cz = std::sqrt(std::max(0.0, cov(1, 1)));
             out.std_error_n = std::sqrt(std::max(0.0, cov(2, 2)));
@@ -488,8 +490,20 @@ struct ChannelRun {
     bool energy_tested = false; ///< the free lobe's energy test ran (it found energy unless NoSpecularEnergy)
     bool fallback = false;      ///< the free lobe is not used: fit the constrained one
     std::string why;            ///< why the free lobe is not used
+    Mat3 covariance = Mat3::Zero(); ///< of the free fit's (Cx, Cz, N)
+    bool has_covariance = false;     ///< false: J^T J was singular
     Stopwatch clock;
 };
+
+/// Whether a directional albedo above 1 is what the samples say, not noise: ln(albedo) more
+/// than 2 standard errors above 0, the standard error propagated from the parameters'
+/// covariance through the gradient `g` of ln(albedo) (first order, e.g. Press et al.,
+/// Numerical Recipes, 3rd ed., section 15.6).
+template <class Vec, class Cov>
+bool albedo_excess_significant(double albedo, const Vec& g, const Cov& cov, bool has_cov, double& std_error) {
+    std_error = std::sqrt(std::max(0.0, g.dot(cov * g)));
+    return has_cov && cov.allFinite() && std::log(albedo) > 2.0 * std_error;
+}
 
 /// The 5th, 50th and 95th weighted percentiles of the light-view angle acos(u.v) = acos(a + b)
 /// (degrees), from a histogram of 0.1-degree bins over a stride subsample of at most
@@ -568,19 +582,27 @@ void review_free_lobe(ChannelRun& run, const LafortuneFitOptions& o) {
     double theta = 0.0;
     f.max_albedo = lafortune_max_albedo(f.cx, f.cz, f.n, &theta);
     if (!(f.max_albedo > 1.0)) return;
-    if (o.constrained_fallback && o.white_furnace && f.peak_seen < 0.5) {
+    // ln(albedo) at the outgoing angle theta is, to first order in the parameters, that of its
+    // Phong form |w|^N 2 pi / (N + 2) cos(theta_w) with w = C v: the gradient of
+    // N ln|w| - ln(N + 2), |w|^2 = Cx^2 sin^2 + Cz^2 cos^2 (the direction theta_w left out).
+    const double s2 = std::pow(std::sin(theta / kRadToDeg), 2), c2 = 1.0 - s2;
+    const double w2 = f.cx * f.cx * s2 + f.cz * f.cz * c2;
+    const Vec3 g(f.n * f.cx * s2 / w2, f.n * f.cz * c2 / w2, 0.5 * std::log(w2) - 1.0 / (f.n + 2.0));
+    double se = 0.0;
+    const bool significant = albedo_excess_significant(f.max_albedo, g, run.covariance, run.has_covariance, se);
+    if (o.constrained_fallback && o.white_furnace && !significant) {
         run.why = format("the free lobe's directional albedo reaches %.3g at %.3g deg from the normal, above the "
-                         "white-furnace bound 1, and no sample sees half of its peak (the best sees %.3g): the excess "
-                         "comes from an extrapolated height",
-                         f.max_albedo, theta, f.peak_seen) +
+                         "white-furnace bound 1, but not by 2 standard errors (ln albedo %.3g +- %.3g): the samples "
+                         "do not ask for the excess",
+                         f.max_albedo, theta, std::log(f.max_albedo), se) +
                   free_lobe;
         run.fallback = true;
         return;
     }
     f.reason += format("; its directional albedo reaches %.3g at %.3g deg from the normal, above the white-furnace "
-                       "bound 1, kept: the samples see its peak (%.3g), so the measured values ask for it (the "
-                       "capture's radiometric scale, or a non-physical material)",
-                       f.max_albedo, theta, f.peak_seen);
+                       "bound 1 by more than 2 standard errors (ln albedo %.3g +- %.3g), kept: the samples ask for it "
+                       "(the capture's radiometric scale, or a non-physical material)",
+                       f.max_albedo, theta, std::log(f.max_albedo), se);
 }
 
 /// The constrained lobe's view of one channel: ln t, t = r.v = b - a (u mirrored about the
@@ -689,6 +711,43 @@ double mirror_exponent(const std::vector<Mirror>& coarse, const std::vector<Mirr
     return f1 <= f2 ? x1 : x2;
 }
 
+/// The mirror lobe of one channel at exponent N, in the thesis's form, with the covariance
+/// of (Cz, N) (sigma^2 (J^T J)^-1 of this channel, N's coupling with the other channels left
+/// out; not determined when singular): f = (Cz t)^N, df/dCz = N f / Cz, df/dN = f ln(Cz t).
+struct MirrorResult {
+    double cz = 0.0, n = 0.0, cost = 0.0, albedo = 0.0, peak_seen = 0.0, condition = kSingularCondition;
+    Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+    bool determined = false; ///< J^T J not singular
+};
+
+MirrorResult mirror_result(const Mirror& m, double n) {
+    const Data& d = *m.d;
+    const MirrorFit mf = mirror_fit(m, n);
+    MirrorResult r;
+    r.n = n;
+    r.cost = mf.cost;
+    if (!(mf.h > 0.0)) return r;
+    const double log_height = std::log(mf.h) - n * m.lt_max; // ln H, H = Cz^N
+    r.cz = std::exp(log_height / n);
+    r.albedo = std::exp(log_height) * 2.0 * std::numbers::pi / (n + 2.0);
+    r.peak_seen = std::exp(n * m.lt_max);
+    Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        if (!std::isfinite(m.lt[i])) continue;
+        const double v = mf.h * std::exp(n * (m.lt[i] - m.lt_max));
+        if (d.f[i] >= d.saturation && v >= d.saturation) continue; // consistent with the clip: no gradient
+        const Eigen::Vector2d gr(n * v / r.cz, v * (std::log(r.cz) + m.lt[i]));
+        jtj += d.w[i] * gr * gr.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(jtj);
+    const double lmin = eig.eigenvalues()[0], lmax = eig.eigenvalues()[1];
+    if (!(lmin > 0.0) || !(lmax / lmin < 1e30) || !jtj.allFinite()) return r;
+    r.condition = std::min(lmax / lmin, kSingularCondition);
+    r.covariance = mf.cost / std::max(1.0, double(d.size()) - 2.0) * jtj.inverse();
+    r.determined = true;
+    return r;
+}
+
 /// The constrained fallback on the channels whose free lobe is not used: a mirror lobe
 /// Cx = -Cz per channel, one N shared by all of them (lafortune_fit.h, top).
 void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOptions& o) {
@@ -707,18 +766,17 @@ void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOpt
     }
     std::uint32_t evaluations = 0;
     double l = mirror_exponent(coarse, full, o, evaluations);
-    // The white-furnace bound: a channel whose unbounded lobe exceeds it with its peak (t = 1)
-    // unseen is bounded, and the exponent searched again.
-    std::vector<double> unbounded_albedo(runs.size(), 0.0);
+    // The white-furnace bound: a channel whose unbounded lobe exceeds it, not by 2 standard
+    // errors of ln(albedo), is bounded, and the exponent searched again.
+    std::vector<double> unbounded_albedo(runs.size(), 0.0), unbounded_se(runs.size(), 0.0);
     bool refit = false;
     for (std::size_t k = 0; k < runs.size(); ++k) {
-        const double n = std::exp(l);
-        const MirrorFit mf = mirror_fit(full[k], n);
-        if (!(mf.h > 0.0)) continue;
-        const double albedo = std::exp(std::log(mf.h) - n * full[k].lt_max) * 2.0 * std::numbers::pi / (n + 2.0);
-        const double seen = std::exp(n * full[k].lt_max);
-        if (o.white_furnace && albedo > 1.0 && seen < 0.5) {
-            unbounded_albedo[k] = albedo;
+        const MirrorResult mr = mirror_result(full[k], std::exp(l));
+        if (!(mr.cz > 0.0) || !(mr.albedo > 1.0)) continue;
+        // ln(albedo) = N ln Cz + ln(2 pi) - ln(N + 2): gradient (N / Cz, ln Cz - 1 / (N + 2)).
+        const Eigen::Vector2d g(mr.n / mr.cz, std::log(mr.cz) - 1.0 / (mr.n + 2.0));
+        if (o.white_furnace && !albedo_excess_significant(mr.albedo, g, mr.covariance, mr.determined, unbounded_se[k])) {
+            unbounded_albedo[k] = mr.albedo;
             full[k].bounded = coarse[k].bounded = true;
             refit = true;
         }
@@ -735,16 +793,13 @@ void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOpt
         ChannelRun& run = *runs[k];
         LafortuneChannelFit& f = run.fit;
         const Data& d = run.d;
-        const Mirror& m = full[k];
-        const MirrorFit mf = mirror_fit(m, n);
+        const MirrorResult mr = mirror_result(full[k], n);
         f.iterations += evaluations;
-        const double log_height = mf.h > 0.0 ? std::log(mf.h) - n * m.lt_max : -kInf; // ln H, H = Cz^N
-        const double cz = std::exp(log_height / n);
         double wsum = 0.0;
         for (double w : d.w) wsum += w;
 
         std::string noise;
-        const bool none = !(mf.h > 0.0) || no_energy(d, mf.cost, o, noise, false, 2.0);
+        const bool none = !(mr.cz > 0.0) || no_energy(d, mr.cost, o, noise, false, 2.0);
         if (none) {
             if (noise.empty()) noise = "the mirror lobe has no positive height at any sample";
             if (run.energy_tested) {
@@ -757,26 +812,10 @@ void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOpt
             }
             continue;
         }
-        // Standard errors in (Cz, N) of this channel's lobe (N's coupling with the other
-        // channels left out): f = (Cz t)^N, df/dCz = N f / Cz, df/dN = f ln(Cz t).
-        Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
-        for (std::size_t i = 0; i < d.size(); ++i) {
-            if (!std::isfinite(m.lt[i])) continue;
-            const double v = mf.h * std::exp(n * (m.lt[i] - m.lt_max));
-            if (d.f[i] >= d.saturation && v >= d.saturation) continue; // consistent with the clip: no gradient
-            const Eigen::Vector2d gr(n * v / cz, v * (std::log(cz) + m.lt[i]));
-            jtj += d.w[i] * gr * gr.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(jtj);
-        const double lmin = eig.eigenvalues()[0], lmax = eig.eigenvalues()[1];
-        const bool singular = !(lmin > 0.0) || !(lmax / lmin < 1e30) || !jtj.allFinite();
-        double se_cz = 0.0, se_n = 0.0, rel = kInf;
-        if (!singular) {
-            const Eigen::Matrix2d cov = mf.cost / std::max(1.0, double(d.size()) - 2.0) * jtj.inverse();
-            se_cz = std::sqrt(std::max(0.0, cov(0, 0)));
-            se_n = std::sqrt(std::max(0.0, cov(1, 1)));
-            rel = std::max(se_cz / cz, se_n / n);
-        }
+        const bool singular = !mr.determined;
+        const double se_cz = std::sqrt(std::max(0.0, mr.covariance(0, 0)));
+        const double se_n = std::sqrt(std::max(0.0, mr.covariance(1, 1)));
+        const double rel = singular ? kInf : std::max(se_cz / mr.cz, se_n / n);
         if (singular || rel > o.max_relative_error) {
             f.status = LafortuneFitStatus::Underdetermined;
             f.reason = "the free lobe was not used (" + run.why + ") and the mirror lobe Cx = -Cz is not determined "
@@ -785,25 +824,27 @@ void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOpt
             continue;
         }
         f.status = LafortuneFitStatus::Constrained;
-        f.cx = -cz;
-        f.cz = cz;
+        f.cx = -mr.cz;
+        f.cz = mr.cz;
         f.n = n;
         f.std_error_cx = f.std_error_cz = se_cz;
         f.std_error_n = se_n;
-        f.cost = mf.cost;
-        f.rms = std::sqrt(mf.cost / wsum);
-        f.condition = f.condition_internal = std::min(lmax / lmin, kSingularCondition);
-        f.peak_seen = std::exp(n * m.lt_max);
-        f.max_albedo = std::exp(log_height) * 2.0 * std::numbers::pi / (n + 2.0);
+        f.cost = mr.cost;
+        f.rms = std::sqrt(mr.cost / wsum);
+        f.condition = f.condition_internal = mr.condition;
+        f.peak_seen = mr.peak_seen;
+        f.max_albedo = mr.albedo;
         f.reason = "constrained to a mirror lobe (Cx = -Cz" + shared + "): the free lobe was not used: " + run.why +
                    format(". Mirror lobe: rms %.3g, relative standard error %.3g, peak seen %.3g, directional albedo "
                           "%.3g",
                           f.rms, rel, f.peak_seen, f.max_albedo);
         if (unbounded_albedo[k] > 0.0)
-            f.reason += format("; unbounded, its directional albedo was %.3g (above the white-furnace bound 1) with no "
-                               "sample seeing half of its peak: refitted with Cz^N 2 pi / (N + 2) <= 1 (Lafortune and "
-                               "Willems 1994)",
-                               unbounded_albedo[k]);
+            f.reason += format("; unbounded, its directional albedo was %.3g, above the white-furnace bound 1 but not "
+                               "by 2 standard errors (ln albedo %.3g +- %.3g): refitted with Cz^N 2 pi / (N + 2) <= 1 "
+                               "(Lafortune and Willems 1994)",
+                               unbounded_albedo[k], std::log(unbounded_albedo[k]), unbounded_se[k]);
+        else if (f.max_albedo > 1.0)
+            f.reason += "; above the white-furnace bound 1 by more than 2 standard errors, kept: the samples ask for it";
     }
 }
 
@@ -1007,7 +1048,7 @@ ChannelRun fit_free(std::span<const LafortuneSample> samples, int channel, const
     }
     out.status = best.converged ? LafortuneFitStatus::Converged : LafortuneFitStatus::NotConverged;
     out.reason = best.stop;
-    analyse(out, d, o, internal_jtj, theta_max);
+    analyse(out, d, o, internal_jtj, theta_max, &run.covariance, &run.has_covariance);
     std::string why;
     if (no_energy(d, out.cost, o, why)) {
         out.status = LafortuneFitStatus::NoSpecularEnergy;
