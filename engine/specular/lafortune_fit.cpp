@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/timer.h"
+#include "material/material.h"
 
 #include <Eigen/Dense>
 
@@ -341,7 +342,7 @@ Data stride_subsample(const Data& d, std::size_t count) {
 /// Fills standard errors, conditions, the peak test and the status from the final point,
 /// in the thesis's (Cx, Cz, N).
 void analyse(LafortuneChannelFit& out, const Data& d, const LafortuneFitOptions& o, const Mat3& internal_jtj,
-             double theta_max) {
+             double theta_max, Mat3* covariance = nullptr, bool* has_covariance = nullptr) {
     PlainModel thesis;
     thesis.prepare(Vec3(out.cx, out.cz, out.n));
     const Eval e = evaluate(thesis, d, true);
@@ -363,6 +364,8 @@ void analyse(LafortuneChannelFit& out, const Data& d, const LafortuneFitOptions&
         if (lmin > 0.0 && lmax > 0.0 && lmax / lmin < 1e30) {
             const double sigma2 = e.cost / std::max(1.0, m - 3.0);
             const Mat3 cov = sigma2 * e.jtj.inverse();
+            if (covariance) *covariance = cov;
+            if (has_covariance) *has_covariance = true;
             out.std_error_cx = std::sqrt(std::max(0.0, cov(0, 0)));
             out.std_error_cz = std::sqrt(std::max(0.0, cov(1, 1)));
             out.std_error_n = std::sqrt(std::max(0.0, cov(2, 2)));
@@ -424,9 +427,10 @@ void analyse(LafortuneChannelFit& out, const Data& d, const LafortuneFitOptions&
 
 /// True (with a reason) if the fit explains no more than the noise: with a known sigma,
 /// the cost decrease over the zero model is below 25 sigma^2 (five sigma on one sample);
-/// unknown, the F statistic of the lobe against the zero model is below 10. `strict`
-/// lowers both thresholds (4 sigma^2, F 2) for the early exit from the restarts.
-bool no_energy(const Data& d, double cost, const LafortuneFitOptions& o, std::string& reason, bool strict = false) {
+/// unknown, the F statistic of the lobe (`params` parameters) against the zero model is
+/// below 10. `strict` lowers both thresholds (4 sigma^2, F 2) for the early exit from the restarts.
+bool no_energy(const Data& d, double cost, const LafortuneFitOptions& o, std::string& reason, bool strict = false,
+               double params = 3.0) {
     double cost0 = 0.0, wsum = 0.0;
     for (std::size_t i = 0; i < d.size(); ++i) {
         const double fi = std::min(d.f[i], d.saturation);
@@ -445,8 +449,8 @@ bool no_energy(const Data& d, double cost, const LafortuneFitOptions& o, std::st
         }
         return false;
     }
-    const double dof = std::max(1.0, m - 3.0);
-    const double f_stat = cost > 0.0 ? (gain / 3.0) / (cost / dof) : kInf;
+    const double dof = std::max(1.0, m - params);
+    const double f_stat = cost > 0.0 ? (gain / params) / (cost / dof) : kInf;
     if (f_stat <= (strict ? 2.0 : 10.0)) {
         reason = format("the lobe is not significant against zero (F statistic %.3g <= 10; the residual rms %.3g is "
                         "the noise)",
@@ -458,7 +462,8 @@ bool no_energy(const Data& d, double cost, const LafortuneFitOptions& o, std::st
 
 void sanitize(LafortuneChannelFit& out) {
     double* values[] = {&out.cx, &out.cz, &out.n, &out.std_error_cx, &out.std_error_cz, &out.std_error_n,
-                        &out.cost, &out.rms, &out.condition, &out.condition_internal, &out.peak_seen};
+                        &out.cost, &out.rms, &out.condition, &out.condition_internal, &out.peak_seen,
+                        &out.max_albedo, &out.light_view_spread_deg};
     bool bad = false;
     for (double* v : values) {
         if (!std::isfinite(*v)) {
@@ -472,40 +477,400 @@ void sanitize(LafortuneChannelFit& out) {
     }
 }
 
-} // namespace
+// ---------------------------------------------------------------------------------------
+// After the free fit: is its lobe used, and the constrained fallback (lafortune_fit.h, top).
 
-const char* to_string(LafortuneFitStatus status) noexcept {
-    switch (status) {
-    case LafortuneFitStatus::Converged: return "converged";
-    case LafortuneFitStatus::NotConverged: return "not converged";
-    case LafortuneFitStatus::Underdetermined: return "underdetermined";
-    case LafortuneFitStatus::NoSpecularEnergy: return "no specular energy";
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+/// One channel from the free fit to the fallback.
+struct ChannelRun {
+    int channel = 0;
+    Data d;
+    LafortuneChannelFit fit;
+    bool energy_tested = false; ///< the free lobe's energy test ran (it found energy unless NoSpecularEnergy)
+    bool fallback = false;      ///< the free lobe is not used: fit the constrained one
+    std::string why;            ///< why the free lobe is not used
+    Mat3 covariance = Mat3::Zero(); ///< of the free fit's (Cx, Cz, N)
+    bool has_covariance = false;     ///< false: J^T J was singular
+    Stopwatch clock;
+};
+
+/// Whether a directional albedo above 1 is what the samples say, not noise: ln(albedo) more
+/// than 2 standard errors above 0, the standard error propagated from the parameters'
+/// covariance through the gradient `g` of ln(albedo) (first order, e.g. Press et al.,
+/// Numerical Recipes, 3rd ed., section 15.6).
+template <class Vec, class Cov>
+bool albedo_excess_significant(double albedo, const Vec& g, const Cov& cov, bool has_cov, double& std_error) {
+    std_error = std::sqrt(std::max(0.0, g.dot(cov * g)));
+    return has_cov && cov.allFinite() && std::log(albedo) > 2.0 * std_error;
+}
+
+/// The 5th, 50th and 95th weighted percentiles of the light-view angle acos(u.v) = acos(a + b)
+/// (degrees), from a histogram of 0.1-degree bins over a stride subsample of at most
+/// `max_samples` (0: all).
+std::array<double, 3> light_view_angles(const Data& d, std::size_t max_samples) {
+    constexpr int kBins = 1800;
+    std::vector<double> hist(kBins, 0.0);
+    double total = 0.0;
+    const std::size_t stride = max_samples > 0 ? std::max<std::size_t>(1, d.size() / max_samples) : 1;
+    for (std::size_t i = 0; i < d.size(); i += stride) {
+        const double g = std::acos(std::clamp(d.a[i] + d.b[i], -1.0, 1.0)) * kRadToDeg;
+        hist[std::size_t(std::clamp(int(g * 10.0), 0, kBins - 1))] += d.w[i];
+        total += d.w[i];
     }
-    return "?";
-}
-
-const char* to_string(LafortuneFitMethod method) noexcept {
-    switch (method) {
-    case LafortuneFitMethod::Robust: return "robust";
-    case LafortuneFitMethod::ThesisPlain: return "thesis-plain";
+    std::array<double, 3> out{0.0, 0.0, 0.0};
+    const double fractions[3] = {0.05, 0.5, 0.95};
+    double acc = 0.0;
+    std::size_t k = 0;
+    for (int bin = 0; bin < kBins && k < 3; ++bin) {
+        acc += hist[std::size_t(bin)];
+        while (k < 3 && total > 0.0 && acc >= fractions[k] * total) out[k++] = (bin + 0.5) * 0.1;
     }
-    return "?";
+    return out;
 }
 
-double lafortune_reachable_peak(double cx, double cz, double n, double theta_max) noexcept {
-    const double s2 = std::pow(std::sin(theta_max), 2);
-    const double base = std::max({0.0, cz, std::abs(cx) * s2 + cz * (1.0 - s2)});
-    return base > 0.0 ? std::pow(base, n) : 0.0;
+/// Decides whether the robust free fit's lobe is used: it is not (run.fallback, run.why)
+/// when underdetermined or not converged, or converged but seen at one light-view angle,
+/// with its peak far outside the samples, or above the white-furnace bound with its height
+/// extrapolated (lafortune_fit.h, top). NoSpecularEnergy and fewer than 4 samples stand.
+void review_free_lobe(ChannelRun& run, const LafortuneFitOptions& o) {
+    LafortuneChannelFit& f = run.fit;
+    const std::array<double, 3> angles = light_view_angles(run.d, o.coarse_samples);
+    f.light_view_spread_deg = angles[2] - angles[0];
+    switch (f.status) {
+    case LafortuneFitStatus::NoSpecularEnergy:
+    case LafortuneFitStatus::Constrained: return;
+    case LafortuneFitStatus::Underdetermined:
+        if (run.d.size() < 4) return; // too few samples to test anything, the constrained lobe included
+        [[fallthrough]];
+    case LafortuneFitStatus::NotConverged:
+        run.why = std::string("the free fit is ") + to_string(f.status) + " (" + f.reason + ")";
+        run.fallback = o.constrained_fallback;
+        return;
+    case LafortuneFitStatus::Converged: break;
+    }
+    const std::string free_lobe = format("; the free fit gave Cx %.4g, Cz %.4g, N %.4g", f.cx, f.cz, f.n) +
+                                  (f.cx > 0.0 ? " (retro-reflective)" : "");
+    if (o.constrained_fallback) {
+        if (f.light_view_spread_deg < o.min_light_view_spread_deg) {
+            run.why = format("the samples see the lobe at one light-view angle (median %.1f deg, 5-95%% spread %.2g deg "
+                             "< %.3g): the off-specular part Cx + Cz, which the light-view angle changes, is set only by "
+                             "the model's exact shape, not by the data",
+                             angles[1], f.light_view_spread_deg, o.min_light_view_spread_deg) +
+                      free_lobe;
+            run.fallback = true;
+            return;
+        }
+        if (f.peak_seen * o.max_peak_ratio < 1.0) {
+            run.why = format("the free lobe's peak is %.3g times the largest value it takes at any sample (more than "
+                             "K = %.3g): its height is extrapolated far outside the samples",
+                             f.peak_seen > 0.0 ? 1.0 / f.peak_seen : kInf, o.max_peak_ratio) +
+                      free_lobe;
+            run.fallback = true;
+            return;
+        }
+    }
+    // For a view v the lobe is a Phong lobe about w = C v, C = diag(Cx, Cx, Cz): f = |w|^N
+    // max(0, u.w / |w|)^N, whose integral against u.n over the upper hemisphere is at most
+    // |w|^N int max(0, u.w / |w|)^N du = |w|^N 2 pi / (N + 1). So the albedo is at most
+    // max(|Cx|, |Cz|)^N 2 pi / (N + 1): below 1, the quadrature is not needed.
+    const double bound = std::exp(f.n * std::log(std::max(std::abs(f.cx), std::abs(f.cz)))) * 2.0 * std::numbers::pi / (f.n + 1.0);
+    if (!(bound > 1.0)) {
+        f.max_albedo = bound;
+        return;
+    }
+    double theta = 0.0;
+    f.max_albedo = lafortune_max_albedo(f.cx, f.cz, f.n, &theta);
+    if (!(f.max_albedo > 1.0)) return;
+    // ln(albedo) at the outgoing angle theta is, to first order in the parameters, that of its
+    // Phong form |w|^N 2 pi / (N + 2) cos(theta_w) with w = C v: the gradient of
+    // N ln|w| - ln(N + 2), |w|^2 = Cx^2 sin^2 + Cz^2 cos^2 (the direction theta_w left out).
+    const double s2 = std::pow(std::sin(theta / kRadToDeg), 2), c2 = 1.0 - s2;
+    const double w2 = f.cx * f.cx * s2 + f.cz * f.cz * c2;
+    const Vec3 g(f.n * f.cx * s2 / w2, f.n * f.cz * c2 / w2, 0.5 * std::log(w2) - 1.0 / (f.n + 2.0));
+    double se = 0.0;
+    const bool significant = albedo_excess_significant(f.max_albedo, g, run.covariance, run.has_covariance, se);
+    if (o.constrained_fallback && o.white_furnace && !significant) {
+        run.why = format("the free lobe's directional albedo reaches %.3g at %.3g deg from the normal, above the "
+                         "white-furnace bound 1, but not by 2 standard errors (ln albedo %.3g +- %.3g): the samples "
+                         "do not ask for the excess",
+                         f.max_albedo, theta, std::log(f.max_albedo), se) +
+                  free_lobe;
+        run.fallback = true;
+        return;
+    }
+    f.reason += format("; its directional albedo reaches %.3g at %.3g deg from the normal, above the white-furnace "
+                       "bound 1 by more than 2 standard errors (ln albedo %.3g +- %.3g), kept: the samples ask for it "
+                       "(the capture's radiometric scale, or a non-physical material)",
+                       f.max_albedo, theta, std::log(f.max_albedo), se);
 }
 
-LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> samples, int channel,
-                                          const LafortuneFitOptions& o) {
+/// The constrained lobe's view of one channel: ln t, t = r.v = b - a (u mirrored about the
+/// normal, dotted with v), -infinity where t <= 0 (outside every mirror lobe).
+struct Mirror {
+    const Data* d = nullptr;
+    std::vector<double> lt;
+    double lt_max = -kInf;
+    bool bounded = false; ///< height bounded by the white-furnace bound
+};
+
+Mirror make_mirror(const Data& d) {
+    Mirror m;
+    m.d = &d;
+    m.lt.resize(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        const double t = d.b[i] - d.a[i];
+        m.lt[i] = t > 0.0 ? std::log(t) : -kInf;
+        m.lt_max = std::max(m.lt_max, m.lt[i]);
+    }
+    return m;
+}
+
+/// The mirror lobe at exponent N: f = H t^N = h q with q = exp(N (ln t - ln t_max)) in
+/// (0, 1] (so that N = 1e5 neither overflows nor underflows) and h = H t_max^N. The height
+/// is linear: h = sum w f q / sum w q^2 (weighted least squares, clipped samples at their
+/// clip level, as solve_height); bounded, H is at most (N + 2) / (2 pi), the white-furnace
+/// bound of the Phong lobe (Lafortune and Willems 1994). The cost censors clipped samples
+/// as evaluate() does.
+struct MirrorFit {
+    double h = 0.0;
+    double cost = kInf;
+};
+
+MirrorFit mirror_fit(const Mirror& m, double n) {
+    const Data& d = *m.d;
+    MirrorFit r;
+    if (std::isfinite(m.lt_max)) {
+        double num = 0.0, den = 0.0;
+        for (std::size_t i = 0; i < d.size(); ++i) {
+            if (!std::isfinite(m.lt[i])) continue;
+            const double q = std::exp(n * (m.lt[i] - m.lt_max));
+            num += d.w[i] * std::min(d.f[i], d.saturation) * q;
+            den += d.w[i] * q * q;
+        }
+        if (num > 0.0 && den > 0.0) r.h = num / den;
+        if (m.bounded) r.h = std::min(r.h, (n + 2.0) / (2.0 * std::numbers::pi) * std::exp(n * m.lt_max));
+    }
+    double cost = 0.0;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        const double model = std::isfinite(m.lt[i]) ? r.h * std::exp(n * (m.lt[i] - m.lt_max)) : 0.0;
+        double target = d.f[i];
+        if (target >= d.saturation) {
+            if (model >= d.saturation) continue;
+            target = d.saturation;
+        }
+        cost += d.w[i] * (model - target) * (model - target);
+    }
+    r.cost = cost;
+    return r;
+}
+
+/// The one exponent shared by the channels: a grid of 64 values of ln N over [ln min_n,
+/// ln max_n] on stride subsamples, then golden-section search on all samples between the
+/// best grid value's neighbours. Returns ln N; `evaluations` counts the cost evaluations.
+double mirror_exponent(const std::vector<Mirror>& coarse, const std::vector<Mirror>& full, const LafortuneFitOptions& o,
+                       std::uint32_t& evaluations) {
+    const auto total = [&](const std::vector<Mirror>& ms, double l) {
+        ++evaluations;
+        double c = 0.0;
+        for (const Mirror& m : ms) c += mirror_fit(m, std::exp(l)).cost;
+        return c;
+    };
+    const double lo = std::log(o.min_n), hi = std::log(o.max_n);
+    constexpr int kGrid = 64;
+    const double step = (hi - lo) / (kGrid - 1);
+    int best = 0;
+    double best_cost = kInf;
+    for (int k = 0; k < kGrid; ++k) {
+        const double c = total(coarse, lo + k * step);
+        if (c < best_cost) {
+            best_cost = c;
+            best = k;
+        }
+    }
+    // Golden-section search (e.g. Press et al., Numerical Recipes, 3rd ed., section 10.2).
+    const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+    double a = lo + std::max(0, best - 1) * step, b = lo + std::min(kGrid - 1, best + 1) * step;
+    double x1 = b - g * (b - a), x2 = a + g * (b - a);
+    double f1 = total(full, x1), f2 = total(full, x2);
+    for (int it = 0; it < 60 && b - a > 1e-9; ++it) {
+        if (f1 <= f2) {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - g * (b - a);
+            f1 = total(full, x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + g * (b - a);
+            f2 = total(full, x2);
+        }
+    }
+    return f1 <= f2 ? x1 : x2;
+}
+
+/// The mirror lobe of one channel at exponent N, in the thesis's form, with the covariance
+/// of (Cz, N) (sigma^2 (J^T J)^-1 of this channel, N's coupling with the other channels left
+/// out; not determined when singular): f = (Cz t)^N, df/dCz = N f / Cz, df/dN = f ln(Cz t).
+struct MirrorResult {
+    double cz = 0.0, n = 0.0, cost = 0.0, albedo = 0.0, peak_seen = 0.0, condition = kSingularCondition;
+    Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+    bool determined = false; ///< J^T J not singular
+};
+
+MirrorResult mirror_result(const Mirror& m, double n) {
+    const Data& d = *m.d;
+    const MirrorFit mf = mirror_fit(m, n);
+    MirrorResult r;
+    r.n = n;
+    r.cost = mf.cost;
+    if (!(mf.h > 0.0)) return r;
+    const double log_height = std::log(mf.h) - n * m.lt_max; // ln H, H = Cz^N
+    r.cz = std::exp(log_height / n);
+    r.albedo = std::exp(log_height) * 2.0 * std::numbers::pi / (n + 2.0);
+    r.peak_seen = std::exp(n * m.lt_max);
+    Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        if (!std::isfinite(m.lt[i])) continue;
+        const double v = mf.h * std::exp(n * (m.lt[i] - m.lt_max));
+        if (d.f[i] >= d.saturation && v >= d.saturation) continue; // consistent with the clip: no gradient
+        const Eigen::Vector2d gr(n * v / r.cz, v * (std::log(r.cz) + m.lt[i]));
+        jtj += d.w[i] * gr * gr.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(jtj);
+    const double lmin = eig.eigenvalues()[0], lmax = eig.eigenvalues()[1];
+    if (!(lmin > 0.0) || !(lmax / lmin < 1e30) || !jtj.allFinite()) return r;
+    r.condition = std::min(lmax / lmin, kSingularCondition);
+    r.covariance = mf.cost / std::max(1.0, double(d.size()) - 2.0) * jtj.inverse();
+    r.determined = true;
+    return r;
+}
+
+/// The constrained fallback on the channels whose free lobe is not used: a mirror lobe
+/// Cx = -Cz per channel, one N shared by all of them (lafortune_fit.h, top).
+void fit_constrained(const std::vector<ChannelRun*>& runs, const LafortuneFitOptions& o) {
+    if (runs.empty()) return;
+    std::vector<Data> subs;
+    subs.reserve(runs.size());
+    std::vector<Mirror> full, coarse;
+    for (ChannelRun* r : runs) {
+        full.push_back(make_mirror(r->d));
+        if (o.coarse_samples > 0 && r->d.size() > o.coarse_samples) {
+            subs.push_back(stride_subsample(r->d, o.coarse_samples));
+            coarse.push_back(make_mirror(subs.back()));
+        } else {
+            coarse.push_back(full.back());
+        }
+    }
+    std::uint32_t evaluations = 0;
+    double l = mirror_exponent(coarse, full, o, evaluations);
+    // The white-furnace bound: a channel whose unbounded lobe exceeds it, not by 2 standard
+    // errors of ln(albedo), is bounded, and the exponent searched again.
+    std::vector<double> unbounded_albedo(runs.size(), 0.0), unbounded_se(runs.size(), 0.0);
+    bool refit = false;
+    for (std::size_t k = 0; k < runs.size(); ++k) {
+        const MirrorResult mr = mirror_result(full[k], std::exp(l));
+        if (!(mr.cz > 0.0) || !(mr.albedo > 1.0)) continue;
+        // ln(albedo) = N ln Cz + ln(2 pi) - ln(N + 2): gradient (N / Cz, ln Cz - 1 / (N + 2)).
+        const Eigen::Vector2d g(mr.n / mr.cz, std::log(mr.cz) - 1.0 / (mr.n + 2.0));
+        if (o.white_furnace && !albedo_excess_significant(mr.albedo, g, mr.covariance, mr.determined, unbounded_se[k])) {
+            unbounded_albedo[k] = mr.albedo;
+            full[k].bounded = coarse[k].bounded = true;
+            refit = true;
+        }
+    }
+    if (refit) l = mirror_exponent(coarse, full, o, evaluations);
+
+    const double n = std::exp(l);
+    std::string shared;
+    if (runs.size() > 1) {
+        shared = ", one N shared by channels ";
+        for (std::size_t k = 0; k < runs.size(); ++k) shared += std::string(k ? ", " : "") + "rgb"[runs[k]->channel];
+    }
+    for (std::size_t k = 0; k < runs.size(); ++k) {
+        ChannelRun& run = *runs[k];
+        LafortuneChannelFit& f = run.fit;
+        const Data& d = run.d;
+        const MirrorResult mr = mirror_result(full[k], n);
+        f.iterations += evaluations;
+        double wsum = 0.0;
+        for (double w : d.w) wsum += w;
+
+        std::string noise;
+        const bool none = !(mr.cz > 0.0) || no_energy(d, mr.cost, o, noise, false, 2.0);
+        if (none) {
+            if (noise.empty()) noise = "the mirror lobe has no positive height at any sample";
+            if (run.energy_tested) {
+                f.status = LafortuneFitStatus::Underdetermined;
+                f.reason = "the free lobe was not used (" + run.why + ") and the mirror lobe Cx = -Cz explains no "
+                           "more than the noise (" + noise + "): the residual energy is not a lobe about the mirror direction";
+            } else {
+                f.status = LafortuneFitStatus::NoSpecularEnergy;
+                f.reason = noise + "; the free lobe was not used: " + run.why;
+            }
+            continue;
+        }
+        const bool singular = !mr.determined;
+        const double se_cz = std::sqrt(std::max(0.0, mr.covariance(0, 0)));
+        const double se_n = std::sqrt(std::max(0.0, mr.covariance(1, 1)));
+        const double rel = singular ? kInf : std::max(se_cz / mr.cz, se_n / n);
+        if (singular || rel > o.max_relative_error) {
+            f.status = LafortuneFitStatus::Underdetermined;
+            f.reason = "the free lobe was not used (" + run.why + ") and the mirror lobe Cx = -Cz is not determined "
+                       "either: " + (singular ? std::string("J^T J is singular")
+                                              : format("relative standard error %.3g (Cz +- %.3g, N +- %.3g)", rel, se_cz, se_n));
+            continue;
+        }
+        f.status = LafortuneFitStatus::Constrained;
+        f.cx = -mr.cz;
+        f.cz = mr.cz;
+        f.n = n;
+        f.std_error_cx = f.std_error_cz = se_cz;
+        f.std_error_n = se_n;
+        f.cost = mr.cost;
+        f.rms = std::sqrt(mr.cost / wsum);
+        f.condition = f.condition_internal = mr.condition;
+        f.peak_seen = mr.peak_seen;
+        f.max_albedo = mr.albedo;
+        f.reason = "constrained to a mirror lobe (Cx = -Cz" + shared + "): the free lobe was not used: " + run.why +
+                   format(". Mirror lobe: rms %.3g, relative standard error %.3g, peak seen %.3g, directional albedo "
+                          "%.3g",
+                          f.rms, rel, f.peak_seen, f.max_albedo);
+        if (unbounded_albedo[k] > 0.0)
+            f.reason += format("; unbounded, its directional albedo was %.3g, above the white-furnace bound 1 but not "
+                               "by 2 standard errors (ln albedo %.3g +- %.3g): refitted with Cz^N 2 pi / (N + 2) <= 1 "
+                               "(Lafortune and Willems 1994)",
+                               unbounded_albedo[k], std::log(unbounded_albedo[k]), unbounded_se[k]);
+        else if (f.max_albedo > 1.0)
+            f.reason += "; above the white-furnace bound 1 by more than 2 standard errors, kept: the samples ask for it";
+    }
+}
+
+void check_arguments(int channel, const LafortuneFitOptions& o) {
     if (channel < 0 || channel > 2) throw UsageError("fit_lafortune_channel: channel must be 0, 1 or 2");
     if (!(o.min_n > 0.0) || !(o.max_n >= o.min_n) || !std::isfinite(o.max_n))
         throw UsageError("fit_lafortune: need 0 < min_n <= max_n < infinity");
-    const Stopwatch clock;
-    LafortuneChannelFit out;
-    Data d = prepare_data(samples, channel);
+    if (!(o.max_peak_ratio >= 1.0) || !(o.min_light_view_spread_deg >= 0.0))
+        throw UsageError("fit_lafortune: need max_peak_ratio >= 1 and min_light_view_spread_deg >= 0");
+}
+
+LafortuneChannelFit finish(ChannelRun& run) {
+    sanitize(run.fit);
+    run.fit.seconds = run.clock.seconds();
+    return run.fit;
+}
+
+/// The free fit of one channel (robust or the thesis's plain recipe), then, for the robust
+/// method, the review that decides whether its lobe is used (review_free_lobe).
+ChannelRun fit_free(std::span<const LafortuneSample> samples, int channel, const LafortuneFitOptions& o) {
+    check_arguments(channel, o);
+    ChannelRun run;
+    run.channel = channel;
+    LafortuneChannelFit& out = run.fit;
+    run.d = prepare_data(samples, channel);
+    Data& d = run.d;
     out.samples = std::uint32_t(d.size());
 
     // The largest polar angle that both directions of a sample reach (for the peak test).
@@ -516,17 +881,17 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
         theta_max = std::max(theta_max, std::acos(std::clamp(cz, 0.0, 1.0)));
     }
 
-    auto finish = [&](LafortuneChannelFit& r) -> LafortuneChannelFit {
-        sanitize(r);
-        r.seconds = clock.seconds();
-        return r;
+    const bool robust = o.method == LafortuneFitMethod::Robust;
+    const auto review = [&] {
+        if (robust) review_free_lobe(run, o);
     };
     if (d.size() < 4) {
         out.status = LafortuneFitStatus::Underdetermined;
         out.reason = format("only %.0f samples with weight > 0: the three parameters need at least 4 (and many more "
                             "to be trusted)",
                             double(d.size()));
-        return finish(out);
+        review();
+        return run;
     }
     double fmax = -kInf;
     std::size_t ref = 0;
@@ -535,10 +900,10 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
     if (!(fmax > 0.0)) {
         out.status = LafortuneFitStatus::NoSpecularEnergy;
         out.reason = "no sample has a positive value";
-        return finish(out);
+        review();
+        return run;
     }
 
-    const bool robust = o.method == LafortuneFitMethod::Robust;
     if (robust) {
         // Clip level: given, or detected as a maximum that several samples share exactly.
         if (o.saturation > 0.0) {
@@ -636,7 +1001,8 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
         if (starts.empty()) {
             out.status = LafortuneFitStatus::NoSpecularEnergy;
             out.reason = "no start lobe overlaps positive data (the closed-form height is never positive)";
-            return finish(out);
+            review();
+            return run;
         }
         std::sort(starts.begin(), starts.end(), [](const Start& x, const Start& y) { return x.cost < y.cost; });
         const std::size_t runs = std::min<std::size_t>(starts.size(), std::size_t(o.restarts) + 1);
@@ -670,17 +1036,19 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
     if (!best.finite) {
         out.status = LafortuneFitStatus::NotConverged;
         out.reason = "LM could not start: " + best.stop;
-        return finish(out);
+        review();
+        return run;
     }
     if (!std::isfinite(out.cx) || !std::isfinite(out.cz) || !std::isfinite(out.n)) {
         out.status = LafortuneFitStatus::NotConverged;
         out.reason = "the parameters became non-finite (" + best.stop + ")";
         out.cx = out.cz = out.n = 0.0;
-        return finish(out);
+        review();
+        return run;
     }
     out.status = best.converged ? LafortuneFitStatus::Converged : LafortuneFitStatus::NotConverged;
     out.reason = best.stop;
-    analyse(out, d, o, internal_jtj, theta_max);
+    analyse(out, d, o, internal_jtj, theta_max, &run.covariance, &run.has_covariance);
     std::string why;
     if (no_energy(d, out.cost, o, why)) {
         out.status = LafortuneFitStatus::NoSpecularEnergy;
@@ -690,13 +1058,107 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
         out.status = LafortuneFitStatus::NotConverged;
         out.reason = format("converged to a non-physical N = %.3g", out.n);
     }
-    return finish(out);
+    run.energy_tested = true;
+    review();
+    return run;
+}
+
+} // namespace
+
+const char* to_string(LafortuneFitStatus status) noexcept {
+    switch (status) {
+    case LafortuneFitStatus::Converged: return "converged";
+    case LafortuneFitStatus::NotConverged: return "not converged";
+    case LafortuneFitStatus::Underdetermined: return "underdetermined";
+    case LafortuneFitStatus::NoSpecularEnergy: return "no specular energy";
+    case LafortuneFitStatus::Constrained: return "constrained";
+    }
+    return "?";
+}
+
+const char* to_string(LafortuneFitMethod method) noexcept {
+    switch (method) {
+    case LafortuneFitMethod::Robust: return "robust";
+    case LafortuneFitMethod::ThesisPlain: return "thesis-plain";
+    }
+    return "?";
+}
+
+double lafortune_reachable_peak(double cx, double cz, double n, double theta_max) noexcept {
+    const double s2 = std::pow(std::sin(theta_max), 2);
+    const double base = std::max({0.0, cz, std::abs(cx) * s2 + cz * (1.0 - s2)});
+    return base > 0.0 ? std::pow(base, n) : 0.0;
+}
+
+double lafortune_max_albedo(double cx, double cz, double n, double* theta_deg) {
+    if (theta_deg) *theta_deg = 0.0;
+    if (!(n > 0.0) || !std::isfinite(cx) || !std::isfinite(cz) || !std::isfinite(n)) return 0.0;
+    const int cells = std::clamp(int(std::ceil(3.0 * std::sqrt(n))), 32, 640);
+    const SpecularModel model = LafortuneRgb{glm::vec3(float(cx), 0.0f, 0.0f), glm::vec3(float(cz), 0.0f, 0.0f),
+                                             glm::vec3(float(n), 1.0f, 1.0f)};
+    bool overflow = false;
+    const auto albedo = [&](double t) {
+        const double a = directional_albedo(model, glm::dvec3(0.0), std::cos(t * std::numbers::pi / 180.0), cells).x;
+        if (!(a <= 1e300)) overflow = true; // overflow (or NaN): beyond any bound
+        return overflow ? 1e300 : a;
+    };
+    // Every 5 degrees (and 88, 89.5), then golden-section search between the best one's
+    // neighbours (Press et al., Numerical Recipes, 3rd ed., section 10.2): a narrow lobe's
+    // albedo peaks within a few degrees.
+    std::vector<double> ts;
+    for (double t = 0.0; t <= 85.0; t += 5.0) ts.push_back(t);
+    ts.push_back(88.0);
+    ts.push_back(89.5);
+    std::size_t k = 0;
+    double best = -1.0;
+    for (std::size_t i = 0; i < ts.size(); ++i) {
+        const double a = albedo(ts[i]);
+        if (a > best) {
+            best = a;
+            k = i;
+        }
+    }
+    double at = ts[k];
+    if (!overflow) {
+        const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+        double lo = ts[k > 0 ? k - 1 : 0], hi = ts[std::min(k + 1, ts.size() - 1)];
+        double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
+        double f1 = albedo(x1), f2 = albedo(x2);
+        for (int it = 0; it < 14; ++it) {
+            if (f1 >= f2) {
+                hi = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = hi - g * (hi - lo);
+                f1 = albedo(x1);
+            } else {
+                lo = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = lo + g * (hi - lo);
+                f2 = albedo(x2);
+            }
+        }
+        if (std::max(f1, f2) > best) {
+            best = std::max(f1, f2);
+            at = f1 >= f2 ? x1 : x2;
+        }
+    }
+    if (theta_deg) *theta_deg = at;
+    return best;
+}
+
+LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> samples, int channel,
+                                          const LafortuneFitOptions& o) {
+    ChannelRun run = fit_free(samples, channel, o);
+    if (run.fallback) fit_constrained({&run}, o);
+    return finish(run);
 }
 
 LafortuneRgb LafortuneFitRgb::converged_lobe() const noexcept {
     LafortuneRgb l;
     for (int k = 0; k < 3; ++k)
-        if (channel[k].status == LafortuneFitStatus::Converged) {
+        if (has_lobe(channel[k].status)) {
             l.cx[k] = static_cast<float>(channel[k].cx);
             l.cz[k] = static_cast<float>(channel[k].cz);
             l.n[k] = static_cast<float>(channel[k].n);
@@ -705,8 +1167,15 @@ LafortuneRgb LafortuneFitRgb::converged_lobe() const noexcept {
 }
 
 LafortuneFitRgb fit_lafortune(std::span<const LafortuneSample> samples, const LafortuneFitOptions& options) {
+    std::array<ChannelRun, 3> runs;
+    std::vector<ChannelRun*> fallback;
+    for (int c = 0; c < 3; ++c) {
+        runs[std::size_t(c)] = fit_free(samples, c, options);
+        if (runs[std::size_t(c)].fallback) fallback.push_back(&runs[std::size_t(c)]);
+    }
+    fit_constrained(fallback, options);
     LafortuneFitRgb out;
-    for (int c = 0; c < 3; ++c) out.channel[c] = fit_lafortune_channel(samples, c, options);
+    for (int c = 0; c < 3; ++c) out.channel[c] = finish(runs[std::size_t(c)]);
     return out;
 }
 

@@ -242,6 +242,11 @@ bool case_pass(const LafortuneFitCase& c, const LafortuneChannelFit& f) {
         return c.expect == CaseExpect::RecoverOrUnderdetermined || c.expect == CaseExpect::Underdetermined;
     case LafortuneFitStatus::NoSpecularEnergy: return c.expect == CaseExpect::NoSpecularEnergy;
     case LafortuneFitStatus::NotConverged: return false;
+    case LafortuneFitStatus::Constrained:
+        // The fallback where the free lobe is not trusted (lafortune_fit.h): honest where
+        // underdetermined is, and on a mirror-lobe truth (Cx = -Cz) it must recover it.
+        if (c.expect != CaseExpect::RecoverOrUnderdetermined && c.expect != CaseExpect::Underdetermined) return false;
+        return c.cx != -c.cz || case_recovered(c, f);
     }
     return false;
 }

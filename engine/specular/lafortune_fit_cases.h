@@ -33,7 +33,9 @@ enum class CaseSampling {
 /// What an honest fit must do on a case.
 enum class CaseExpect {
     Recover,                  ///< converged, within the tolerances
-    RecoverOrUnderdetermined, ///< either, but never converged and wrong
+    /// either, but never converged and wrong; constrained (the fallback) counts as
+    /// underdetermined, and on a mirror-lobe truth (Cx = -Cz) must be within the tolerances
+    RecoverOrUnderdetermined,
     Underdetermined,
     NoSpecularEnergy,
 };
