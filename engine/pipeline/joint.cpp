@@ -32,7 +32,7 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
     out.first_validation_mse = state.validation_mse;
     for (std::uint32_t round = 1; round <= options.rounds; ++round) {
         if (!previous) {
-            out.stop = "no usable fit (no channel converged): nothing to subtract";
+            out.stop = "no usable fit: nothing to subtract";
             break;
         }
         const std::string tag = " (joint round " + std::to_string(round) + ")";
