@@ -7,20 +7,18 @@
 #include "core/file_util.h"
 #include "core/json_guard.h"
 #include "core/memory.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
-#include <exception>
 #include <map>
 #include <new>
 #include <set>
 #include <sstream>
-#include <thread>
 #include <tuple>
 
 namespace specula {
@@ -255,35 +253,6 @@ std::string line_column(const std::string& text, std::size_t byte) {
         }
     }
     return "line " + std::to_string(line) + ", column " + std::to_string(col);
-}
-
-// Runs job(i) for i in [0, n) on up to `threads` threads. Exceptions are kept per
-// index and the one of the lowest index is rethrown, so errors are deterministic.
-template <class Job>
-void parallel_for(std::size_t n, int threads, const Job& job) {
-    std::vector<std::exception_ptr> errors(n);
-    std::atomic<std::size_t> next{0};
-    std::atomic<std::size_t> first_failed{n};
-    auto worker = [&] {
-        for (std::size_t i = next++; i < n; i = next++) {
-            if (i > first_failed.load()) continue; // stop early; lower indices still run, so the error is deterministic
-            try {
-                job(i);
-            } catch (...) {
-                errors[i] = std::current_exception();
-                std::size_t seen = first_failed.load();
-                while (i < seen && !first_failed.compare_exchange_weak(seen, i)) {
-                }
-            }
-        }
-    };
-    const std::size_t count = std::min<std::size_t>(static_cast<std::size_t>(std::max(1, threads)), n);
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < count; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
-    for (auto& e : errors)
-        if (e) std::rethrow_exception(e);
 }
 
 // Pixels of a capture image: the first `channels` (at most 3) channels, linear float.
@@ -973,15 +942,18 @@ Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptio
                                  " but the frame's w x h is " + std::to_string(k.w) + " x " + std::to_string(k.h));
     };
 
+    // Decoding errors are deterministic: parallel_for rethrows the lowest failing index's,
+    // the one a single thread would have met first.
+    const unsigned threads = static_cast<unsigned>(std::max(1, options.threads));
     if (!options.load_images) {
-        parallel_for(mask_files.size(), options.threads, [&](std::size_t m) {
+        parallel_for(mask_files.size(), threads, [&](std::size_t m) {
             for (const std::size_t i : mask_files[m].frames) {
                 const std::string field = frame_prefix(i) + ".mask_path";
                 const ImageFileInfo info = read_image_info(mask_files[m].path, field);
                 check_size(i, info.width, info.height, mask_files[m].path, field, "mask");
             }
         });
-        parallel_for(image_files.size(), options.threads, [&](std::size_t k) {
+        parallel_for(image_files.size(), threads, [&](std::size_t k) {
             for (const std::size_t i : image_files[k].frames) {
                 const std::string field = frame_prefix(i) + ".file_path";
                 const ImageFileInfo info = read_image_info(image_files[k].path, field);
@@ -1013,14 +985,14 @@ Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptio
     }
 
     std::vector<DecodedMask> masks(mask_files.size());
-    parallel_for(mask_files.size(), options.threads, [&](std::size_t m) {
+    parallel_for(mask_files.size(), threads, [&](std::size_t m) {
         const std::size_t first = mask_files[m].frames.front();
         masks[m] = decode_mask(mask_files[m].path, frame_prefix(first) + ".mask_path", desc.frames[first].intrinsics);
         for (const std::size_t i : mask_files[m].frames)
             check_size(i, masks[m].width, masks[m].height, mask_files[m].path, frame_prefix(i) + ".mask_path", "mask");
     });
     capture.images.resize(desc.frames.size());
-    parallel_for(image_files.size(), options.threads, [&](std::size_t k) {
+    parallel_for(image_files.size(), threads, [&](std::size_t k) {
         const std::size_t first = image_files[k].frames.front();
         const RgbPixels src = read_rgb(image_files[k].path, desc.color_space, 3, frame_prefix(first) + ".file_path",
                                        desc.frames[first].intrinsics, "image");

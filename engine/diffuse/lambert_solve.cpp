@@ -16,7 +16,6 @@ static_assert(shared::kLambertPixClipped == kClippedAny && shared::kLambertPixMi
 const char* to_string(LambertMode mode) noexcept {
     return mode == LambertMode::Photometric ? "photometric" : "albedo";
 }
-const char* to_string(LambertBackend backend) noexcept { return backend == LambertBackend::Vulkan ? "vulkan" : "cpu"; }
 
 LambertInputs lambert_inputs(const Capture& capture, std::span<const Particle> particles, const Visibility& visibility) {
     LambertInputs in;
@@ -142,8 +141,8 @@ std::string describe(const LambertSummary& s, LambertMode mode) {
     return o.str();
 }
 
-LambertOutputs lambert_solve(const LambertInputs& in, const LambertOptions& options, LambertBackend backend, gpu::Context* ctx) {
-    if (backend == LambertBackend::Cpu) return lambert_solve_cpu(in, options);
+LambertOutputs lambert_solve(const LambertInputs& in, const LambertOptions& options, Backend backend, gpu::Context* ctx) {
+    if (backend == Backend::Cpu) return lambert_solve_cpu(in, options);
     if (ctx == nullptr) throw Error("lambert_solve: the Vulkan backend needs a gpu::Context");
     LambertSolveVk kernel(*ctx);
     return kernel.run(in, options);

@@ -1,12 +1,12 @@
 #pragma once
-// Stage 3, the diffuse solve (pipeline.md section 3; thesis section 3.1, eq. 3.1):
+// Stage 4, the diffuse solve (pipeline.md section 3; thesis section 3.1, eq. 3.1):
 // per surface particle, the Lambertian albedo from the train images of the views that
 // see it, with shadowed, grazing, missing, clipped and highlight samples rejected.
 // The method, thresholds and layouts are in shaders/shared/lambert.h (one source for
 // the shader and the reference).
 //
 //   LambertInputs in = lambert_inputs(capture, particles.particles, visibility);
-//   LambertOutputs out = lambert_solve(in, {.mode = LambertMode::Photometric}, LambertBackend::Vulkan, &ctx);
+//   LambertOutputs out = lambert_solve(in, {.mode = LambertMode::Photometric}, Backend::Vulkan, &ctx);
 //   out.albedo(p)   // rho (linear RGB) of the chosen combination
 //
 // Two steps: the pair step solves every (particle, view) pair (the view's frames only),
@@ -20,7 +20,8 @@
 // across batches, then one combine dispatch. Pair results are chunked by particle range
 // the same way when they exceed one binding.
 #include "capture/capture.h"
-#include "core/lafortune.h"
+#include "core/backend.h"
+#include "material/lafortune.h"
 #include "geometry/particles.h"
 #include "visibility/visibility.h"
 
@@ -43,10 +44,8 @@ enum class LambertMode : std::uint32_t {
     Photometric = shared::kLambertModePhotometric, ///< g = (rho/pi) n (eq. 3.1), albedo-mode fallback
 };
 enum class ViewChoice { BestView, Robust };
-enum class LambertBackend { Cpu, Vulkan };
 
 [[nodiscard]] const char* to_string(LambertMode mode) noexcept;
-[[nodiscard]] const char* to_string(LambertBackend backend) noexcept;
 
 struct LambertOptions {
     LambertMode mode = LambertMode::Albedo;
@@ -147,7 +146,7 @@ private:
 };
 
 /// Runs the solve on a backend (ctx is required for Vulkan).
-[[nodiscard]] LambertOutputs lambert_solve(const LambertInputs& in, const LambertOptions& options, LambertBackend backend,
+[[nodiscard]] LambertOutputs lambert_solve(const LambertInputs& in, const LambertOptions& options, Backend backend,
                                            gpu::Context* ctx = nullptr);
 
 /// Fills the summary's counts from the per-particle results (both backends call it).

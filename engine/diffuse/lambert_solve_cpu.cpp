@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/timer.h"
+#include "shared/prelude.h"
 #include "shared/solve3.h"
 
 #include <algorithm>
@@ -19,7 +20,6 @@ namespace specula {
 namespace {
 
 namespace f64 = shared::f64;
-constexpr double kPi = 3.14159265358979323846;
 
 struct Sample {
     glm::dvec3 c;   // bilinear pixel value
@@ -159,7 +159,7 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         const double la = glm::dot(u, vdir) - lb;
         glm::dvec3 spec(0.0);
         for (int c = 0; c < 3; ++c)
-            spec[c] = f64::lambert_lobe(double(o.lobe.cx[c]), double(o.lobe.cz[c]), double(o.lobe.n[c]), la, lb);
+            spec[c] = f64::lafortune_eval_ab(double(o.lobe.cx[c]), double(o.lobe.cz[c]), double(o.lobe.n[c]), la, lb);
         s.c = read.c - spec * s.e;
         s.a = u / d2;
         samples.push_back(s);

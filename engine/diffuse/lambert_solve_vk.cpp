@@ -25,28 +25,6 @@ namespace specula {
 
 namespace {
 
-struct PairPush {
-    gpu::DispatchHeader dispatch;
-    std::uint32_t frame_words;
-    std::uint32_t mode;
-    std::uint32_t iterations;
-    float min_light_cos;
-    float tau;
-    float k_sigma;
-    float min_rcond;
-    std::uint32_t global_view_base;
-    float lobe[9]; // cx rgb, cz rgb, n rgb
-};
-static_assert(sizeof(PairPush) == 76);
-
-struct CombinePush {
-    gpu::DispatchHeader dispatch;
-    std::uint32_t particle_base;
-    float view_tau;
-    float view_abs;
-};
-static_assert(sizeof(CombinePush) == 20);
-
 struct Chunk {
     std::uint32_t first = 0, last = 0; // particles [first, last)
     std::uint64_t pair_base = 0;       // global pair index of the chunk's first pair
@@ -64,12 +42,12 @@ struct LambertSolveVk::Impl {
           pair(c, gpu::ComputePipelineDesc{.name = "lambert_solve",
                                            .spirv = diffuse_lambert_solve_comp,
                                            .storage_buffers = 7,
-                                           .push_constant_bytes = sizeof(PairPush),
+                                           .push_constant_bytes = sizeof(shared::LambertPairPush),
                                            .workgroup_size = 64}),
           combine(c, gpu::ComputePipelineDesc{.name = "lambert_solve_combine",
                                               .spirv = diffuse_lambert_solve_combine_comp,
                                               .storage_buffers = 4,
-                                              .push_constant_bytes = sizeof(CombinePush),
+                                              .push_constant_bytes = sizeof(shared::LambertCombinePush),
                                               .workgroup_size = 64}) {}
 };
 
@@ -177,7 +155,7 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
             if (keys.empty()) continue;
             gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, keys.size(), "lambert pair keys");
             keys_buf.upload(keys);
-            const PairPush push{.dispatch = {},
+            const shared::LambertPairPush push{.dispatch = {},
                                 .frame_words = vis.frame_words,
                                 .mode = static_cast<std::uint32_t>(o.mode),
                                 .iterations = o.highlight_iterations,
@@ -206,7 +184,7 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
         gpu::Buffer off_buf = gpu::Buffer::of<std::uint32_t>(ctx, local.size(), "lambert pair offsets");
         off_buf.upload(local);
         gpu::Buffer res_buf = gpu::Buffer::of<LambertParticleResult>(ctx, n, "lambert particle results");
-        const CombinePush push{.dispatch = {}, .particle_base = c.first, .view_tau = o.view_tau, .view_abs = o.view_abs};
+        const shared::LambertCombinePush push{.dispatch = {}, .particle_base = c.first, .view_tau = o.view_tau, .view_abs = o.view_abs};
         gpu::Sequence seq(ctx, 2);
         seq.dispatch_1d(m_impl->combine, {off_buf, pair_bufs[ci], particles_buf, res_buf}, n, push, "lambert_solve combine")
             .barrier(gpu::Barrier::ComputeToHost)

@@ -16,10 +16,9 @@ namespace specula::evaluate {
 namespace {
 
 render::Scene scene_of(const Bundle& bundle, const std::vector<glm::vec2>& corner_uv) {
-    return render::Scene{.mesh = &bundle.mesh,
-                         .corner_uv = corner_uv,
-                         .albedo = &bundle.albedo,
-                         .lobe = bundle.lobe.value_or(LafortuneRgb{})};
+    // All K terms of the factorization, when there is one (docs/SPECULA_lafortune.md: cubeG/cubeH,
+    // cubeTerms, parametrization): the renderer uploads them with the model.
+    return render::Scene{.mesh = &bundle.mesh, .corner_uv = corner_uv, .albedo = &bundle.albedo, .material = bundle.material};
 }
 
 render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const std::string& name) {
@@ -28,15 +27,7 @@ render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const st
         throw Error(name + ": mesh: every vertex needs an atlas coordinate (" + std::to_string(bundle.mesh.texcoords.size()) +
                     " texcoords for " + std::to_string(bundle.mesh.positions.size()) + " vertices)");
     const std::vector<glm::vec2> corner_uv = corner_uvs(bundle.mesh);
-    render::Renderer r(ctx, scene_of(bundle, corner_uv));
-    if (bundle.cube_g && bundle.cube_h) { // all K terms (docs/SPECULA_lafortune.md, cubeTerms, parametrization)
-        std::vector<render::FactorTermCubes> terms{{render::CubeMapRgb{bundle.cube_g->resolution, bundle.cube_g->rgb},
-                                                    render::CubeMapRgb{bundle.cube_h->resolution, bundle.cube_h->rgb}}};
-        for (const BundleFactorTerm& t : bundle.extra_terms)
-            terms.push_back({render::CubeMapRgb{t.g.resolution, t.g.rgb}, render::CubeMapRgb{t.h.resolution, t.h.rgb}});
-        r.set_factorization(terms, bundle.factor_param, bundle.factor_warp);
-    }
-    return r;
+    return render::Renderer(ctx, scene_of(bundle, corner_uv));
 }
 
 std::string lower(std::string s) {
@@ -46,9 +37,9 @@ std::string lower(std::string s) {
 
 } // namespace
 
-void require_specular_model(const Bundle& bundle, render::SpecularModel model, std::string_view name) {
-    if (model != render::SpecularModel::Factorized) return;
-    if (!bundle.cube_g || !bundle.cube_h)
+void require_specular_model(const Bundle& bundle, render::SpecularPath model, std::string_view name) {
+    if (model != render::SpecularPath::Factorized) return;
+    if (!bundle.material.factorized)
         throw Error(std::string(name) +
                     ": the bundle has no factorization cube-maps (SPECULA_lafortune cube_g / cube_h): "
                     "render with --specular analytic, or reconstruct with the factorization");
@@ -58,7 +49,7 @@ BundleRenderer::BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::str
     : m_name(std::move(name)), m_renderer(make_renderer(ctx, bundle, m_name)) {}
 
 render::Frame BundleRenderer::render(const Camera& camera, const PointLight& light, const render::Settings& settings) {
-    if (settings.specular == render::SpecularModel::Factorized && !m_renderer.has_factorization())
+    if (settings.specular == render::SpecularPath::Factorized && !m_renderer.has_factorization())
         throw Error(m_name +
                     ": the bundle has no factorization cube-maps (SPECULA_lafortune cube_g / cube_h): "
                     "render with --specular analytic, or reconstruct with the factorization");

@@ -45,7 +45,7 @@ private:
 
 /// The error a factorized render of a bundle without cube-maps gives (checked before any
 /// GPU work, so a tool can refuse early). Throws Error naming the bundle; no-op otherwise.
-void require_specular_model(const Bundle& bundle, render::SpecularModel model, std::string_view name);
+void require_specular_model(const Bundle& bundle, render::SpecularPath model, std::string_view name);
 
 /// A free camera: at `eye` looking at `target` (`up` roughly up), `width` x `height`
 /// pixels, principal point at the centre, and either a vertical field of view in degrees

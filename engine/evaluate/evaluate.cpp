@@ -23,7 +23,7 @@ float display(float linear) { return linear_to_srgb(std::clamp(linear, 0.0f, 1.0
 
 nlohmann::json settings_json(const EvaluationResult& r) {
     return {{"mode", render::mode_name(r.render.mode)},
-            {"specular", render::specular_model_name(r.render.specular)},
+            {"specular", render::specular_path_name(r.render.specular)},
             {"shadows", r.render.shadows}, // cast shadows drawn (false: the thesis's unshadowed render)
             {"metrics_backend", to_string(r.metrics_backend)},
             {"masked_pixels", "the capture's mask (render coverage where a frame has no mask); missing pixels left out"},
@@ -36,7 +36,6 @@ double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
 } // namespace
 
-const char* to_string(MetricsBackend backend) noexcept { return backend == MetricsBackend::Cpu ? "cpu" : "vulkan"; }
 
 std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_frames_per_split) {
     std::vector<std::size_t> out;
@@ -96,7 +95,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     const Stopwatch setup;
     BundleRenderer renderer(ctx, bundle, options.bundle_name);
     std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
-    if (options.metrics_backend == MetricsBackend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
+    if (options.metrics_backend == Backend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
     result.timings.setup_s = setup.seconds();
     if (options.render.mode != render::Mode::Diffuse && !renderer.has_lobe())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
@@ -271,7 +270,7 @@ std::string format_summary(const EvaluationResult& r) {
     const std::size_t n = r.frames.size();
     std::snprintf(line, sizeof line,
                   "render %s/%s, %s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
-                  render::mode_name(r.render.mode), render::specular_model_name(r.render.specular),
+                  render::mode_name(r.render.mode), render::specular_path_name(r.render.specular),
                   r.render.shadows ? "shadows" : "no shadows", to_string(r.metrics_backend),
                   n, r.timings.per_frame_ms(n), n ? 1000.0 * r.timings.render_s / n : 0.0,
                   n ? 1000.0 * r.timings.metrics_s / n : 0.0, r.timings.setup_s, r.timings.total_s);

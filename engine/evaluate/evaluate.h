@@ -25,6 +25,7 @@
 ///   EvaluationResult r = evaluate(ctx, read_bundle(path), cap, {.sheet_dir = "sheets"});
 ///   std::cout << format_summary(r);  write json: to_json(r)
 #include "capture/capture.h"
+#include "core/backend.h"
 #include "export/bundle.h"
 #include "gpu/context.h"
 #include "metrics/image_metrics.h"
@@ -44,11 +45,10 @@ namespace specula::evaluate {
 /// Amplification of the difference panel of a sheet (around mid-gray, display values).
 inline constexpr double kSheetAmplification = 4.0;
 
-enum class MetricsBackend { Vulkan, Cpu };
 
 struct EvaluateOptions {
     render::Settings render;                       ///< mode (both/diffuse/specular) and specular model
-    MetricsBackend metrics_backend = MetricsBackend::Vulkan;
+    Backend metrics_backend = Backend::Vulkan;
     metrics::MetricsOptions metrics;
     /// At most this many frames per split, evenly spaced over the split (0: all).
     std::size_t max_frames_per_split = 0;
@@ -101,7 +101,7 @@ struct EvaluationResult {
     std::string bundle_name;
     std::string capture_dir;
     render::Settings render;
-    MetricsBackend metrics_backend = MetricsBackend::Vulkan;
+    Backend metrics_backend = Backend::Vulkan;
 };
 
 /// Evaluates a bundle against a capture loaded with its images. Throws Error when the
@@ -124,6 +124,5 @@ struct EvaluationResult {
 /// A plain-text table of the aggregates (one row per split and pixel set) and the timings.
 [[nodiscard]] std::string format_summary(const EvaluationResult& result);
 
-[[nodiscard]] const char* to_string(MetricsBackend backend) noexcept;
 
 } // namespace specula::evaluate

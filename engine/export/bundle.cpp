@@ -38,7 +38,7 @@ constexpr const char* kExtension = "SPECULA_lafortune";
 // Version 4 adds "parametrization": "warped" with its "warp" (shared/gshd.h part 5), written
 // only for such cube-maps (they hold the lobe over its radial factor): older readers refuse it.
 constexpr int kExtensionVersion = 4;
-constexpr std::size_t kMaxExtraTerms = 3; // K <= 4 (render::kMaxFactorTerms)
+constexpr std::size_t kMaxExtraTerms = kMaxFactorTerms - 1; // cubeTerms: terms 2..K
 
 constexpr int kLinear = 9729, kClampToEdge = 33071; // glTF 2.0 section 3.8.4 (samplers)
 
@@ -101,16 +101,18 @@ glm::vec3 read_vec3(const GltfFile& f, const json& obj, const char* key, const s
     return v;
 }
 
-BundleCubeMap read_cube(const GltfFile& f, const json& ext, const char* key, const std::string& ext_field) {
+CubeMap read_cube(const GltfFile& f, const json& ext, const char* key, const std::string& ext_field) {
     const std::string field = ext_field + "." + key;
     if (!ext.contains(key)) f.fail(field, "missing: G and H go together");
     const json& c = ext[key];
     if (!c.is_object()) f.fail(field, "not an object");
-    BundleCubeMap cube;
+    CubeMap cube;
     const std::size_t r = get_index(f, c, "resolution", field);
     if (r == 0 || r > 65536) f.fail(field + ".resolution", "out of range");
     cube.resolution = static_cast<std::uint32_t>(r);
-    cube.rgb = read_float_view(f, get_index(f, c, "bufferView", field), 6 * r * r * 3, field + ".bufferView");
+    const std::vector<float> rgb = read_float_view(f, get_index(f, c, "bufferView", field), 6 * r * r * 3, field + ".bufferView");
+    cube.texels.resize(6 * r * r);
+    std::memcpy(cube.texels.data(), rgb.data(), rgb.size() * sizeof(float)); // glm::vec3 is 3 packed floats
     return cube;
 }
 
@@ -161,7 +163,7 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
 
 // -------------------------------------------------------------------------------------------------
 
-Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image albedo, std::optional<LafortuneRgb> lobe) {
+Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image albedo, Material material) {
     if (corner_uv.size() != mesh.triangles.size() * 3)
         throw Error("make_bundle: " + std::to_string(corner_uv.size()) + " corner coordinates for " +
                     std::to_string(mesh.triangles.size()) + " triangles (3 per triangle expected)");
@@ -170,7 +172,7 @@ Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image
                                                : compute_vertex_normals(mesh.positions, mesh.triangles);
     Bundle b;
     b.albedo = std::move(albedo);
-    b.lobe = lobe;
+    b.material = std::move(material);
     // Key: position index and the uv's bit patterns (identical coordinates only: an atlas
     // gives a vertex the same uv in every triangle of its patch, and different ones across patches).
     std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>, std::uint32_t> vertex_of;
@@ -226,24 +228,22 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     if (albedo.width <= 0 || albedo.height <= 0 || albedo.channels < 1 || albedo.channels > 4 ||
         albedo.pixels.size() != static_cast<std::size_t>(albedo.width) * albedo.height * albedo.channels)
         throw InputError(path, "albedo", "empty or inconsistent image (1 to 4 channels)");
-    if (bundle.lobe && !(finite3(bundle.lobe->cx) && finite3(bundle.lobe->cz) && finite3(bundle.lobe->n)))
-        throw InputError(path, "lobe", "non-finite lobe parameters");
-    for (const auto* cube : {&bundle.cube_g, &bundle.cube_h})
-        if (*cube && (cube->value().resolution == 0 ||
-                      cube->value().rgb.size() != 6ull * cube->value().resolution * cube->value().resolution * 3))
-            throw InputError(path, cube == &bundle.cube_g ? "cube_g" : "cube_h", "size is not 6 * resolution^2 * 3");
-    if (bundle.cube_g.has_value() != bundle.cube_h.has_value())
-        throw InputError(path, "cube_g", "the factorization needs both cube-maps (G and H)");
-    if (!bundle.extra_terms.empty() && !bundle.cube_g)
-        throw InputError(path, "extra_terms", "further factorization terms need term 1 (cube_g, cube_h)");
-    if (bundle.extra_terms.size() > kMaxExtraTerms)
-        throw InputError(path, "extra_terms", std::to_string(bundle.extra_terms.size()) + " further terms (at most " +
-                                                  std::to_string(kMaxExtraTerms) + ")");
-    for (std::size_t k = 0; k < bundle.extra_terms.size(); ++k)
-        for (const BundleCubeMap* cube : {&bundle.extra_terms[k].g, &bundle.extra_terms[k].h})
-            if (cube->resolution == 0 || cube->rgb.size() != 6ull * cube->resolution * cube->resolution * 3)
-                throw InputError(path, "extra_terms[" + std::to_string(k) + "]." + (cube == &bundle.extra_terms[k].g ? "g" : "h"),
-                                 "size is not 6 * resolution^2 * 3");
+    const Material& mat = bundle.material;
+    const std::optional<LafortuneRgb> lobe =
+        mat.specular ? std::optional<LafortuneRgb>(std::get<LafortuneRgb>(*mat.specular)) : std::nullopt;
+    if (lobe && !(finite3(lobe->cx) && finite3(lobe->cz) && finite3(lobe->n)))
+        throw InputError(path, "material.specular", "non-finite lobe parameters");
+    if (mat.factorized) {
+        const std::vector<FactorTerm>& terms = mat.factorized->terms;
+        if (terms.empty() || terms.size() > kMaxFactorTerms)
+            throw InputError(path, "material.factorized.terms",
+                             std::to_string(terms.size()) + " terms (1 to " + std::to_string(kMaxFactorTerms) + ")");
+        for (std::size_t k = 0; k < terms.size(); ++k)
+            for (const CubeMap* cube : {&terms[k].g, &terms[k].h})
+                if (cube->resolution == 0 || cube->texels.size() != 6ull * cube->resolution * cube->resolution)
+                    throw InputError(path, "material.factorized.terms[" + std::to_string(k) + "]." + (cube == &terms[k].g ? "g" : "h"),
+                                     "size is not 6 * resolution^2");
+    }
 
     // The base colour for ordinary viewers: the albedo as 8-bit sRGB PNG (glTF images are
     // PNG or JPEG), RGB (grey replicated), clamped to [0, 1].
@@ -258,41 +258,40 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
     }
     const std::size_t png_view = glb.add_view(png.data(), png.size());
 
-    const bool mirrored = bundle.cube_g && bundle.factor_param == FactorParam::Mirrored;
-    const bool warped = bundle.cube_g && bundle.factor_param == FactorParam::Warped;
-    if (warped && !bundle.lobe)
+    const bool mirrored = mat.factorized && mat.factorized->param == FactorParam::Mirrored;
+    const bool warped = mat.factorized && mat.factorized->param == FactorParam::Warped;
+    const bool multi_term = mat.factorized && mat.factorized->terms.size() > 1;
+    if (warped && !lobe)
         throw InputError(path, "SPECULA_lafortune.parametrization", "warped cube-maps without the lobe (its radial factor)");
-    json ext = {{"version", warped ? 4 : mirrored ? 3 : bundle.extra_terms.empty() ? 1 : 2}};
-    if (bundle.lobe) {
-        ext["lobe"] = {{"cx", vec3_json(bundle.lobe->cx)}, {"cz", vec3_json(bundle.lobe->cz)},
-                       {"n", vec3_json(bundle.lobe->n)}, {"status", bundle.lobe_status}};
+    json ext = {{"version", warped ? 4 : mirrored ? 3 : multi_term ? 2 : 1}};
+    if (lobe) {
+        ext["lobe"] = {{"cx", vec3_json(lobe->cx)}, {"cz", vec3_json(lobe->cz)}, {"n", vec3_json(lobe->n)}, {"status", mat.status}};
     }
     ext["albedo"] = {{"bufferView", glb.add_view(albedo.pixels.data(), albedo.pixels.size() * sizeof(float))},
                      {"width", albedo.width}, {"height", albedo.height}, {"channels", albedo.channels}};
-    if (bundle.cube_g) {
-        ext["cubeG"] = {{"bufferView", glb.add_view(bundle.cube_g->rgb.data(), bundle.cube_g->rgb.size() * sizeof(float))},
-                        {"resolution", bundle.cube_g->resolution}};
-        ext["cubeH"] = {{"bufferView", glb.add_view(bundle.cube_h->rgb.data(), bundle.cube_h->rgb.size() * sizeof(float))},
-                        {"resolution", bundle.cube_h->resolution}};
+    const auto cube_json = [&](const CubeMap& c) {
+        return json{{"bufferView", glb.add_view(c.texels.data(), c.texels.size() * sizeof(glm::vec3))}, {"resolution", c.resolution}};
+    };
+    if (mat.factorized) {
+        const std::vector<FactorTerm>& terms = mat.factorized->terms;
+        ext["cubeG"] = cube_json(terms[0].g);
+        ext["cubeH"] = cube_json(terms[0].h);
+        if (terms.size() > 1) {
+            json more = json::array();
+            for (std::size_t k = 1; k < terms.size(); ++k) more.push_back({{"cubeG", cube_json(terms[k].g)}, {"cubeH", cube_json(terms[k].h)}});
+            ext["cubeTerms"] = std::move(more);
+        }
+        const glm::vec4& w = mat.factorized->warp;
+        if (mirrored || warped) ext["parametrization"] = to_string(mat.factorized->param);
+        if (warped) ext["warp"] = {w.x, w.y, w.z, w.w};
     }
-    if (!bundle.extra_terms.empty()) {
-        json terms = json::array();
-        for (const BundleFactorTerm& t : bundle.extra_terms)
-            terms.push_back({{"cubeG", {{"bufferView", glb.add_view(t.g.rgb.data(), t.g.rgb.size() * sizeof(float))},
-                                        {"resolution", t.g.resolution}}},
-                             {"cubeH", {{"bufferView", glb.add_view(t.h.rgb.data(), t.h.rgb.size() * sizeof(float))},
-                                        {"resolution", t.h.resolution}}}});
-        ext["cubeTerms"] = std::move(terms);
-    }
-    if (mirrored || warped) ext["parametrization"] = to_string(bundle.factor_param);
-    if (warped) ext["warp"] = {bundle.factor_warp.x, bundle.factor_warp.y, bundle.factor_warp.z, bundle.factor_warp.w};
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
     const json material = {
         {"name", "specula"},
         {"pbrMetallicRoughness",
          {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0},
-          {"roughnessFactor", static_cast<double>(roughness_from_lobe(bundle.lobe))}}},
+          {"roughnessFactor", static_cast<double>(roughness_from_lobe(lobe))}}},
         {"extensions", {{kExtension, ext}}},
     };
     glb.write(path, {
@@ -397,12 +396,12 @@ Bundle read_bundle(const fs::path& path) {
         const json& l = (*ext)["lobe"];
         const std::string lf = ext_field + ".lobe";
         if (!l.is_object()) f.fail(lf, "not an object");
-        b.lobe = LafortuneRgb{read_vec3(f, l, "cx", lf), read_vec3(f, l, "cz", lf), read_vec3(f, l, "n", lf)};
+        b.material.specular = LafortuneRgb{read_vec3(f, l, "cx", lf), read_vec3(f, l, "cz", lf), read_vec3(f, l, "n", lf)};
         if (l.contains("status")) {
             if (!l["status"].is_array()) f.fail(lf + ".status", "not an array of strings");
             for (const json& s : l["status"]) {
                 if (!s.is_string()) f.fail(lf + ".status", "not an array of strings");
-                b.lobe_status.push_back(s.get<std::string>());
+                b.material.status.push_back(s.get<std::string>());
             }
         }
     }
@@ -433,8 +432,9 @@ Bundle read_bundle(const fs::path& path) {
     if (ext->contains("cubeG") != ext->contains("cubeH"))
         f.fail(ext_field + (ext->contains("cubeG") ? ".cubeH" : ".cubeG"), "missing: G and H go together");
     if (ext->contains("cubeG")) {
-        b.cube_g = read_cube(f, *ext, "cubeG", ext_field);
-        b.cube_h = read_cube(f, *ext, "cubeH", ext_field);
+        b.material.factorized = FactorizedSpecular{};
+        b.material.factorized->terms.push_back(
+            FactorTerm{.g = read_cube(f, *ext, "cubeG", ext_field), .h = read_cube(f, *ext, "cubeH", ext_field)});
     }
     if (ext->contains("cubeTerms")) { // terms 2..K, version 2
         const std::string tf = ext_field + ".cubeTerms";
@@ -446,7 +446,7 @@ Bundle read_bundle(const fs::path& path) {
         for (std::size_t k = 0; k < terms.size(); ++k) {
             const std::string kf = tf + "[" + std::to_string(k) + "]";
             if (!terms[k].is_object()) f.fail(kf, "not an object");
-            b.extra_terms.push_back({read_cube(f, terms[k], "cubeG", kf), read_cube(f, terms[k], "cubeH", kf)});
+            b.material.factorized->terms.push_back(FactorTerm{.g = read_cube(f, terms[k], "cubeG", kf), .h = read_cube(f, terms[k], "cubeH", kf)});
         }
     }
     if (ext->contains("parametrization")) { // version 3; absent: the thesis's GSHD
@@ -459,17 +459,19 @@ Bundle read_bundle(const fs::path& path) {
             f.fail(pf, std::string(to_string(*param)) + " in a version " + std::to_string(version.get<int>()) +
                                            " extension (needs version " + std::to_string(needs) + ")");
         if (!ext->contains("cubeG")) f.fail(pf, "a parametrization without cube-maps (cubeG, cubeH)");
-        if (*param == FactorParam::Warped && !b.lobe) f.fail(pf, "warped without a lobe (its radial factor)");
-        b.factor_param = *param;
+        if (*param == FactorParam::Warped && !b.material.specular) f.fail(pf, "warped without a lobe (its radial factor)");
+        b.material.factorized->param = *param;
     }
-    if (ext->contains("warp") || b.factor_param == FactorParam::Warped) { // version 4
+    const FactorParam read_param = b.material.factorized ? b.material.factorized->param : FactorParam::Gshd;
+    if (ext->contains("warp") || read_param == FactorParam::Warped) { // version 4
         const std::string wf = ext_field + ".warp";
-        if (b.factor_param != FactorParam::Warped) f.fail(wf, "present without \"parametrization\": \"warped\"");
+        if (read_param != FactorParam::Warped) f.fail(wf, "present without \"parametrization\": \"warped\"");
         const json& w = ext->value("warp", json());
         if (!w.is_array() || w.size() != 4 || !std::all_of(w.begin(), w.end(), [](const json& x) { return x.is_number(); }))
             f.fail(wf, "not an array of 4 numbers (s, k_r, k_g, k_b)");
-        for (int c = 0; c < 4; ++c) b.factor_warp[c] = w[static_cast<std::size_t>(c)].get<float>();
-        if (!valid_warp(b.factor_warp)) f.fail(wf, "must be (+-1, k_r, k_g, k_b) with every k in [1/64, 64]");
+        glm::vec4& warp = b.material.factorized->warp;
+        for (int c = 0; c < 4; ++c) warp[c] = w[static_cast<std::size_t>(c)].get<float>();
+        if (!valid_warp(warp)) f.fail(wf, "must be (+-1, k_r, k_g, k_b) with every k in [1/64, 64]");
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) f.fail(ext_field + ".info", "not an object");

@@ -7,9 +7,8 @@
 //  - the extension SPECULA_lafortune (docs/SPECULA_lafortune.md) carrying what
 //    Specula needs exactly: the per-channel lobe, its fit status, the linear float
 //    albedo (so a round trip is exact, not 8-bit), and the two factorization cube-maps.
-#include "core/factor_param.h"
+#include "material/material.h"
 #include "core/image.h"
-#include "core/lafortune.h"
 #include "capture/mesh.h"
 
 #include <nlohmann/json.hpp>
@@ -23,38 +22,17 @@
 
 namespace specula {
 
-/// A float RGB cube-map, 6 faces of resolution^2 texels, [face][row][col][rgb] in
-/// Vulkan's face order (+X, -X, +Y, -Y, +Z, -Z): shared/gshd.h's convention (the same
-/// layout as render::CubeMapRgb and the factorization's output).
-struct BundleCubeMap {
-    std::uint32_t resolution = 0;
-    std::vector<float> rgb;
-};
-
-/// One further term G_k(h) H_k(d) of a multi-term factorization (k >= 2).
-struct BundleFactorTerm {
-    BundleCubeMap g;
-    BundleCubeMap h;
-};
-
 struct Bundle {
     /// World-space mesh. Every vertex has exactly one atlas coordinate (texcoords),
     /// so triangles that share a position but not a patch have their own vertices.
     Mesh mesh;
     Image albedo;                          ///< linear RGB rho, the atlas
-    std::optional<LafortuneRgb> lobe;      ///< absent: no specular lobe (Lambertian, or left out)
-    std::vector<std::string> lobe_status;  ///< per channel, as the fit reported it (may be empty)
-    std::optional<BundleCubeMap> cube_g;   ///< factorization G(h), when computed
-    std::optional<BundleCubeMap> cube_h;   ///< factorization H(d)
-    /// Terms 2..K of the factorization f ~ max(0, sum_k G_k H_k) (K - 1 entries, at most 3;
-    /// needs cube_g / cube_h, which are term 1). Empty: the thesis's single term.
-    std::vector<BundleFactorTerm> extra_terms;
-    /// How the cube-maps are looked up (shared/gshd.h parts 4, 5): the thesis's GSHD of (u, v), the
-    /// mirrored GSHD of (r(u), v), or the warped GSHD of (w(u), v) whose terms are multiplied by
-    /// the lobe's radial factor (needs `lobe`). Written as "parametrization" (version 3 when
-    /// mirrored, 4 when warped, with "warp"); a bundle without the field is plain GSHD.
-    FactorParam factor_param = FactorParam::Gshd;
-    glm::vec4 factor_warp{1.0f}; ///< (s, k_r, k_g, k_b) of FactorParam::Warped
+    /// The specular model (absent: Lambertian, or left out) with its fit status per channel, and
+    /// its factorization's cube-maps. Written as the extension's "lobe", "cubeG"/"cubeH" (term 1),
+    /// "cubeTerms" (terms 2..K, version 2) and "parametrization" (the thesis's GSHD when absent;
+    /// version 3 when mirrored, 4 when warped, with "warp": the warped terms are multiplied by
+    /// the lobe's radial factor, so they need the lobe).
+    Material material;
     nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.
@@ -65,8 +43,7 @@ struct Bundle {
 /// coordinate (corner_uv holds 3 per triangle, Atlas::corner_uv). Vertices with the same
 /// position index and bit-identical atlas coordinates are merged; normals are kept (computed
 /// area-weighted when the mesh has none). Throws Error when corner_uv.size() != 3 * triangles.
-[[nodiscard]] Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image albedo,
-                                 std::optional<LafortuneRgb> lobe);
+[[nodiscard]] Bundle make_bundle(const Mesh& mesh, std::span<const glm::vec2> corner_uv, Image albedo, Material material);
 
 /// The 3 atlas coordinates of each triangle of a bundle's mesh (what render::Scene::corner_uv takes).
 /// Throws Error when the mesh has no texcoords.

@@ -8,11 +8,13 @@
 // GSHD of (u, v), the mirrored GSHD of (r(u), v), or the warped GSHD of (w(u), v) with the
 // warp `warp` = (s, k_r, k_g, k_b) (channel c's pairs in its own warp (s, k_c)), whose F is
 // the lobe over its radial factor |C u|^N (in [0, 1]).
-#include "core/factor_param.h"
-#include "factorization/lobe.h"
+#include "material/factor_param.h"
+#include "material/lafortune.h"
+#include "shared/lafortune.h"
 #include "gpu/buffer.h"
 #include "gpu/pipeline.h"
 #include "gpu/sequence.h"
+#include "shared/factorization.h"
 #include "shared/gshd.h"
 
 #include <cstddef>
@@ -52,20 +54,6 @@ void brdf_matrix_validate(const BrdfMatrixInputs& in);
 
 /// The reference: directions and lobe in double (shared::f64), each entry rounded to float.
 [[nodiscard]] BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in);
-
-struct BrdfMatrixPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t res_h;
-    uint32_t res_d;
-    float cx[4];
-    float cz[4];
-    float n[4];
-    uint32_t param; // shared::kGshdPlain, kGshdMirrored or kGshdWarped
-    float warp_s;
-    float warp_k[3]; // per channel
-};
-static_assert(sizeof(BrdfMatrixPush) == 84 && offsetof(BrdfMatrixPush, cx) == 16 && offsetof(BrdfMatrixPush, n) == 48 &&
-              offsetof(BrdfMatrixPush, param) == 64 && offsetof(BrdfMatrixPush, warp_k) == 72);
 
 /// The Vulkan kernel (shaders/factorization/brdf_matrix.comp). Owns its pipeline.
 class BrdfMatrixVk {

@@ -38,8 +38,8 @@ BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in) {
             for (int c = 0; c < 3; ++c) {
                 if (warped) p = f64::gshd_to_uv_warped(h, dgrid[col], param, glm::dvec2(channel_warp(in.warp, c)));
                 if (!(p.u.z > shared::kGshdMinCos && p.v.z > shared::kGshdMinCos)) continue;
-                const double f = warped ? lafortune_normalized_f64(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v)
-                                        : lafortune_eval_f64(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v);
+                const double f = warped ? shared::f64::lafortune_normalized(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v)
+                                        : shared::f64::lafortune_eval(in.lobe.cx[c], in.lobe.cz[c], in.lobe.n[c], p.u, p.v);
                 m.values[(c * rows + row) * cols + col] = static_cast<float>(f64::gshd_clamp_value(glm::dvec3(f)).x);
             }
         }

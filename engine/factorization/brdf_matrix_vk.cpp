@@ -13,7 +13,7 @@ BrdfMatrixVk::BrdfMatrixVk(gpu::Context& ctx, uint32_t workgroup_size)
       m_pipeline(ctx, gpu::ComputePipelineDesc{.name = "brdf_matrix",
                                                .spirv = factorization_brdf_matrix_comp,
                                                .storage_buffers = 1,
-                                               .push_constant_bytes = sizeof(BrdfMatrixPush),
+                                               .push_constant_bytes = sizeof(shared::BrdfMatrixPush),
                                                .workgroup_size = workgroup_size}) {}
 
 void BrdfMatrixVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, const BrdfMatrixInputs& in) const {
@@ -21,7 +21,7 @@ void BrdfMatrixVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, const B
     const uint64_t entries = uint64_t{in.res_h} * in.res_h * in.res_d * in.res_d;
     if (matrix.size() < entries * 3 * sizeof(float))
         throw Error("brdf_matrix: buffer '" + matrix.name() + "' too small for the matrix");
-    BrdfMatrixPush push{.dispatch = {}, .res_h = in.res_h, .res_d = in.res_d, .cx = {}, .cz = {}, .n = {},
+    shared::BrdfMatrixPush push{.dispatch = {}, .res_h = in.res_h, .res_d = in.res_d, .cx = {}, .cz = {}, .n = {},
                         .param = static_cast<uint32_t>(in.param), .warp_s = in.warp.x,
                         .warp_k = {in.warp.y, in.warp.z, in.warp.w}};
     for (int c = 0; c < 3; ++c) {

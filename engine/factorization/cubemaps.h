@@ -14,6 +14,8 @@
 #include "gpu/buffer.h"
 #include "gpu/pipeline.h"
 #include "gpu/sequence.h"
+#include "shared/factorization.h"
+#include "material/material.h"
 #include "shared/gshd.h"
 
 #include <glm/glm.hpp>
@@ -32,32 +34,17 @@ struct CubemapInputs {
     uint32_t cube_res = 0; // face size
 };
 
-struct Cubemap {
-    uint32_t res = 0;
-    std::vector<glm::vec3> texels; // 6 * res * res
-    [[nodiscard]] const glm::vec3& at(uint32_t face, uint32_t row, uint32_t col) const {
-        return texels[(std::size_t{face} * res + row) * res + col];
-    }
-};
-
 void cubemap_validate(const CubemapInputs& in);
 
 /// The reference: directions and interpolation weights in double, results rounded to float.
-[[nodiscard]] Cubemap cubemaps_cpu(const CubemapInputs& in);
+[[nodiscard]] CubeMap cubemaps_cpu(const CubemapInputs& in);
 
 /// Bilinear lookup of a cube-map along direction w (CPU; within the face that w selects,
 /// clamped at the face's edge texels: a seamless GPU sampler blends across edges instead).
-[[nodiscard]] glm::dvec3 cubemap_sample(const Cubemap& cube, glm::dvec3 w);
+[[nodiscard]] glm::dvec3 cubemap_sample(const CubeMap& cube, glm::dvec3 w);
 
 /// Bilinear lookup of a hemisphere grid along w (shared/gshd.h gshd_grid_bilinear, in double).
 [[nodiscard]] glm::dvec3 grid_sample(std::span<const glm::vec3> grid, uint32_t grid_res, glm::dvec3 w);
-
-struct CubemapPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t grid_res;
-    uint32_t cube_res;
-};
-static_assert(sizeof(CubemapPush) == 16);
 
 /// The Vulkan kernel (shaders/factorization/cubemaps.comp).
 class CubemapsVk {
@@ -66,7 +53,7 @@ public:
     /// Records one dispatch reading `grid` (rgb float triples) and writing `cube`.
     void record(gpu::Sequence& seq, const gpu::Buffer& grid, const gpu::Buffer& cube, uint32_t grid_res,
                 uint32_t cube_res, std::string_view label) const;
-    [[nodiscard]] Cubemap run(const CubemapInputs& in);
+    [[nodiscard]] CubeMap run(const CubemapInputs& in);
     [[nodiscard]] std::optional<double> last_gpu_ns() const noexcept { return m_last_gpu_ns; }
 
 private:

@@ -25,9 +25,9 @@ glm::dvec3 grid_sample(std::span<const glm::vec3> grid, uint32_t grid_res, glm::
                                           glm::dvec3(grid[b.i11]));
 }
 
-Cubemap cubemaps_cpu(const CubemapInputs& in) {
+CubeMap cubemaps_cpu(const CubemapInputs& in) {
     cubemap_validate(in);
-    Cubemap out{.res = in.cube_res, .texels = {}};
+    CubeMap out{.resolution = in.cube_res, .texels = {}};
     out.texels.assign(std::size_t{6} * in.cube_res * in.cube_res, glm::vec3(0.0f));
     for (uint32_t face = 0; face < shared::kCubeFaces; ++face)
         for (uint32_t row = 0; row < in.cube_res; ++row)
@@ -40,7 +40,7 @@ Cubemap cubemaps_cpu(const CubemapInputs& in) {
     return out;
 }
 
-glm::dvec3 cubemap_sample(const Cubemap& cube, glm::dvec3 w) {
+glm::dvec3 cubemap_sample(const CubeMap& cube, glm::dvec3 w) {
     // Vulkan face selection: the major axis, ties to x then y (spec table; ties do not matter here).
     const glm::dvec3 a = glm::abs(w);
     uint32_t face = 0;
@@ -61,13 +61,13 @@ glm::dvec3 cubemap_sample(const Cubemap& cube, glm::dvec3 w) {
         tc = -w.y;
         ma = a.z;
     }
-    const double r = cube.res;
+    const double r = cube.resolution;
     const double s = std::clamp(0.5 * (sc / ma + 1.0) * r - 0.5, 0.0, r - 1.0);
     const double t = std::clamp(0.5 * (tc / ma + 1.0) * r - 0.5, 0.0, r - 1.0);
-    const uint32_t c0 = std::min(static_cast<uint32_t>(s), cube.res > 1 ? cube.res - 2 : 0u);
-    const uint32_t r0 = std::min(static_cast<uint32_t>(t), cube.res > 1 ? cube.res - 2 : 0u);
-    const uint32_t c1 = std::min(c0 + 1, cube.res - 1);
-    const uint32_t r1 = std::min(r0 + 1, cube.res - 1);
+    const uint32_t c0 = std::min(static_cast<uint32_t>(s), cube.resolution > 1 ? cube.resolution - 2 : 0u);
+    const uint32_t r0 = std::min(static_cast<uint32_t>(t), cube.resolution > 1 ? cube.resolution - 2 : 0u);
+    const uint32_t c1 = std::min(c0 + 1, cube.resolution - 1);
+    const uint32_t r1 = std::min(r0 + 1, cube.resolution - 1);
     const double fx = s - c0;
     const double fy = t - r0;
     const auto v = [&](uint32_t row, uint32_t col) { return glm::dvec3(cube.at(face, row, col)); };

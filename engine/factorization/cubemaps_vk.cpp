@@ -12,16 +12,16 @@ CubemapsVk::CubemapsVk(gpu::Context& ctx, uint32_t workgroup_size)
       m_pipeline(ctx, gpu::ComputePipelineDesc{.name = "cubemaps",
                                                .spirv = factorization_cubemaps_comp,
                                                .storage_buffers = 2,
-                                               .push_constant_bytes = sizeof(CubemapPush),
+                                               .push_constant_bytes = sizeof(shared::CubemapPush),
                                                .workgroup_size = workgroup_size}) {}
 
 void CubemapsVk::record(gpu::Sequence& seq, const gpu::Buffer& grid, const gpu::Buffer& cube, uint32_t grid_res,
                         uint32_t cube_res, std::string_view label) const {
-    const CubemapPush push{.dispatch = {}, .grid_res = grid_res, .cube_res = cube_res};
+    const shared::CubemapPush push{.dispatch = {}, .grid_res = grid_res, .cube_res = cube_res};
     seq.dispatch_1d(m_pipeline, {grid, cube}, 6 * cube_res * cube_res, push, label);
 }
 
-Cubemap CubemapsVk::run(const CubemapInputs& in) {
+CubeMap CubemapsVk::run(const CubemapInputs& in) {
     cubemap_validate(in);
     const std::size_t texels = std::size_t{6} * in.cube_res * in.cube_res;
     gpu::Buffer grid = gpu::Buffer::of<glm::vec3>(*m_ctx, in.grid.size(), "factorization grid");
@@ -30,7 +30,7 @@ Cubemap CubemapsVk::run(const CubemapInputs& in) {
     gpu::Sequence seq(*m_ctx, 2);
     record(seq, grid, cube, in.grid_res, in.cube_res, "cubemaps");
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
-    Cubemap out{.res = in.cube_res, .texels = cube.download<glm::vec3>(texels)};
+    CubeMap out{.resolution = in.cube_res, .texels = cube.download<glm::vec3>(texels)};
     m_last_gpu_ns.reset();
     if (!seq.timings().empty()) m_last_gpu_ns = seq.timings().front().ns;
     return out;

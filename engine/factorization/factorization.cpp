@@ -13,10 +13,6 @@
 
 namespace specula::factorization {
 
-const char* to_string(FactorizationBackend backend) noexcept {
-    return backend == FactorizationBackend::Cpu ? "cpu" : "vulkan";
-}
-
 std::optional<double> FactorizationTimings::gpu_total_ns() const {
     if (!matrix_gpu_ns || !decomposition_g_gpu_ns || !decomposition_h_gpu_ns || !cube_g_gpu_ns || !cube_h_gpu_ns)
         return std::nullopt;
@@ -42,11 +38,11 @@ bool residual_sums_fit(const LafortuneRgb& lobe, FactorParam param) {
 /// K_max of the run: the forced K, or max_terms; 1 when the lobe is too high for the
 /// residual kernels' float sums, or unforced in the warped parametrization (note says why).
 uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param, std::string& note) {
-    if (o.terms > kMaxTerms)
-        throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxTerms) + " (got " +
+    if (o.terms > kMaxFactorTerms)
+        throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxFactorTerms) + " (got " +
                     std::to_string(o.terms) + ")");
-    if (o.max_terms < 1 || o.max_terms > kMaxTerms)
-        throw Error("factorize: max_terms must be in [1, " + std::to_string(kMaxTerms) + "]");
+    if (o.max_terms < 1 || o.max_terms > kMaxFactorTerms)
+        throw Error("factorize: max_terms must be in [1, " + std::to_string(kMaxFactorTerms) + "]");
     if (!(o.term_target >= 0.0)) throw Error("factorize: term_target must be >= 0");
     const uint32_t k = o.terms != 0 ? o.terms : o.max_terms;
     if (k == 1) return 1;
@@ -225,7 +221,7 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
                           " of the least relative RMS against the lobe through the cube-maps"
                     : std::string(", the lower relative RMS against the lobe through the cube-maps")) +
                errors;
-    const auto kept = std::find_if(runs.begin(), runs.end(), [&](const Factorization& r) { return r.param == c.param; });
+    const auto kept = std::find_if(runs.begin(), runs.end(), [&](const Factorization& r) { return r.cubes.param == c.param; });
     Factorization f = std::move(*kept);
     f.param_choice = std::move(c);
     f.timings.total_s = all.seconds(); // every factorization and its errors
@@ -234,41 +230,41 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
 
 Factorization factorize_cpu_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param) {
     Factorization f;
-    f.param = param;
-    if (param == FactorParam::Warped) f.warp = required_warp(lobe);
+    f.cubes.param = param;
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(lobe);
     f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     Stopwatch total;
     Stopwatch step;
     BrdfMatrix m = brdf_matrix_cpu(
-        {.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param, .warp = f.warp});
+        {.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param, .warp = f.cubes.warp});
     f.timings.matrix_s = step.seconds();
     step.restart();
-    f.decomposition = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
-    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0)
-        f.decomposition = refine_first_term_cpu(m, f.decomposition, it);
+    Decomposition first = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
+    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0) first = refine_first_term_cpu(m, first, it);
     f.timings.decomposition_s = step.seconds();
     step.restart();
-    f.cube_g = cubemaps_cpu({.grid = f.decomposition.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g});
-    f.cube_h = cubemaps_cpu({.grid = f.decomposition.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h});
+    const auto term_cubes = [&](const Decomposition& d) {
+        return FactorTerm{.g = cubemaps_cpu({.grid = d.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g}),
+                          .h = cubemaps_cpu({.grid = d.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h})};
+    };
+    f.cubes.terms.push_back(term_cubes(first));
     f.timings.cubemaps_s = step.seconds();
     std::string note;
     const uint32_t kmax = terms_to_compute(lobe, options, param, note);
     step.restart();
     std::vector<Decomposition> rest;
     if (kmax > 1)
-        rest = residual_terms_cpu({.matrix = &m, .first = &f.decomposition, .terms = kmax, .iterations = options.iterations});
-    f.terms = choose_terms(&m, f.decomposition, rest, options, note);
+        rest = residual_terms_cpu({.matrix = &m, .first = &first, .terms = kmax, .iterations = options.iterations});
+    f.terms = choose_terms(&m, first, rest, options, note);
     rest.resize(f.terms.count - 1);
     f.timings.residual_s = step.seconds();
     step.restart();
+    f.grids.push_back(std::move(first));
     for (Decomposition& d : rest) {
-        FactorTerm t;
-        t.cube_g = cubemaps_cpu({.grid = d.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g});
-        t.cube_h = cubemaps_cpu({.grid = d.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h});
-        t.grids = std::move(d);
-        f.extra.push_back(std::move(t));
+        f.cubes.terms.push_back(term_cubes(d));
+        f.grids.push_back(std::move(d));
     }
     f.timings.cubemaps_s += step.seconds();
     f.timings.total_s = total.seconds();
@@ -292,13 +288,13 @@ Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOpti
 Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param,
                                      bool errors) {
     Factorization f;
-    f.param = param;
-    if (param == FactorParam::Warped) f.warp = required_warp(lobe);
+    f.cubes.param = param;
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(lobe);
     f.resolution = resolve_resolution(lobe, options, param);
     f.p = options.p;
     f.weighting = options.weighting;
     const FactorizationResolution& r = f.resolution;
-    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.warp};
+    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp};
     brdf_matrix_validate(min);
     if (!(options.p >= 1.0f && options.p <= 64.0f)) throw Error("factorize: p must be in [1, 64]");
     std::string note;
@@ -316,7 +312,7 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     gpu::Buffer cube_g = gpu::Buffer::of<glm::vec3>(*m_ctx, texels_g, "factorization G cube-map");
     gpu::Buffer cube_h = gpu::Buffer::of<glm::vec3>(*m_ctx, texels_h, "factorization H cube-map");
 
-    gpu::Sequence seq(*m_ctx, 8 + kMaxTerms);
+    gpu::Sequence seq(*m_ctx, 8 + kMaxFactorTerms);
     m_matrix.record(seq, matrix, min);
     seq.barrier(gpu::Barrier::ComputeToCompute);
     m_decomposition.record(seq, matrix, g, h, r.grid_h, r.grid_d, options.p, options.weighting);
@@ -335,13 +331,13 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     }
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
 
-    f.decomposition = Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
-                                    .h = h.download<glm::vec3>(cols), .param = param, .warp = f.warp};
-    f.cube_g = Cubemap{.res = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)};
-    f.cube_h = Cubemap{.res = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)};
+    f.grids.push_back(Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
+                                    .h = h.download<glm::vec3>(cols), .param = param, .warp = f.cubes.warp});
+    f.cubes.terms.push_back(FactorTerm{.g = CubeMap{.resolution = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)},
+                                       .h = CubeMap{.resolution = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)}});
     std::optional<BrdfMatrix> m;
     if (options.keep_matrix || errors || kmax > 1)
-        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.warp,
+        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp,
                        .values = matrix.download<float>(3 * rows * cols)};
     std::vector<Decomposition> rest;
     if (kmax > 1) {
@@ -352,9 +348,9 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
                                          .g = {ga.begin() + k * rows, ga.begin() + (k + 1) * rows},
                                          .h = {ha.begin() + k * cols, ha.begin() + (k + 1) * cols},
                                          .param = param,
-                                         .warp = f.warp});
+                                         .warp = f.cubes.warp});
     }
-    f.terms = choose_terms(m ? &*m : nullptr, f.decomposition, rest, options, note);
+    f.terms = choose_terms(m ? &*m : nullptr, f.grids.front(), rest, options, note);
     rest.resize(f.terms.count - 1);
     if (!rest.empty()) { // the chosen residual terms' cube-maps, in a second submit
         std::vector<gpu::Buffer> grids, cubes;
@@ -370,10 +366,11 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
             m_cubemaps.record(cubes_seq, grids.back(), cubes.back(), r.grid_d, r.cube_h, "");
         }
         cubes_seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
-        for (std::size_t k = 0; k < rest.size(); ++k)
-            f.extra.push_back(FactorTerm{.grids = std::move(rest[k]),
-                                         .cube_g = Cubemap{.res = r.cube_g, .texels = cubes[2 * k].download<glm::vec3>(texels_g)},
-                                         .cube_h = Cubemap{.res = r.cube_h, .texels = cubes[2 * k + 1].download<glm::vec3>(texels_h)}});
+        for (std::size_t k = 0; k < rest.size(); ++k) {
+            f.cubes.terms.push_back(FactorTerm{.g = CubeMap{.resolution = r.cube_g, .texels = cubes[2 * k].download<glm::vec3>(texels_g)},
+                                               .h = CubeMap{.resolution = r.cube_h, .texels = cubes[2 * k + 1].download<glm::vec3>(texels_h)}});
+            f.grids.push_back(std::move(rest[k]));
+        }
     }
     if (options.keep_matrix) f.matrix = std::move(m);
     f.timings.total_s = total.seconds();
@@ -390,9 +387,9 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     return f;
 }
 
-Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorizationBackend backend,
+Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options, Backend backend,
                         gpu::Context* ctx) {
-    if (backend == FactorizationBackend::Cpu) return factorize_cpu(lobe, options);
+    if (backend == Backend::Cpu) return factorize_cpu(lobe, options);
     if (ctx == nullptr) throw Error("factorize: the Vulkan backend needs a gpu::Context");
     return FactorizeVk(*ctx).run(lobe, options);
 }
@@ -479,9 +476,9 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm
                 gc[k] = c2[k];
             }
         for (int k = 0; k < 3; ++k) {
-            const double f = std::min<double>(lafortune_eval_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
+            const double f = std::min<double>(shared::f64::lafortune_eval(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
             const double radial = param == FactorParam::Warped
-                                      ? std::min<double>(lafortune_radial_f64(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
+                                      ? std::min<double>(shared::f64::lafortune_radial(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
                                       : 1.0;
             ref += f * f;
             err_grid += (radial * gg[k] - f) * (radial * gg[k] - f);
@@ -497,8 +494,8 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm
 
 } // namespace
 
-DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const Cubemap* cube_g,
-                                const Cubemap* cube_h, uint32_t pairs, uint32_t seed) {
+DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const CubeMap* cube_g,
+                                const CubeMap* cube_h, uint32_t pairs, uint32_t seed) {
     const bool cubes = cube_g != nullptr && cube_h != nullptr;
     DirectError out = sample_direct_error(lobe, dec.param, dec.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
@@ -516,12 +513,12 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f
         throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
                     std::to_string(fac.term_count()));
     // The same draws as the one-term overload; the sum of the terms is clamped at 0 as the renderer does.
-    return sample_direct_error(lobe, fac.param, fac.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    return sample_direct_error(lobe, fac.cubes.param, fac.cubes.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         glm::dvec3 gg(0.0), gc(0.0);
         for (uint32_t k = 0; k < k_count; ++k) {
-            const Decomposition& d = fac.grids(k);
+            const Decomposition& d = fac.grids[k];
             gg += grid_sample(d.g, d.res_h, c.h) * grid_sample(d.h, d.res_d, c.d);
-            gc += cubemap_sample(fac.g_cube(k), c.h) * cubemap_sample(fac.h_cube(k), c.d);
+            gc += cubemap_sample(fac.cubes.terms[k].g, c.h) * cubemap_sample(fac.cubes.terms[k].h, c.d);
         }
         return std::pair{glm::max(gg, glm::dvec3(0.0)), glm::max(gc, glm::dvec3(0.0))};
     });

@@ -5,17 +5,20 @@
 /// normalized decomposition F ~ G(h) H(d) (normalized_decomposition), and G and H
 /// resampled into two cube-maps (cubemaps). Math shared with the shaders: shared/gshd.h.
 ///
-///   auto f = factorize(lobe, {}, FactorizationBackend::Vulkan, &ctx);
-///   f.cube_g.texels, f.cube_h.texels   // 6 x res x res rgb, Vulkan face order
+///   auto f = factorize(lobe, {}, Backend::Vulkan, &ctx);
+///   f.cubes                            // material/material.h FactorizedSpecular: what the
+///                                      // renderer draws and the bundle stores, as it is
+///   f.cubes.terms[k].g.texels          // term k's G: 6 x res x res rgb, Vulkan face order
+///   f.grids[k]                         // term k's G and H on the hemisphere grids
 ///   f.resolution.reason                // why these resolutions
 ///   f.terms.count, f.terms.reason      // K, and why (issue 5: sum of K separable terms)
-///   f.extra[k - 2].cube_g              // terms 2..K (residual_term.h)
 ///
 /// A renderer evaluates f_s(u, v) ~ R(u) max(0, sum_k G_k(h) H_k(d)) with
-/// (h, d) = gshd_from_uv_warped(u, v, f.param, f.warp), R = 1 except in the warped
-/// parametrization (R = lafortune_radial); K = 1 is the thesis's single term.
+/// (h, d) = gshd_from_uv_warped(u, v, f.cubes.param, f.cubes.warp), R = 1 except in the warped
+/// parametrization (R = lafortune_radial); K = 1 is the thesis's single term (terms 2..K:
+/// residual_term.h).
 ///
-/// The parametrization f.param (shared/gshd.h parts 4 and 5): the thesis's GSHD of (u, v),
+/// The parametrization f.cubes.param (shared/gshd.h parts 4 and 5): the thesis's GSHD of (u, v),
 /// the mirrored GSHD of (r(u), v) with r(u) = (-ux, -uy, uz), or the warped GSHD of (w(u), v)
 /// with F the lobe over R. A lobe with Cx < 0 peaks about the mirror direction, and the
 /// mirrored F is exactly rank 1 when Cx = -Cz; the plain one is when Cx = +Cz; the warped one
@@ -24,7 +27,9 @@
 /// why, and every error).
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
-#include "factorization/lobe.h"
+#include "core/backend.h"
+#include "material/lafortune.h"
+#include "shared/lafortune.h"
 #include "factorization/normalized_decomposition.h"
 #include "factorization/residual_term.h"
 #include "factorization/resolution.h"
@@ -38,8 +43,6 @@
 
 namespace specula::factorization {
 
-enum class FactorizationBackend { Cpu, Vulkan };
-[[nodiscard]] const char* to_string(FactorizationBackend backend) noexcept;
 
 struct FactorizationOptions {
     /// 0 = default_resolution(lobe) for that field.
@@ -51,9 +54,9 @@ struct FactorizationOptions {
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
     bool keep_matrix = false; ///< return F too (error measurement)
     /// Number of separable terms K: 0 = automatic (the smallest K <= max_terms whose matrix
-    /// relative RMS is <= term_target, else the K of least error), 1 = the thesis, 2..kMaxTerms forced.
+    /// relative RMS is <= term_target, else the K of least error), 1 = the thesis, 2..kMaxFactorTerms forced.
     uint32_t terms = 0;
-    uint32_t max_terms = kMaxTerms;
+    uint32_t max_terms = kMaxFactorTerms;
     double term_target = kDefaultTermTarget;
     uint32_t iterations = kResidualIterations; ///< ALS iterations per residual term
     /// ALS iterations refining term 1 (refine_first_term_cpu) after the normalized
@@ -82,13 +85,6 @@ struct FactorizationTimings {
     std::optional<double> residual_gpu_ns; ///< all residual terms computed (nullopt for K_max = 1)
     std::optional<double> first_refine_gpu_ns; ///< term 1's ALS refinement (nullopt without one)
     [[nodiscard]] std::optional<double> gpu_total_ns() const;
-};
-
-/// Terms 2..K: grids and cube-maps (same resolutions as term 1).
-struct FactorTerm {
-    Decomposition grids;
-    Cubemap cube_g;
-    Cubemap cube_h;
 };
 
 /// How K was chosen. matrix_rms[k - 1]: matrix relative RMS of the first k terms (clamped sum),
@@ -143,23 +139,18 @@ struct ParamChoice {
 
 struct Factorization {
     FactorizationResolution resolution;
-    FactorParam param = FactorParam::Gshd; ///< how (h, d) come from (u, v) (shared/gshd.h parts 4, 5)
-    /// FactorParam::Warped: the warp (s, k_r, k_g, k_b) (warp_for_lobe; channel c looks up at the
-    /// coordinates of its warp (s, k_c)), and the terms approximate the lobe over its radial
-    /// factor: f ~ lafortune_radial(u) max(0, sum_k G_k H_k). (1, 1, 1, 1) otherwise.
-    glm::vec4 warp{1.0f};
+    /// The K terms' cube-maps (terms[0] is term 1) with how (h, d) come from (u, v)
+    /// (shared/gshd.h parts 4, 5). FactorParam::Warped: cubes.warp is (s, k_r, k_g, k_b)
+    /// (warp_for_lobe; channel c looks up at the coordinates of its warp (s, k_c)), and the terms
+    /// approximate the lobe over its radial factor: f ~ lafortune_radial(u) max(0, sum_k G_k H_k);
+    /// (1, 1, 1, 1) otherwise.
+    FactorizedSpecular cubes;
+    std::vector<Decomposition> grids; ///< per term (same order): G on the h grid, H on the d grid
     ParamChoice param_choice;
     TermChoice terms;
     float p = 2.0f;
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
-    Decomposition decomposition; // term 1: G on the h grid, H on the d grid
-    Cubemap cube_g;
-    Cubemap cube_h;
-    std::vector<FactorTerm> extra; // terms 2..K (empty for K = 1)
-    [[nodiscard]] uint32_t term_count() const noexcept { return 1 + static_cast<uint32_t>(extra.size()); }
-    [[nodiscard]] const Decomposition& grids(uint32_t k) const { return k == 0 ? decomposition : extra.at(k - 1).grids; }
-    [[nodiscard]] const Cubemap& g_cube(uint32_t k) const { return k == 0 ? cube_g : extra.at(k - 1).cube_g; }
-    [[nodiscard]] const Cubemap& h_cube(uint32_t k) const { return k == 0 ? cube_h : extra.at(k - 1).cube_h; }
+    [[nodiscard]] uint32_t term_count() const noexcept { return static_cast<uint32_t>(cubes.terms.size()); }
     std::optional<BrdfMatrix> matrix; // with keep_matrix
     FactorizationTimings timings;
 };
@@ -192,7 +183,7 @@ private:
 
 /// Either path; ctx is required for Vulkan.
 [[nodiscard]] Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options,
-                                      FactorizationBackend backend, gpu::Context* ctx = nullptr);
+                                      Backend backend, gpu::Context* ctx = nullptr);
 
 // ---- approximation error -------------------------------------------------------------
 
@@ -210,7 +201,7 @@ struct DirectError {
 /// uniformly (in solid angle) from the upper hemisphere with a fixed seed: the sampling,
 /// decomposition and interpolation errors together. (h, d) in the decomposition's param.
 [[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& decomposition,
-                                              const Cubemap* cube_g, const Cubemap* cube_h, uint32_t pairs = 1u << 18,
+                                              const CubeMap* cube_g, const CubeMap* cube_h, uint32_t pairs = 1u << 18,
                                               uint32_t seed = 1);
 /// The same for max(0, sum_k G_k H_k) over the first `terms` terms of f (0 = all of them).
 [[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f, uint32_t terms = 0,

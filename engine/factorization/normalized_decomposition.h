@@ -65,16 +65,6 @@ void decomposition_validate(const DecompositionInputs& in);
 /// The reference: sums and powers in double, results rounded to float.
 [[nodiscard]] Decomposition normalized_decomposition_cpu(const DecompositionInputs& in);
 
-struct DecompositionPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t rows;
-    uint32_t cols;
-    uint32_t pass_index; // 0: G, 1: H
-    float p;
-    uint32_t weighting; // DecompositionWeighting
-};
-static_assert(sizeof(DecompositionPush) == 28 && offsetof(DecompositionPush, weighting) == 24);
-
 /// The Vulkan kernel (shaders/factorization/normalized_decomposition.comp): two dispatches
 /// (G, then H after a compute->compute barrier).
 class NormalizedDecompositionVk {

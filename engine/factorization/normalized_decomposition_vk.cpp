@@ -13,7 +13,7 @@ NormalizedDecompositionVk::NormalizedDecompositionVk(gpu::Context& ctx, uint32_t
       m_pipeline(ctx, gpu::ComputePipelineDesc{.name = "normalized_decomposition",
                                                .spirv = factorization_normalized_decomposition_comp,
                                                .storage_buffers = 3,
-                                               .push_constant_bytes = sizeof(DecompositionPush),
+                                               .push_constant_bytes = sizeof(shared::DecompositionPush),
                                                .workgroup_size = workgroup_size}) {}
 
 void NormalizedDecompositionVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g,
@@ -21,7 +21,7 @@ void NormalizedDecompositionVk::record(gpu::Sequence& seq, const gpu::Buffer& ma
                                        DecompositionWeighting weighting) const {
     const uint32_t rows = res_h * res_h;
     const uint32_t cols = res_d * res_d;
-    DecompositionPush push{.dispatch = {}, .rows = rows, .cols = cols, .pass_index = 0, .p = p,
+    shared::DecompositionPush push{.dispatch = {}, .rows = rows, .cols = cols, .pass_index = 0, .p = p,
                            .weighting = static_cast<uint32_t>(weighting)};
     seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * rows, push, "decomposition_g");
     seq.barrier(gpu::Barrier::ComputeToCompute);

@@ -13,6 +13,7 @@
 // Reference in double (residual_term_cpu.cpp); Vulkan: shaders/factorization/residual_term.comp.
 #include "factorization/brdf_matrix.h"
 #include "factorization/normalized_decomposition.h"
+#include "material/material.h"
 
 #include <cstdint>
 #include <optional>
@@ -20,7 +21,6 @@
 
 namespace specula::factorization {
 
-inline constexpr uint32_t kMaxTerms = 4;           ///< fixed bindings in the renderer, fields in the bundle
 inline constexpr uint32_t kResidualIterations = 12; ///< ALS iterations per residual term
 inline constexpr double kDefaultTermTarget = 0.03;  ///< automatic K: matrix relative RMS to reach
 /// Residual terms are left out when the lobe's height max(|Cx|, |Cz|)^N exceeds this (float sums
@@ -30,7 +30,7 @@ inline constexpr double kResidualMaxValue = 1.0e15;
 struct ResidualTermsInputs {
     const BrdfMatrix* matrix = nullptr;
     const Decomposition* first = nullptr; ///< term 1 (normalized decomposition) on the same grids
-    uint32_t terms = 2;                   ///< K, total including term 1; 2..kMaxTerms
+    uint32_t terms = 2;                   ///< K, total including term 1; 2..kMaxFactorTerms
     uint32_t iterations = kResidualIterations;
 };
 
@@ -47,15 +47,6 @@ void residual_terms_validate(const ResidualTermsInputs& in);
 /// entries (the warped parametrization, shared/gshd.h part 5) term 1 keeps ~34% relative RMS;
 /// the least-squares fit has none. Non-negative F and a non-negative start stay non-negative.
 [[nodiscard]] Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations);
-
-struct ResidualTermPush {
-    gpu::DispatchHeader dispatch;
-    uint32_t rows;
-    uint32_t cols;
-    uint32_t term;
-    uint32_t pass_index; // 0: H start (column RMS), 1: G from H, 2: H from G
-};
-static_assert(sizeof(ResidualTermPush) == 24);
 
 /// The Vulkan kernel: per term, 1 + 2 iterations dispatches separated by compute->compute
 /// barriers. g and h hold all K terms, term-major (term 0 already written at offset 0).

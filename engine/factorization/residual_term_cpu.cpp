@@ -37,8 +37,8 @@ void residual_terms_validate(const ResidualTermsInputs& in) {
     if (in.first->res_h != in.matrix->res_h || in.first->res_d != in.matrix->res_d ||
         in.first->g.size() != in.matrix->rows() || in.first->h.size() != in.matrix->cols())
         throw Error("residual_terms: the first term's grids do not match the matrix");
-    if (in.terms < 2 || in.terms > kMaxTerms)
-        throw Error("residual_terms: terms must be in [2, " + std::to_string(kMaxTerms) + "] (got " +
+    if (in.terms < 2 || in.terms > kMaxFactorTerms)
+        throw Error("residual_terms: terms must be in [2, " + std::to_string(kMaxFactorTerms) + "] (got " +
                     std::to_string(in.terms) + ")");
     if (in.iterations < 1 || in.iterations > 1000) throw Error("residual_terms: iterations must be in [1, 1000]");
 }

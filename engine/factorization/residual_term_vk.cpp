@@ -15,12 +15,12 @@ ResidualTermsVk::ResidualTermsVk(gpu::Context& ctx, uint32_t workgroup_size)
       m_pipeline(ctx, gpu::ComputePipelineDesc{.name = "residual_term",
                                                .spirv = factorization_residual_term_comp,
                                                .storage_buffers = 3,
-                                               .push_constant_bytes = sizeof(ResidualTermPush),
+                                               .push_constant_bytes = sizeof(shared::ResidualTermPush),
                                                .workgroup_size = workgroup_size}) {}
 
 void ResidualTermsVk::record_als(gpu::Sequence& seq, const gpu::Buffer& matrix, const gpu::Buffer& g, const gpu::Buffer& h,
                                  uint32_t rows, uint32_t cols, uint32_t term, uint32_t iterations) const {
-    ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = term, .pass_index = 1};
+    shared::ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = term, .pass_index = 1};
     for (uint32_t it = 0; it < iterations; ++it) {
         seq.barrier(gpu::Barrier::ComputeToCompute);
         push.pass_index = 1;
@@ -37,7 +37,7 @@ void ResidualTermsVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, cons
     const uint32_t cols = res_d * res_d;
     for (uint32_t k = 1; k < terms; ++k) {
         seq.time_begin("residual_term_" + std::to_string(k + 1));
-        const ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = k, .pass_index = 0};
+        const shared::ResidualTermPush push{.dispatch = {}, .rows = rows, .cols = cols, .term = k, .pass_index = 0};
         seq.dispatch_1d(m_pipeline, {matrix, g, h}, 3 * cols, push);
         record_als(seq, matrix, g, h, rows, cols, k, iterations);
         seq.time_end();

@@ -5,7 +5,7 @@
 // falls to 1/e at the angular half-width w = sqrt(2 / N). (Along h the peak is narrower,
 // about w/2 in the plane of incidence, since turning h by a turns v by 2a; the rule below
 // with k = 2 cells per w thus puts about one cell per half-width of G's peak. The sweep,
-// tests/factorization/factorization_sweep.cpp, shows the error of the thesis's lobes is at
+// bench/factorization_sweep.cpp, shows the error of the thesis's lobes is at
 // its separability floor from R = 16 on, so the rule is not made finer.)
 //
 // Cell size of the hemispherical octahedral grid (shared/gshd.h) at the pole, where a
@@ -33,7 +33,7 @@
 // bilinear interpolation of the peak between cells is what is left, and rendered highlights,
 // which saturate, show mostly its tails, where interpolating an exponential fall-off between
 // cells overestimates it. Measured (specula evaluate, factorized vs analytic masked PSNR, 30
-// frames per split, h grid 16; tests/factorization/refactor_bundle): the can (N = 11) d 16 /
+// frames per split, h grid 16; tools/refactor_bundle): the can (N = 11) d 16 /
 // 32 / 64: train -2.4 / -0.65 / -0.33 dB, test -0.26 / -0.07 / -0.04 dB; cologne (N = 18.5)
 // d 16 / 32 / 64 / 96 / 128: test -19.7 / -9.8 / -1.4 / -0.17 / -0.18 dB. 16 cells per
 // half-width gives the can 53 and cologne 69: F (3 R_h^2 R_d^2 floats) grows ~20 times.

@@ -13,8 +13,9 @@
 // kMirroredPeakCellsPerHalfWidth instead of kCellsPerHalfWidth:
 //   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
 // (finer: there the separability floor is gone and the rendered highlights' tails need it).
-#include "core/factor_param.h"
-#include "factorization/lobe.h"
+#include "material/factor_param.h"
+#include "material/lafortune.h"
+#include "shared/lafortune.h"
 
 #include <cstdint>
 #include <string>

@@ -1,11 +1,14 @@
 #include "geometry/atlas.h"
 
 #include "core/error.h"
+#include "geometry/chart_atlas.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <numeric>
+#include <tuple>
 
 namespace specula {
 
@@ -81,6 +84,16 @@ double triangle_area(const Mesh& mesh, const glm::uvec3& t) {
     return 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
 }
 
+/// Corner k of a patch in texel coordinates.
+glm::dvec2 patch_corner(const PatchPlacement& p, int k) {
+    const double n = p.size;
+    const double w = n + Atlas::kBlockPadding;
+    const glm::dvec2 origin(p.block_x, p.block_y);
+    const glm::dvec2 local[3] = {{kA, kA}, {kA + n, kA}, {kA, kA + n}};
+    const glm::dvec2 l = local[k];
+    return p.half == 0 ? origin + l : origin + glm::dvec2(w - l.x, w - l.y);
+}
+
 } // namespace
 
 glm::dvec2 clamp_to_triangle(const glm::dvec2& st) {
@@ -104,23 +117,76 @@ glm::dvec2 clamp_to_triangle(const glm::dvec2& st) {
     return best;
 }
 
-glm::dvec2 Atlas::corner_texel(std::uint32_t triangle, int k) const {
-    const PatchPlacement& p = patches[triangle];
-    const double n = p.size;
-    const double w = n + kBlockPadding;
-    const glm::dvec2 origin(p.block_x, p.block_y);
-    const glm::dvec2 local[3] = {{kA, kA}, {kA + n, kA}, {kA, kA + n}};
-    const glm::dvec2 l = local[k];
-    return p.half == 0 ? origin + l : origin + glm::dvec2(w - l.x, w - l.y);
+const char* to_string(AtlasMode mode) { return mode == AtlasMode::Charts ? "charts" : "patchwork"; }
+
+std::optional<AtlasMode> atlas_mode_from_string(std::string_view name) {
+    if (name == "charts") return AtlasMode::Charts;
+    if (name == "patchwork") return AtlasMode::Patchwork;
+    return std::nullopt;
+}
+
+glm::dvec2 closest_point_bary(const glm::dvec2& c0, const glm::dvec2& c1, const glm::dvec2& c2, const glm::dvec2& p) {
+    // Barycentric coordinates by Cramer's rule; inside: done. Outside: the closest point
+    // lies on one of the three edges (the triangle is convex), so take the nearest of the
+    // edges' closest points.
+    const glm::dvec2 e1 = c1 - c0, e2 = c2 - c0, d = p - c0;
+    const double det = e1.x * e2.y - e1.y * e2.x;
+    const glm::dvec2 st((d.x * e2.y - d.y * e2.x) / det, (e1.x * d.y - e1.y * d.x) / det);
+    if (st.x >= 0.0 && st.y >= 0.0 && st.x + st.y <= 1.0) return st;
+    const glm::dvec2 corner_st[3] = {{0, 0}, {1, 0}, {0, 1}};
+    const glm::dvec2 corner[3] = {c0, c1, c2};
+    glm::dvec2 best_st(0.0);
+    double best_d = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) {
+        const glm::dvec2 a = corner[k], b = corner[(k + 1) % 3];
+        const glm::dvec2 ab = b - a;
+        const double len2 = glm::dot(ab, ab);
+        const double u = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+        const glm::dvec2 q = a + u * ab;
+        const double dq = glm::dot(p - q, p - q);
+        if (dq < best_d) {
+            best_d = dq;
+            best_st = (1.0 - u) * corner_st[k] + u * corner_st[(k + 1) % 3];
+        }
+    }
+    return best_st;
 }
 
 glm::dvec2 Atlas::patch_bary(std::uint32_t triangle, const glm::dvec2& texel_point) const {
-    const PatchPlacement& p = patches[triangle];
-    const double n = p.size;
-    const double w = n + kBlockPadding;
-    glm::dvec2 l = texel_point - glm::dvec2(p.block_x, p.block_y);
-    if (p.half == 1) l = glm::dvec2(w - l.x, w - l.y);
-    return (l - glm::dvec2(kA, kA)) / n;
+    if (mode == AtlasMode::Patchwork) {
+        // The patch's own frame: exact for texel centers (multiples of 1/(4n), see in_patch).
+        const PatchPlacement& p = patches[triangle];
+        const double n = p.size;
+        const double w = n + kBlockPadding;
+        glm::dvec2 l = texel_point - glm::dvec2(p.block_x, p.block_y);
+        if (p.half == 1) l = glm::dvec2(w - l.x, w - l.y);
+        return (l - glm::dvec2(kA, kA)) / n;
+    }
+    const glm::dvec2 c0 = corner_texel(triangle, 0), e1 = corner_texel(triangle, 1) - c0, e2 = corner_texel(triangle, 2) - c0;
+    const glm::dvec2 d = texel_point - c0;
+    const double det = e1.x * e2.y - e1.y * e2.x;
+    return {(d.x * e2.y - d.y * e2.x) / det, (e1.x * d.y - e1.y * d.x) / det};
+}
+
+glm::dvec2 Atlas::closest_bary(std::uint32_t triangle, const glm::dvec2& texel_point) const {
+    if (mode == AtlasMode::Patchwork) return clamp_to_triangle(patch_bary(triangle, texel_point)); // isotropic (s, t)
+    return closest_point_bary(corner_texel(triangle, 0), corner_texel(triangle, 1), corner_texel(triangle, 2), texel_point);
+}
+
+std::size_t atlas_vertex_count(const Mesh& mesh, const Atlas& atlas) {
+    // The key make_bundle merges on: the position index and the bits of the coordinate.
+    std::vector<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t>> keys;
+    keys.reserve(3 * mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec2 uv = atlas.corner_uv[3 * t + std::size_t(k)];
+            std::uint32_t bx, by;
+            std::memcpy(&bx, &uv.x, 4);
+            std::memcpy(&by, &uv.y, 4);
+            keys.emplace_back(mesh.triangles[t][k], bx, by);
+        }
+    std::sort(keys.begin(), keys.end());
+    return std::size_t(std::unique(keys.begin(), keys.end()) - keys.begin());
 }
 
 std::vector<double> best_pixel_footprint(const Mesh& mesh, std::span<const Camera> cameras) {
@@ -141,17 +207,14 @@ std::vector<double> best_pixel_footprint(const Mesh& mesh, std::span<const Camer
     return best;
 }
 
-Atlas build_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options) {
-    if (mesh.triangles.empty()) throw Error("atlas: the mesh has no triangles");
-    if (options.max_width == 0 || options.max_height == 0 || options.max_width > Atlas::kMaxDimension ||
-        options.max_height > Atlas::kMaxDimension)
-        throw Error("atlas: the texture budget must be between 1 and " + std::to_string(Atlas::kMaxDimension) + " texels per side");
-    if (options.min_patch < 1 || options.min_patch > options.max_patch) throw Error("atlas: need 1 <= min_patch <= max_patch");
-    if (!(options.texels_per_pixel > 0.0)) throw Error("atlas: texels_per_pixel must be positive");
+namespace {
 
+Atlas build_patchwork_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options) {
     const std::size_t tri_count = mesh.triangles.size();
     Atlas atlas;
+    atlas.mode = AtlasMode::Patchwork;
     AtlasSummary& s = atlas.summary;
+    s.mode = to_string(AtlasMode::Patchwork);
     s.triangles = tri_count;
 
     // 1. Desired leg length per triangle: a leg-n patch holds n^2 / 2 texels.
@@ -253,9 +316,11 @@ Atlas build_atlas(const Mesh& mesh, std::span<const Camera> cameras, const Atlas
             }
         }
     }
+    atlas.corners.resize(3 * tri_count);
     for (std::uint32_t t = 0; t < tri_count; ++t)
         for (int k = 0; k < 3; ++k) {
-            const glm::dvec2 c = atlas.corner_texel(t, k);
+            const glm::dvec2 c = patch_corner(atlas.patches[t], k);
+            atlas.corners[3 * t + k] = c;
             atlas.corner_uv[3 * t + k] = glm::vec2(float(c.x / atlas.width), float(c.y / atlas.height));
         }
 
@@ -281,19 +346,52 @@ Atlas build_atlas(const Mesh& mesh, std::span<const Camera> cameras, const Atlas
     const double area = double(atlas.width) * atlas.height;
     s.fill_ratio = double(s.interior_texels + s.gutter_texels) / area;
     s.interior_ratio = double(s.interior_texels) / area;
+    s.mesh_vertices = mesh.positions.size();
+    s.atlas_vertices = atlas_vertex_count(mesh, atlas);
     return atlas;
+}
+
+} // namespace
+
+Atlas build_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options) {
+    if (mesh.triangles.empty()) throw Error("atlas: the mesh has no triangles");
+    if (options.max_width == 0 || options.max_height == 0 || options.max_width > Atlas::kMaxDimension ||
+        options.max_height > Atlas::kMaxDimension)
+        throw Error("atlas: the texture budget must be between 1 and " + std::to_string(Atlas::kMaxDimension) + " texels per side");
+    if (options.min_patch < 1 || options.min_patch > options.max_patch) throw Error("atlas: need 1 <= min_patch <= max_patch");
+    if (!(options.texels_per_pixel > 0.0)) throw Error("atlas: texels_per_pixel must be positive");
+    return options.mode == AtlasMode::Charts ? build_chart_atlas(mesh, cameras, options) : build_patchwork_atlas(mesh, cameras, options);
 }
 
 std::string describe(const AtlasSummary& s) {
     char buf[1024];
-    std::snprintf(buf, sizeof buf,
-                  "atlas %ux%u (%zu triangles in %zu blocks, sizes from %s)\n"
-                  "  patch leg (texels): min %u, median %u, mean %.2f, max %u\n"
-                  "  texels: %zu interior + %zu gutter; fill %.1f%% (interior %.1f%%)\n"
-                  "  desired %.0f patch texels; budget %s (scale %.3f)\n",
-                  s.width, s.height, s.triangles, s.blocks, s.size_source.c_str(), s.patch_min, s.patch_median, s.patch_mean,
-                  s.patch_max, s.interior_texels, s.gutter_texels, 100.0 * s.fill_ratio, 100.0 * s.interior_ratio, s.desired_texels,
-                  s.budget_clipped ? "CLIPPED" : "not reached", s.budget_scale);
+    if (s.mode == "charts") {
+        std::snprintf(buf, sizeof buf,
+                      "atlas %ux%u, charts (%zu triangles in %zu charts, sizes from %s)\n"
+                      "  chart triangles: median %u, max %u; %zu seam edges (%zu creases)\n"
+                      "  vertices: %zu in the mesh, %zu split along the seams (x%.3f)\n"
+                      "  distortion: angle sigma1/sigma2 mean %.3f, max %.3f; area min %.3f, 5%% %.3f, 95%% %.3f, max %.3f\n"
+                      "  texels: %zu interior + %zu gutter; fill %.1f%% (interior %.1f%%)\n"
+                      "  desired %.0f texels; budget %s (scale %.3f)\n",
+                      s.width, s.height, s.triangles, s.charts, s.size_source.c_str(), s.chart_triangles_median, s.chart_triangles_max,
+                      s.seam_edges, s.crease_edges, s.mesh_vertices, s.atlas_vertices,
+                      s.mesh_vertices ? double(s.atlas_vertices) / double(s.mesh_vertices) : 0.0, s.angle_distortion_mean,
+                      s.angle_distortion_max, s.area_distortion_min, s.area_distortion_p05, s.area_distortion_p95, s.area_distortion_max,
+                      s.interior_texels, s.gutter_texels, 100.0 * s.fill_ratio, 100.0 * s.interior_ratio, s.desired_texels,
+                      s.budget_clipped ? "CLIPPED" : "not reached", s.budget_scale);
+    } else {
+        std::snprintf(buf, sizeof buf,
+                      "atlas %ux%u, patchwork (%zu triangles in %zu blocks, sizes from %s)\n"
+                      "  patch leg (texels): min %u, median %u, mean %.2f, max %u\n"
+                      "  vertices: %zu in the mesh, %zu split (x%.3f)\n"
+                      "  texels: %zu interior + %zu gutter; fill %.1f%% (interior %.1f%%)\n"
+                      "  desired %.0f patch texels; budget %s (scale %.3f)\n",
+                      s.width, s.height, s.triangles, s.blocks, s.size_source.c_str(), s.patch_min, s.patch_median, s.patch_mean,
+                      s.patch_max, s.mesh_vertices, s.atlas_vertices,
+                      s.mesh_vertices ? double(s.atlas_vertices) / double(s.mesh_vertices) : 0.0, s.interior_texels, s.gutter_texels,
+                      100.0 * s.fill_ratio, 100.0 * s.interior_ratio, s.desired_texels, s.budget_clipped ? "CLIPPED" : "not reached",
+                      s.budget_scale);
+    }
     std::string out = buf;
     for (const std::string& n : s.notes) out += "  note: " + n + "\n";
     return out;

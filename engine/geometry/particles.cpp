@@ -38,6 +38,39 @@ SurfacePoint surface_point(const Mesh& mesh, std::uint32_t triangle, const glm::
 
 ParticleSet build_particles(const Mesh& mesh, const Atlas& atlas) {
     const std::size_t tri_count = mesh.triangles.size();
+    if (atlas.corners.size() != 3 * tri_count) throw Error("particles: the atlas was built for another mesh");
+    ParticleSet set;
+    set.particles.reserve(std::size_t(double(atlas.width) * atlas.height * atlas.summary.fill_ratio) + 16);
+    const auto emit = [&](std::uint32_t tri, std::uint32_t x, std::uint32_t y) {
+        const glm::dvec2 center(x + 0.5, y + 0.5);
+        const glm::dvec2 st_raw = atlas.patch_bary(tri, center);
+        const bool gutter = !in_patch(st_raw);
+        const glm::dvec2 st = gutter ? atlas.closest_bary(tri, center) : st_raw;
+        const SurfacePoint sp = surface_point(mesh, tri, st);
+        Particle particle;
+        particle.position = glm::vec4(sp.position, 1.0f);
+        particle.normal = glm::vec4(sp.normal, 0.0f);
+        particle.bary = glm::vec2(st);
+        particle.triangle = tri;
+        particle.texel = pack_texel(x, y, gutter);
+        set.particles.push_back(particle);
+        ++(gutter ? set.gutter : set.interior);
+        if (sp.used_face_normal) ++set.normal_fallbacks;
+    };
+    if (atlas.mode == AtlasMode::Charts) {
+        // Chart by chart in placement order, rows then columns of its rectangle (a small
+        // chart may sit in another's rectangle: a texel belongs to the chart of its owner).
+        if (atlas.chart_of.size() != tri_count) throw Error("particles: the atlas was built for another mesh");
+        for (std::uint32_t c = 0; c < atlas.charts.size(); ++c) {
+            const ChartPlacement& r = atlas.charts[c];
+            for (std::uint32_t y = r.y; y < r.y + r.height; ++y)
+                for (std::uint32_t x = r.x; x < r.x + r.width; ++x) {
+                    const std::uint32_t tri = atlas.owner_at(x, y);
+                    if (tri != Atlas::kEmpty && atlas.chart_of[tri] == c) emit(tri, x, y);
+                }
+        }
+        return set;
+    }
     if (atlas.patches.size() != tri_count) throw Error("particles: the atlas was built for another mesh");
     std::vector<std::uint32_t> order(tri_count);
     std::iota(order.begin(), order.end(), 0u);
@@ -47,30 +80,12 @@ ParticleSet build_particles(const Mesh& mesh, const Atlas& atlas) {
         if (pa.block_x != pb.block_x) return pa.block_x < pb.block_x;
         return pa.half < pb.half;
     });
-
-    ParticleSet set;
-    set.particles.reserve(std::size_t(double(atlas.width) * atlas.height * atlas.summary.fill_ratio) + 16);
     for (std::uint32_t tri : order) {
         const PatchPlacement& p = atlas.patches[tri];
         const std::uint32_t w = p.size + Atlas::kBlockPadding;
-        for (std::uint32_t y = p.block_y; y < p.block_y + w; ++y) {
-            for (std::uint32_t x = p.block_x; x < p.block_x + w; ++x) {
-                if (atlas.owner_at(x, y) != tri) continue;
-                const glm::dvec2 st_raw = atlas.patch_bary(tri, {x + 0.5, y + 0.5});
-                const bool gutter = !in_patch(st_raw);
-                const glm::dvec2 st = clamp_to_triangle(st_raw);
-                const SurfacePoint sp = surface_point(mesh, tri, st);
-                Particle particle;
-                particle.position = glm::vec4(sp.position, 1.0f);
-                particle.normal = glm::vec4(sp.normal, 0.0f);
-                particle.bary = glm::vec2(st);
-                particle.triangle = tri;
-                particle.texel = pack_texel(x, y, gutter);
-                set.particles.push_back(particle);
-                ++(gutter ? set.gutter : set.interior);
-                if (sp.used_face_normal) ++set.normal_fallbacks;
-            }
-        }
+        for (std::uint32_t y = p.block_y; y < p.block_y + w; ++y)
+            for (std::uint32_t x = p.block_x; x < p.block_x + w; ++x)
+                if (atlas.owner_at(x, y) == tri) emit(tri, x, y);
     }
     return set;
 }

@@ -47,7 +47,8 @@ static_assert(offsetof(Particle, normal) == 16 && offsetof(Particle, bary) == 32
 }
 
 struct ParticleSet {
-    std::vector<Particle> particles; ///< triangle by triangle in atlas placement order (shelf, block, half), then texel row, column
+    std::vector<Particle> particles; ///< patchwork: triangle by triangle in placement order (shelf, block, half), then texel
+                                     ///< row, column; charts: chart by chart in placement order, then texel row, column
     std::size_t interior = 0;
     std::size_t gutter = 0;
     std::size_t normal_fallbacks = 0; ///< particles whose blended normal vanished (face normal used)

@@ -1,5 +1,5 @@
 #pragma once
-// Stage 7 (pipeline.md section 8): image quality metrics between a captured image A
+// Stage 8 (pipeline.md section 8): image quality metrics between a captured image A
 // and the rendered image B of the same view and light, over a pixel set P: the
 // object's pixels (a mask: primary) or the full frame (comparable with the thesis,
 // whose figures include the background).

@@ -22,36 +22,6 @@ namespace specula::metrics {
 namespace {
 
 using gpu::Buffer;
-using gpu::DispatchHeader;
-
-struct SumsPush {
-    DispatchHeader dispatch;
-    uint32_t width, height, channels, color_channels, has_mask, pad = 0;
-};
-static_assert(sizeof(SumsPush) == 32);
-
-struct SsimHPush {
-    DispatchHeader dispatch;
-    uint32_t width, height;
-};
-static_assert(sizeof(SsimHPush) == 16);
-
-struct SsimVPush {
-    DispatchHeader dispatch;
-    uint32_t width, height, has_mask;
-    float c1, c2;
-    uint32_t pad = 0;
-};
-static_assert(sizeof(SsimVPush) == 32 && offsetof(SsimVPush, c1) == 20);
-
-struct HausdorffPush {
-    DispatchHeader dispatch;
-    uint32_t width, height, channels, color_channels, has_mask;
-    int32_t max_radius;
-    float delta;
-    uint32_t pad = 0;
-};
-static_assert(sizeof(HausdorffPush) == 40 && offsetof(HausdorffPush, delta) == 32);
 
 constexpr uint32_t kGroup = shared::kMetricsGroupSize;
 
@@ -75,10 +45,10 @@ void ensure(std::optional<Buffer>& buffer, gpu::Context& ctx, uint64_t bytes, co
 
 ImageMetricsVk::ImageMetricsVk(gpu::Context& ctx)
     : m_ctx(&ctx),
-      m_sums(make(ctx, "image_metrics", metrics_image_metrics_comp, 5, sizeof(SumsPush))),
-      m_ssim_h(make(ctx, "image_metrics_ssim_h", metrics_image_metrics_ssim_h_comp, 2, sizeof(SsimHPush))),
-      m_ssim_v(make(ctx, "image_metrics_ssim_v", metrics_image_metrics_ssim_v_comp, 3, sizeof(SsimVPush))),
-      m_hausdorff(make(ctx, "image_metrics_hausdorff", metrics_image_metrics_hausdorff_comp, 4, sizeof(HausdorffPush))),
+      m_sums(make(ctx, "image_metrics", metrics_image_metrics_comp, 5, sizeof(shared::MetricsSumsPush))),
+      m_ssim_h(make(ctx, "image_metrics_ssim_h", metrics_image_metrics_ssim_h_comp, 2, sizeof(shared::SsimHPush))),
+      m_ssim_v(make(ctx, "image_metrics_ssim_v", metrics_image_metrics_ssim_v_comp, 3, sizeof(shared::SsimVPush))),
+      m_hausdorff(make(ctx, "image_metrics_hausdorff", metrics_image_metrics_hausdorff_comp, 4, sizeof(shared::HausdorffPush))),
       m_sequence(ctx, 8) {}
 
 FrameMetrics ImageMetricsVk::run(const MetricsInputs& in, const MetricsOptions& options) {
@@ -116,23 +86,23 @@ FrameMetrics ImageMetricsVk::run(const MetricsInputs& in, const MetricsOptions& 
     const uint32_t um = has_mask ? 1u : 0u;
     m_sequence.reset();
     m_sequence.dispatch_1d(m_sums, {*m_a, *m_b, *m_mask, *m_partials, *m_luma}, n,
-                           SumsPush{.dispatch = {}, .width = w, .height = h, .channels = ch, .color_channels = ucc, .has_mask = um},
+                           shared::MetricsSumsPush{.dispatch = {}, .width = w, .height = h, .channels = ch, .color_channels = ucc, .has_mask = um},
                            "metrics sums");
     if (options.ssim) {
         const double c1 = (shared::kSsimK1 * options.peak) * (shared::kSsimK1 * options.peak);
         const double c2 = (shared::kSsimK2 * options.peak) * (shared::kSsimK2 * options.peak);
         m_sequence.barrier(gpu::Barrier::ComputeToCompute)
-            .dispatch_1d(m_ssim_h, {*m_luma, *m_moments}, n, SsimHPush{.dispatch = {}, .width = w, .height = h},
+            .dispatch_1d(m_ssim_h, {*m_luma, *m_moments}, n, shared::SsimHPush{.dispatch = {}, .width = w, .height = h},
                          "metrics ssim h")
             .barrier(gpu::Barrier::ComputeToCompute)
             .dispatch_1d(m_ssim_v, {*m_moments, *m_mask, *m_ssim_partials}, n,
-                         SsimVPush{.dispatch = {}, .width = w, .height = h, .has_mask = um,
+                         shared::SsimVPush{.dispatch = {}, .width = w, .height = h, .has_mask = um,
                                    .c1 = static_cast<float>(c1), .c2 = static_cast<float>(c2)},
                          "metrics ssim v");
     }
     if (options.hausdorff) {
         // Reads only the uploaded images: no barrier needed against the passes above.
-        const HausdorffPush push{.dispatch = {}, .width = w, .height = h, .channels = ch, .color_channels = ucc,
+        const shared::HausdorffPush push{.dispatch = {}, .width = w, .height = h, .channels = ch, .color_channels = ucc,
                                  .has_mask = um, .max_radius = options.hausdorff_max_radius,
                                  .delta = static_cast<float>(options.hausdorff_delta)};
         m_sequence.dispatch_1d(m_hausdorff, {*m_a, *m_b, *m_mask, *m_hd_ab}, n, push, "metrics hausdorff A->B")

@@ -192,24 +192,38 @@ bool decided_photometric(const PlanDecision& d) { return d.value == "photometric
 
 PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::size_t particles, double particle_stage_seconds) {
     const AtlasOptions defaults;
+    const bool charts = s.mode == to_string(AtlasMode::Charts);
     PlanDecision d;
     d.name = "atlas";
-    d.forced = o.texels_per_pixel != defaults.texels_per_pixel || o.max_width != defaults.max_width ||
-               o.max_height != defaults.max_height;
-    d.value = std::to_string(s.width) + "x" + std::to_string(s.height) + ", " + format_text("%.3g", o.texels_per_pixel) +
-              " texel(s) per pixel";
-    d.detail = {{"width", s.width},
+    const bool mode_forced = o.mode != defaults.mode;
+    const bool size_forced = o.texels_per_pixel != defaults.texels_per_pixel || o.max_width != defaults.max_width ||
+                             o.max_height != defaults.max_height;
+    d.forced = mode_forced || size_forced;
+    d.value = std::string(to_string(o.mode)) + " " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+              (charts ? " (" + std::to_string(s.charts) + " charts, " + std::to_string(s.seam_edges) + " seam edges)" : "") + ", " +
+              format_text("%.3g", o.texels_per_pixel) + " texel(s) per pixel";
+    d.detail = {{"mode", s.mode},
+                {"charts", s.charts},
+                {"seam_edges", s.seam_edges},
+                {"vertices", {{"mesh", s.mesh_vertices}, {"atlas", s.atlas_vertices}}},
+                {"fill_ratio", s.fill_ratio},
+                {"width", s.width},
                 {"height", s.height},
                 {"texels_per_pixel", o.texels_per_pixel},
                 {"budget", {o.max_width, o.max_height}},
                 {"budget_clipped", s.budget_clipped},
                 {"particles", particles},
                 {"size_source", s.size_source}};
-    std::string base = s.size_source == "cameras"
-                           ? "patch sizes follow each triangle's pixel footprint in its best train view"
-                           : "no camera sees the mesh: patch sizes follow surface area";
+    std::string base =
+        charts ? std::to_string(s.charts) + " connected charts (least-squares conformal maps, " + std::to_string(s.seam_edges) +
+                     " seam edges): " + std::to_string(s.mesh_vertices) + " mesh vertices become " + std::to_string(s.atlas_vertices) +
+                     " in the bundle"
+               : "the thesis's patchwork (every triangle its own patch): " + std::to_string(s.mesh_vertices) + " mesh vertices become " +
+                     std::to_string(s.atlas_vertices) + " in the bundle";
+    base += s.size_source == "cameras" ? "; texel density follows each triangle's pixel footprint in its best train view"
+                                       : "; no camera sees the mesh: texel density follows surface area";
     if (s.budget_clipped) base += "; the " + std::to_string(o.max_width) + "x" + std::to_string(o.max_height) +
-                                  " budget clipped them (scale " + format_text("%.3g", s.budget_scale) + ")";
+                                  " budget clipped it (scale " + format_text("%.3g", s.budget_scale) + ")";
     if (!d.forced) {
         // Not "no information": views sample an edge at different sub-pixel phases, and the albedo
         // refinement combines them. Measured on the can (512 px, refinement on): 2 texels per pixel
@@ -222,8 +236,12 @@ PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::siz
                        "solve, residual samples; measured " + format_text("%.3g", particle_stage_seconds) +
                        " s) would take about 4x as long";
     } else {
-        d.reason = base + "; forced by --texels-per-pixel " + format_text("%.3g", o.texels_per_pixel) + " / --texture-size " +
-                   std::to_string(o.max_width) + " (the planner uses 1 texel per pixel, 4096 budget)";
+        std::string flags;
+        if (mode_forced) flags += "--atlas " + std::string(to_string(o.mode));
+        if (size_forced)
+            flags += std::string(flags.empty() ? "" : ", ") + "--texels-per-pixel " + format_text("%.3g", o.texels_per_pixel) +
+                     " / --texture-size " + std::to_string(o.max_width);
+        d.reason = base + "; forced by " + flags + " (the planner uses charts, 1 texel per pixel, 4096 budget)";
         d.measured_seconds = particle_stage_seconds;
         d.cost_basis = "measured: visibility, diffuse solve and residual samples at this atlas (" + std::to_string(particles) +
                        " particles)";

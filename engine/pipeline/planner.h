@@ -8,10 +8,10 @@
 //   diffuse_mode        photometric only where enough train views have    --mode albedo|photometric
 //                       >= 3 non-coplanar light directions and no
 //                       specular fit needs the highlights
-//   atlas               texels <= image pixels (texels_per_pixel 1),      --texels-per-pixel, --texture-size
-//                       within the budget (geometry/atlas.h)
+//   atlas               charts; texels <= image pixels (texels_per_pixel   --atlas charts|patchwork,
+//                       1), within the budget (geometry/atlas.h)           --texels-per-pixel, --texture-size
 //   albedo_refinement   kAlbedoRefineRounds rounds of back-projection      --refine-rounds
-//                       (pipeline/albedo_refine.h)
+//                       (refine/albedo_refine.h)
 //   specular_stages     residual samples, then the fit, factorization and  --specular on|off
 //                       specular pass only when the residuals hold more
 //                       energy than the noise (specular/residuals.h)
@@ -24,7 +24,7 @@
 // the work on, `measured_seconds` is what it took. The decision functions are pure (the
 // tests call them directly); reconstruct.cpp is the only caller that runs stages.
 #include "capture/capture.h"
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 #include "factorization/resolution.h"
 #include "geometry/atlas.h"
 #include "specular/residuals.h"
@@ -104,8 +104,9 @@ inline constexpr double kPhotometricViewFraction = 0.5;
 
 // ---- atlas ------------------------------------------------------------------------------
 
-/// Auto: the default AtlasOptions (one texel per pixel of the best view, 4096 budget);
-/// forced when the options differ from those defaults. `particle_stage_seconds` (the measured
+/// Auto: the default AtlasOptions (charts, one texel per pixel of the best view, 4096 budget);
+/// forced when the options differ from those defaults (--atlas patchwork included). The
+/// decision names the mode and, for charts, how many charts and seam edges. `particle_stage_seconds` (the measured
 /// time of the stages whose work grows with the particle count: visibility, diffuse solve,
 /// residual samples) gives the estimate of what twice the linear resolution would cost
 /// (4x the particles; what it buys is small: the can at 2 texels per pixel, +1.4 dB masked
@@ -115,7 +116,7 @@ inline constexpr double kPhotometricViewFraction = 0.5;
 
 // ---- albedo refinement ------------------------------------------------------------------
 
-/// Rounds of albedo refinement by back-projection the planner runs (pipeline/albedo_refine.h).
+/// Rounds of albedo refinement by back-projection the planner runs (refine/albedo_refine.h).
 /// Can preset, 512 px, noise free: masked test PSNR 39.8 dB without, 41.4 after 1 round,
 /// 41.7 after 2; a third changed it by less than 0.01 dB.
 inline constexpr std::uint32_t kAlbedoRefineRounds = 2;

@@ -12,7 +12,7 @@
 //     -> albedo refinement (back-projection through renders of the train frames) -> albedo texture
 //     -> factorization (grid from the lobe's width) -> bundle (object.glb)
 //     -> self-evaluation -> report.html -> report.json
-#include "core/factor_param.h"
+#include "material/factor_param.h"
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
 #include "pipeline/planner.h"
@@ -35,7 +35,7 @@ enum class SpecularMode { Auto, On, Off };
 struct ReconstructConfig {
     std::filesystem::path capture;  ///< folder or capture.json
     std::filesystem::path out_dir;  ///< albedo.exr, albedo.png, report.json go here
-    LambertBackend backend = LambertBackend::Vulkan;
+    Backend backend = Backend::Vulkan;
     std::string device;             ///< Vulkan device selector (empty: SPECULA_DEVICE, then the default)
     LambertOptions lambert;         ///< solve mode, view choice, rejection thresholds
     AtlasOptions atlas;             ///< texture budget and texels per pixel

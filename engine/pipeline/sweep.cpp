@@ -77,7 +77,7 @@ SweepResult run_sweep(const SweepOptions& o) {
     // The grid (full product), plus the default point when the grid lacks it.
     const ReconstructConfig defaults;
     std::vector<SweepPoint> points;
-    for (const LambertBackend b : k.backends)
+    for (const Backend b : k.backends)
         for (const double tpp : k.texels_per_pixel)
             for (const std::uint32_t fs_ : k.fit_samples)
                 for (const std::uint32_t g : k.factorization_grid) {

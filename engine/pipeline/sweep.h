@@ -35,7 +35,7 @@ struct SweepKnobs {
     std::vector<double> texels_per_pixel{0.5, 1.0};
     std::vector<std::uint32_t> fit_samples{20000, 200000};
     std::vector<std::uint32_t> factorization_grid{0};
-    std::vector<LambertBackend> backends{LambertBackend::Vulkan, LambertBackend::Cpu};
+    std::vector<Backend> backends{Backend::Vulkan, Backend::Cpu};
 };
 
 struct SweepOptions {
@@ -50,7 +50,7 @@ struct SweepPoint {
     double texels_per_pixel = 1.0;
     std::uint32_t fit_samples = 0;
     std::uint32_t factorization_grid = 0; ///< 0: auto; N: h grid N, d grid min(N, kMaxGridProduct / N)
-    LambertBackend backend = LambertBackend::Vulkan;
+    Backend backend = Backend::Vulkan;
     std::string label;        ///< e.g. "tpp 0.5, fit 20k, grid auto, vulkan"
     bool is_default = false;
     bool on_front = false;

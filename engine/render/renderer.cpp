@@ -96,16 +96,23 @@ std::vector<gpu::DescriptorBinding> bindings_for(uint32_t count, uint32_t inputs
 
 double to_ms(const std::optional<double>& ns) { return *ns * 1e-6; }
 
-gpu::Image upload_cube(gpu::Context& ctx, const CubeMapRgb& cube, const char* name) {
+gpu::Image upload_cube(gpu::Context& ctx, const CubeMap& cube, const char* name) {
     const std::size_t texels = std::size_t{6} * cube.resolution * cube.resolution;
-    if (cube.resolution == 0 || cube.rgb.size() != texels * 3)
-        throw Error(std::string("cube-map ") + name + ": expected 6 x " + std::to_string(cube.resolution) + "^2 x 3 floats, got " +
-                    std::to_string(cube.rgb.size()));
+    if (cube.resolution == 0 || cube.texels.size() != texels)
+        throw Error(std::string("cube-map ") + name + ": expected 6 x " + std::to_string(cube.resolution) + "^2 texels, got " +
+                    std::to_string(cube.texels.size()));
     const VkFormat format = gpu::choose_float_texture_format(ctx);
     gpu::Image image(ctx, {.name = name, .kind = gpu::ImageKind::CubeMap, .width = cube.resolution,
                            .height = cube.resolution, .format = format});
-    image.upload(gpu::pack_rgba(cube.rgb, 3, texels, format));
+    const std::span<const float> rgb(&cube.texels.front().x, texels * 3); // glm::vec3 is 3 packed floats
+    image.upload(gpu::pack_rgba(rgb, 3, texels, format));
     return image;
+}
+
+// The Lafortune lobe the analytic passes evaluate (zero: no specular term).
+LafortuneRgb lobe_of(const std::optional<SpecularModel>& specular) {
+    if (!specular) return {};
+    return std::visit([](const auto& model) -> LafortuneRgb { return model; }, *specular);
 }
 
 } // namespace
@@ -128,8 +135,8 @@ const char* passes_name(Passes passes) noexcept {
     return "?";
 }
 
-const char* specular_model_name(SpecularModel model) noexcept {
-    return model == SpecularModel::Analytic ? "analytic" : "factorized";
+const char* specular_path_name(SpecularPath model) noexcept {
+    return model == SpecularPath::Analytic ? "analytic" : "factorized";
 }
 
 std::vector<shared::RenderVertex> expand_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv) {
@@ -179,7 +186,8 @@ struct Renderer::Impl {
     gpu::Context* ctx;
     Options options;
     bool cull = false;
-    Lobe lobe;
+    std::optional<SpecularModel> specular;
+    LafortuneRgb lobe; // of `specular`
     Bounds bounds;
     std::size_t triangles = 0;
     uint32_t vertex_count = 0;
@@ -219,7 +227,7 @@ struct Renderer::Impl {
         : ctx(&c), options(opts),
           cull(opts.culling == Culling::Always ||
                (opts.culling == Culling::Auto && is_closed_outward(*checked_mesh(scene)))),
-          lobe(scene.lobe), bounds(mesh_bounds(*checked_mesh(scene))),
+          specular(scene.material.specular), lobe(lobe_of(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
           triangles(scene.mesh->triangles.size()),
           params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
           vertices(upload_vertices(c, scene)),
@@ -369,7 +377,7 @@ struct Renderer::Impl {
             info.specular_note = "mode diffuse";
         } else if (lobe.is_zero()) {
             info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
-        } else if (settings.specular == SpecularModel::Factorized && cubes_g.empty()) {
+        } else if (settings.specular == SpecularPath::Factorized && cubes_g.empty()) {
             throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
         } else {
             info.specular_pass = true;
@@ -425,13 +433,13 @@ struct Renderer::Impl {
         draw(cmd, t, diffuse, diffuse_set, gpu::RenderTarget::Load::Clear);
     }
     // Passes::Fused: both terms in one pass, in place of the two.
-    void draw_fused(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
-        const bool analytic = model == SpecularModel::Analytic;
+    void draw_fused(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model) const {
+        const bool analytic = model == SpecularPath::Analytic;
         draw(cmd, t, analytic ? both_analytic : both_factorized, analytic ? both_analytic_set : both_factorized_set,
              gpu::RenderTarget::Load::Clear);
     }
     // Passes::Deferred: the G-buffer, then each pixel shaded once (params.flags say which terms).
-    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) {
+    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model) {
         use_gbuffer_of(t);
         t.begin_deferred(cmd);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.pipeline());
@@ -441,7 +449,7 @@ struct Renderer::Impl {
         vkCmdDraw(cmd, vertex_count, 1, 0, 0);
         t.next_subpass(cmd);
         // Without a factorization the analytic shader serves (flags.z is 0 unless the specular term is drawn).
-        const bool factorized = model == SpecularModel::Factorized && !cubes_g.empty();
+        const bool factorized = model == SpecularPath::Factorized && !cubes_g.empty();
         const gpu::GraphicsPipeline& shade = factorized ? deferred_factorized : deferred_analytic;
         const VkDescriptorSet s = (factorized ? deferred_factorized_set : deferred_analytic_set).get();
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shade.pipeline());
@@ -461,8 +469,8 @@ struct Renderer::Impl {
         gbuffer_bound = t.gbuffer(0).view();
     }
 
-    void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularModel model) const {
-        const bool analytic = model == SpecularModel::Analytic;
+    void draw_specular(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model) const {
+        const bool analytic = model == SpecularPath::Analytic;
         draw(cmd, t, analytic ? specular_analytic : specular_factorized, analytic ? analytic_set : factorized_set,
              gpu::RenderTarget::Load::Keep);
     }
@@ -480,13 +488,19 @@ struct Renderer::Impl {
 };
 
 Renderer::Renderer(gpu::Context& ctx, const Scene& scene, const Options& options)
-    : m_impl(std::make_unique<Impl>(ctx, scene, options)) {}
+    : m_impl(std::make_unique<Impl>(ctx, scene, options)) {
+    if (scene.material.factorized) set_factorization(*scene.material.factorized);
+}
 Renderer::~Renderer() = default;
 Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
-void Renderer::set_lobe(const Lobe& lobe) { m_impl->lobe = lobe; }
-const Lobe& Renderer::lobe() const noexcept { return m_impl->lobe; }
+void Renderer::set_specular(const std::optional<SpecularModel>& specular) {
+    m_impl->specular = specular;
+    m_impl->lobe = lobe_of(specular);
+}
+const std::optional<SpecularModel>& Renderer::specular() const noexcept { return m_impl->specular; }
+LafortuneRgb Renderer::lobe() const noexcept { return m_impl->lobe; }
 std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
 bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
 VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
@@ -495,12 +509,10 @@ uint32_t Renderer::factorization_terms() const noexcept { return static_cast<uin
 FactorParam Renderer::factorization_param() const noexcept { return m_impl->factor_param; }
 glm::vec4 Renderer::factorization_warp() const noexcept { return m_impl->factor_warp; }
 
-void Renderer::set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param, glm::vec4 warp) {
-    const FactorTermCubes one{g, h};
-    set_factorization(std::span<const FactorTermCubes>(&one, 1), param, warp);
-}
-
-void Renderer::set_factorization(std::span<const FactorTermCubes> terms, FactorParam param, glm::vec4 warp) {
+void Renderer::set_factorization(const FactorizedSpecular& cubes) {
+    const std::vector<FactorTerm>& terms = cubes.terms;
+    const FactorParam param = cubes.param;
+    const glm::vec4 warp = cubes.warp;
     if (terms.empty() || terms.size() > kMaxFactorTerms)
         throw Error("renderer: the factorized model takes 1 to " + std::to_string(kMaxFactorTerms) + " terms (got " +
                     std::to_string(terms.size()) + ")");

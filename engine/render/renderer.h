@@ -27,13 +27,12 @@
 /// in shadow (or lit only by a light behind the geometric surface) differ from it.
 ///
 /// Usage:
-///   render::Renderer r(ctx, {.mesh = &mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image, .lobe = lobe});
-///   r.set_factorization(g, h);                                 // optional: enables `factorized`
-///   r.set_factorization({{g1, h1}, {g2, h2}});                 // or K terms
+///   render::Renderer r(ctx, {.mesh = &mesh, .corner_uv = atlas.corner_uv, .albedo = &texture.image,
+///                            .material = {.specular = lobe}});
+///   r.set_factorization(factorization.cubes);                  // optional: enables `factorized`
 ///   render::Frame f = r.render(camera, light, {.mode = render::Mode::Both});
 ///   f.color (linear RGB, w x h, row 0 at the top), f.mask (255 = covered), f.info (passes, timings)
-#include "core/factor_param.h"
-#include "core/lafortune.h"
+#include "material/material.h"
 #include "capture/camera.h"
 #include "capture/capture.h"
 #include "capture/mesh.h"
@@ -57,35 +56,15 @@
 
 namespace specula::render {
 
-/// One isotropic Lafortune lobe per RGB channel (thesis eq. 2.1 with rho_d = 0).
-/// Zero (Cx = Cz = 0): no specular term; the specular pass is left out.
-using Lobe = specula::LafortuneRgb; // engine/core/lafortune.h
-
-/// A float RGB cube-map: 6 faces of resolution x resolution texels, laid out
-/// [face][row][col][rgb] in Vulkan's face order (+X, -X, +Y, -Y, +Z, -Z) and
-/// orientation: exactly shared/gshd.h's cube_texel_dir convention, so the
-/// factorization's arrays plug in unchanged.
-struct CubeMapRgb {
-    uint32_t resolution = 0;
-    std::vector<float> rgb; // 6 * resolution^2 * 3
-};
-
-/// One separable term G_k(h) H_k(d) of the factorized specular model.
-struct FactorTermCubes {
-    CubeMapRgb g;
-    CubeMapRgb h;
-};
-
-/// Most terms the factorized pass sums (fixed sampler bindings: lavapipe has no descriptor
-/// indexing). Equals factorization::kMaxTerms.
-inline constexpr uint32_t kMaxFactorTerms = 4;
 
 /// What the renderer draws. Pointers and spans are read during construction only.
 struct Scene {
     const Mesh* mesh = nullptr;            ///< positions, smooth unit normals (one per position), triangles
     std::span<const glm::vec2> corner_uv;  ///< 3 per triangle (Atlas::corner_uv): atlas coordinates in [0, 1]
     const Image* albedo = nullptr;         ///< linear RGB rho, the atlas (AlbedoTexture::image); 1 to 4 channels
-    Lobe lobe;                             ///< zero: no specular pass
+    /// The specular model (absent or zero: no specular pass) and, when present, its cube-maps
+    /// (as set_factorization takes them).
+    Material material;
 };
 
 enum class Mode {
@@ -93,12 +72,12 @@ enum class Mode {
     Specular, ///< pass 2 only (pass 1 still lays down depth and coverage, with zero colour)
     Both,     ///< pass 1 + pass 2
 };
-enum class SpecularModel {
+enum class SpecularPath {
     Analytic,   ///< the lobe, evaluated per fragment
     Factorized, ///< G(h) H(d) cube-map lookups (needs set_factorization)
 };
 [[nodiscard]] const char* mode_name(Mode mode) noexcept;
-[[nodiscard]] const char* specular_model_name(SpecularModel model) noexcept;
+[[nodiscard]] const char* specular_path_name(SpecularPath model) noexcept;
 
 /// How the terms are drawn.
 enum class Passes {
@@ -114,7 +93,7 @@ enum class Passes {
 
 struct Settings {
     Mode mode = Mode::Both;
-    SpecularModel specular = SpecularModel::Analytic;
+    SpecularPath specular = SpecularPath::Analytic;
     Passes passes = Passes::Separate; ///< Fused applies to Mode::Both with a specular term; Deferred to all
     std::optional<double> near; ///< near plane; default near_plane_for(camera, mesh bounds)
     /// Cast shadows from a shadow map (on by default); false: the thesis's unshadowed render.
@@ -173,22 +152,19 @@ public:
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
 
-    /// Replaces the lobe (zero: no specular pass).
-    void set_lobe(const Lobe& lobe);
-    [[nodiscard]] const Lobe& lobe() const noexcept;
+    /// Replaces the specular model (absent or zero: no specular pass); keeps the cube-maps.
+    void set_specular(const std::optional<SpecularModel>& specular);
+    [[nodiscard]] const std::optional<SpecularModel>& specular() const noexcept;
+    /// The Lafortune lobe the analytic passes draw (zero without a specular model).
+    [[nodiscard]] LafortuneRgb lobe() const noexcept;
 
-    /// Uploads the two factorization cube-maps (G looked up by h, H by d; both may have
-    /// their own resolution). Enables SpecularModel::Factorized with one term (the thesis).
-    /// `param`: the parametrization the cube-maps were made in (shared/gshd.h parts 4, 5; the
-    /// factorization's Factorization::param, a bundle's Bundle::factor_param) and `warp` its warp
-    /// (FactorParam::Warped only: then the terms are multiplied by the radial factor of the
-    /// lobe set by set_lobe, which must be the factorized one).
-    void set_factorization(const CubeMapRgb& g, const CubeMapRgb& h, FactorParam param = FactorParam::Gshd,
-                           glm::vec4 warp = glm::vec4(1.0f));
-    /// K = terms.size() terms (1..kMaxFactorTerms), summed and clamped at 0 per channel.
-    /// Each cube-map may have its own resolution.
-    void set_factorization(std::span<const FactorTermCubes> terms, FactorParam param = FactorParam::Gshd,
-                           glm::vec4 warp = glm::vec4(1.0f));
+    /// Uploads the factorization's cube-maps: K = terms.size() terms (1..kMaxFactorTerms), each a
+    /// G (looked up by h) and an H (by d), each cube-map with its own resolution; the sum is
+    /// clamped at 0 per channel. Enables SpecularPath::Factorized. `param` is the parametrization
+    /// they were made in (shared/gshd.h parts 4, 5) and `warp` its warp (FactorParam::Warped only:
+    /// then the terms are multiplied by the radial factor of the specular model's lobe, which must
+    /// be the factorized one).
+    void set_factorization(const FactorizedSpecular& cubes);
     [[nodiscard]] bool has_factorization() const noexcept;
     [[nodiscard]] uint32_t factorization_terms() const noexcept; ///< 0 before set_factorization
     [[nodiscard]] FactorParam factorization_param() const noexcept;

@@ -693,6 +693,17 @@ LafortuneChannelFit fit_lafortune_channel(std::span<const LafortuneSample> sampl
     return finish(out);
 }
 
+LafortuneRgb LafortuneFitRgb::converged_lobe() const noexcept {
+    LafortuneRgb l;
+    for (int k = 0; k < 3; ++k)
+        if (channel[k].status == LafortuneFitStatus::Converged) {
+            l.cx[k] = static_cast<float>(channel[k].cx);
+            l.cz[k] = static_cast<float>(channel[k].cz);
+            l.n[k] = static_cast<float>(channel[k].n);
+        }
+    return l;
+}
+
 LafortuneFitRgb fit_lafortune(std::span<const LafortuneSample> samples, const LafortuneFitOptions& options) {
     LafortuneFitRgb out;
     for (int c = 0; c < 3; ++c) out.channel[c] = fit_lafortune_channel(samples, c, options);

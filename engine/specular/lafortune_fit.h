@@ -1,5 +1,5 @@
 #pragma once
-// Stage 5, the Lafortune fit (pipeline.md section 5; thesis eq. 2.1 and section 3.2.2):
+// Stage 5 (specular), the Lafortune fit (pipeline.md section 5; thesis eq. 2.1 and section 3.2.2):
 // one isotropic lobe per RGB channel, fitted by Levenberg-Marquardt to specular BRDF
 // samples (u, v, f_s, weight), u and v the light and view directions in the tangent frame:
 //
@@ -39,6 +39,8 @@
 //
 // The result never holds NaN or infinity: non-finite values end the fit with an honest
 // status instead.
+#include "material/lafortune.h"
+
 #include <glm/vec3.hpp>
 
 #include <cstdint>
@@ -123,6 +125,9 @@ struct LafortuneChannelFit {
 
 struct LafortuneFitRgb {
     LafortuneChannelFit channel[3];
+    /// The lobe of the channels whose fit converged; the others are zero (Cx = Cz = 0, N = 1:
+    /// no specular term in that channel). The one conversion from a fit to a lobe.
+    [[nodiscard]] LafortuneRgb converged_lobe() const noexcept;
 };
 
 /// Fits one channel (0, 1, 2 = r, g, b of LafortuneSample::f). Throws UsageError for a bad

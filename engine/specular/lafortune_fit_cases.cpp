@@ -3,6 +3,7 @@
 
 #include "core/format.h"
 #include "core/timer.h"
+#include "shared/lafortune.h"
 
 #include <glm/geometric.hpp>
 
@@ -21,8 +22,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 /// Eq. 2.1 with rho_d = 0, as in shaders/shared/lafortune.h, in double so that the
 /// truth of an N = 1e4 lobe is exact to the float the sample stores.
 double lobe(double cx, double cz, double n, const glm::vec3& u, const glm::vec3& v) {
-    const double base = cx * (double(u.x) * v.x + double(u.y) * v.y) + cz * (double(u.z) * v.z);
-    return base > 0.0 ? std::pow(base, n) : 0.0;
+    return shared::f64::lafortune_eval(cx, cz, n, glm::dvec3(u), glm::dvec3(v));
 }
 
 /// A unit vector at angle `theta` from `axis`, azimuth `phi` around it.

@@ -9,8 +9,8 @@
 namespace specula {
 
 ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& options,
-                                 LambertBackend backend, gpu::Context* ctx) {
-    if (backend == LambertBackend::Cpu) return residual_samples_cpu(in, diffuse, options);
+                                 Backend backend, gpu::Context* ctx) {
+    if (backend == Backend::Cpu) return residual_samples_cpu(in, diffuse, options);
     if (ctx == nullptr) throw UsageError("residual_samples: the Vulkan backend needs a gpu::Context");
     ResidualsVk kernel(*ctx);
     return kernel.run(in, diffuse, options);

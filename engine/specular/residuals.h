@@ -1,10 +1,10 @@
 #pragma once
-// Stage 4, residual samples (pipeline.md section 4): per particle with a diffuse solution,
+// Stage 5 (specular), residual samples (pipeline.md section 4): per particle with a diffuse solution,
 // per train frame of every view that sees it where its light reaches it, the specular BRDF
 // sample f_s = (c - (rho/pi) E) / E with the light and view directions in the particle's
 // tangent frame. Method, weight and drop rules: shaders/shared/residuals.h.
 //
-//   ResidualSamples rs = residual_samples(lambert_in, diffuse_out, {}, LambertBackend::Vulkan, &ctx);
+//   ResidualSamples rs = residual_samples(lambert_in, diffuse_out, {}, Backend::Vulkan, &ctx);
 //   LafortuneFitRgb fit = fit_lafortune(to_lafortune_samples(rs), {});
 //
 // Slots, not a count pass: the visibility masks (seen, lit) live on the host, so the host
@@ -99,7 +99,7 @@ private:
 
 /// Runs on a backend (ctx is required for Vulkan).
 [[nodiscard]] ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& diffuse,
-                                               const ResidualOptions& options, LambertBackend backend,
+                                               const ResidualOptions& options, Backend backend,
                                                gpu::Context* ctx = nullptr);
 
 /// The samples as the fit takes them (weight Ebar^2).

@@ -8,6 +8,8 @@
 #include "diffuse/lambert_solve_detail.h"
 #include "diffuse/view_batches.h"
 #include "core/timer.h"
+#include "shared/prelude.h"
+#include "shared/tangent_frame.h"
 
 #include <cmath>
 
@@ -16,16 +18,6 @@ namespace specula {
 namespace {
 
 namespace f64 = shared::f64;
-constexpr double kPi = 3.14159265358979323846;
-
-// shared::to_tangent_frame in double (same helper switch).
-glm::dvec3 to_tangent_frame(const glm::dvec3& n, const glm::dvec3& w) {
-    const glm::dvec3 helper = std::abs(n.y) > static_cast<double>(shared::kTangentHelperSwitch) ? glm::dvec3(0.0, 0.0, 1.0)
-                                                                                               : glm::dvec3(0.0, 1.0, 0.0);
-    const glm::dvec3 x = glm::normalize(glm::cross(helper, n));
-    const glm::dvec3 y = glm::cross(n, x);
-    return {glm::dot(w, x), glm::dot(w, y), glm::dot(w, n)};
-}
 
 } // namespace
 
@@ -64,7 +56,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             const glm::dvec3 xc(w2c * glm::dvec4(P, 1.0));
             const glm::dvec2 pos(kf.z + kf.x * xc.x / (-xc.z), kf.w - kf.y * xc.y / (-xc.z));
             const f64::LambertTaps t = f64::lambert_taps(pos, k.w, k.h);
-            const glm::dvec3 vl = to_tangent_frame(n, glm::normalize(center - P));
+            const glm::dvec3 vl = f64::to_tangent_frame(n, glm::normalize(center - P));
             for (std::uint32_t f : view.frames) {
                 if (!vis.lights(p, f)) {
                     ++cnt.dropped_shadow;
@@ -100,7 +92,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);
                 const double ebar = (E.x + E.y + E.z) / 3.0;
                 ResidualSample s{};
-                s.u = glm::vec4(glm::vec3(to_tangent_frame(n, u)), static_cast<float>(ebar * ebar));
+                s.u = glm::vec4(glm::vec3(f64::to_tangent_frame(n, u)), static_cast<float>(ebar * ebar));
                 s.v = glm::vec4(glm::vec3(vl), static_cast<float>(ebar));
                 s.f = glm::vec3(fs);
                 s.status = shared::kResidualUsed;

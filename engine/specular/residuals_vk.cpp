@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/timer.h"
+#include "shared/prelude.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
 #include "gpu/pipeline.h"
@@ -27,15 +28,6 @@ namespace specula {
 
 namespace {
 
-struct ResidualPush {
-    gpu::DispatchHeader dispatch;
-    std::uint32_t frame_words;
-    float min_light_cos;
-};
-static_assert(sizeof(ResidualPush) == 16);
-
-constexpr double kPi = 3.14159265358979323846;
-
 } // namespace
 
 struct ResidualsVk::Impl {
@@ -45,7 +37,7 @@ struct ResidualsVk::Impl {
         : ctx(&c), kernel(c, gpu::ComputePipelineDesc{.name = "residuals",
                                                       .spirv = specular_residuals_comp,
                                                       .storage_buffers = 8,
-                                                      .push_constant_bytes = sizeof(ResidualPush),
+                                                      .push_constant_bytes = sizeof(shared::ResidualPush),
                                                       .workgroup_size = 64}) {}
 };
 
@@ -145,7 +137,7 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
             gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, chunk_keys.size(), "residual pair keys");
             keys_buf.upload(chunk_keys);
             gpu::Buffer samples_buf = gpu::Buffer::of<ResidualSample>(ctx, n_slots, "residual samples");
-            const ResidualPush push{.dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos};
+            const shared::ResidualPush push{.dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos};
             gpu::Sequence seq(ctx, 2);
             seq.dispatch_1d(m_impl->kernel,
                             {particles_buf, lit_buf, rpi_buf, views_buf, frames_buf, pixels_buf, keys_buf, samples_buf},

@@ -14,7 +14,6 @@ namespace specula::synth {
 
 namespace {
 
-constexpr float kPi = glm::pi<float>();
 constexpr float kTwoPi = glm::two_pi<float>();
 constexpr float kAlbedoMin = 0.05f;
 constexpr float kAlbedoMax = 0.9f;
@@ -132,11 +131,11 @@ Preset make_can() {
         .set_mark(0)
         .line_to({0.33f, 1.0f}, 80)
         .set_mark(1)
-        .arc_to({0.29f, 1.0f}, 0.5f * kPi, 8)
-        .arc_to({0.29f, 1.09f}, -kPi, 8)
-        .arc_to({0.235f, 1.09f}, kPi, 6)
+        .arc_to({0.29f, 1.0f}, 0.5f * glm::pi<float>(), 8)
+        .arc_to({0.29f, 1.09f}, -glm::pi<float>(), 8)
+        .arc_to({0.235f, 1.09f}, glm::pi<float>(), 6)
         .line_to({0.23f, 1.07f}, 3)
-        .arc_to({0.22f, 1.07f}, -0.5f * kPi, 4)
+        .arc_to({0.22f, 1.07f}, -0.5f * glm::pi<float>(), 4)
         .line_to({0.0f, 1.06f}, 16);
     Preset p;
     p.name = "can";
@@ -177,7 +176,7 @@ Preset make_cologne() {
     cap.line_to({0.15f, 0.53f}, 6)
         .arc_to({0.15f, 0.54f}, 0.0f, 3)
         .line_to({0.16f, 0.82f}, 30)
-        .arc_to({0.13f, 0.82f}, 0.5f * kPi, 8)
+        .arc_to({0.13f, 0.82f}, 0.5f * glm::pi<float>(), 8)
         .line_to({0.0f, 0.85f}, 10);
     append_mesh(mesh, make_revolution(cap, 64, 0.72f, 1.0f));
     Preset p;
@@ -217,7 +216,7 @@ Preset make_vase() {
     Profile prof({0.0f, 0.0f});
     prof.line_to({0.22f, 0.0f}, 12).arc_to({0.22f, 0.02f}, 0.0f, 6).append(outer);
     const std::vector<glm::vec2> inner = inner_wall(outer, 0.025f, 0.93f);
-    prof.arc_to({0.17f - 0.0125f, 1.2f}, kPi, 8).append(std::vector<glm::vec2>(inner.begin() + 1, inner.end()));
+    prof.arc_to({0.17f - 0.0125f, 1.2f}, glm::pi<float>(), 8).append(std::vector<glm::vec2>(inner.begin() + 1, inner.end()));
     prof.line_to({0.0f, prof.points().back().y - 0.02f}, 8);
     Preset p;
     p.name = "vase";
@@ -251,7 +250,7 @@ Preset make_woodenpot() {
     Profile prof({0.0f, 0.0f});
     prof.line_to({0.42f, 0.0f}, 20).arc_to({0.42f, 0.04f}, 0.0f, 8).append(outer);
     const std::vector<glm::vec2> inner = inner_wall(outer, 0.05f, 0.12f);
-    prof.arc_to({0.49f - 0.025f, 0.57f}, kPi, 10).append(std::vector<glm::vec2>(inner.begin() + 1, inner.end()));
+    prof.arc_to({0.49f - 0.025f, 0.57f}, glm::pi<float>(), 10).append(std::vector<glm::vec2>(inner.begin() + 1, inner.end()));
     prof.line_to({0.0f, 0.1f}, 20);
     Preset p;
     p.name = "woodenpot";

@@ -8,7 +8,7 @@
 //     f     = albedo(uv) / pi + lafortune_eval_rgb(Cx, Cz, N, u_local, v_local)
 // with u_local, v_local in the tangent frame of shaders/shared/tangent_frame.h,
 // the very definitions the GPU kernels use. No noise and no clipping here (noise.h).
-#include "core/lafortune.h"
+#include "material/lafortune.h"
 #include "capture/camera.h"
 #include "capture/capture.h"
 #include "capture/mesh.h"
@@ -23,7 +23,7 @@
 namespace specula::synth {
 
 /// One isotropic Lafortune lobe per RGB channel (thesis eq. 2.1, table 5.2 form).
-using LafortuneRgb = specula::LafortuneRgb; // engine/core/lafortune.h
+using LafortuneRgb = specula::LafortuneRgb; // engine/material/lafortune.h
 
 /// The known surface of a synthetic object: albedo (texture or constant) and one lobe.
 struct Material {
@@ -56,7 +56,7 @@ public:
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
 
-    /// Renders one frame: `threads` std::threads over rows (>= 1).
+    /// Renders one frame: `threads` threads over rows (core/parallel.h; at least 1).
     [[nodiscard]] RenderedFrame render(const Camera& camera, const PointLight& light, int threads = 2) const;
 
     /// Only the object mask of a view (primary rays, no shading).

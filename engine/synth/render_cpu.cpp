@@ -1,6 +1,7 @@
 #include "synth/render.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "geometry/ray_scene.h"
 
 #include "shared/lafortune.h"
@@ -9,13 +10,11 @@
 #include <glm/gtc/constants.hpp>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <optional>
 #include <string>
-#include <thread>
 
 namespace specula::synth {
 
@@ -113,27 +112,6 @@ struct Renderer::Impl {
     }
 };
 
-namespace {
-
-// Runs row(y) for every row on `threads` threads. Rows are handed out dynamically,
-// but each pixel's value depends only on its own rays, so the image is the same
-// whatever the thread count or schedule.
-template <class RowFn>
-void for_rows(int height, int threads, RowFn&& row) {
-    threads = std::clamp(threads, 1, std::max(1, height));
-    std::atomic<int> next{0};
-    auto worker = [&](int id) {
-        for (int y = next++; y < height; y = next++) row(id, y);
-    };
-    std::vector<std::thread> pool;
-    pool.reserve(static_cast<std::size_t>(threads - 1));
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker, t);
-    worker(0);
-    for (std::thread& t : pool) t.join();
-}
-
-} // namespace
-
 Renderer::Renderer(Mesh mesh, Material material) : m_impl(std::make_unique<Impl>()) {
     if (mesh.positions.empty() || mesh.triangles.empty()) throw Error("synth renderer: the mesh is empty");
     if (mesh.normals.size() != mesh.positions.size()) mesh.normals = compute_vertex_normals(mesh.positions, mesh.triangles);
@@ -167,8 +145,13 @@ RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, in
     RenderedFrame out;
     out.color = Image(w, h, 3, 0.0f);
     out.mask.assign(static_cast<std::size_t>(w) * h, 0);
-    std::vector<Impl::Counts> counts(static_cast<std::size_t>(std::max(threads, 1)));
-    for_rows(h, threads, [&](int id, int y) { m_impl->shade_row(camera, light, y, out, counts[static_cast<std::size_t>(id)]); });
+    // Rows are handed out dynamically, but each pixel's value depends only on its own rays,
+    // so the image is the same whatever the thread count or schedule.
+    const unsigned workers = static_cast<unsigned>(std::max(threads, 1));
+    std::vector<Impl::Counts> counts(parallel_workers(static_cast<std::size_t>(h), workers));
+    parallel_for_chunks(static_cast<std::size_t>(h), workers, 1, [&](unsigned worker, std::size_t begin, std::size_t end) {
+        for (std::size_t y = begin; y < end; ++y) m_impl->shade_row(camera, light, static_cast<int>(y), out, counts[worker]);
+    });
     for (const Impl::Counts& c : counts) {
         out.lit_pixels += c.lit;
         out.shadowed_pixels += c.shadowed;
@@ -179,7 +162,8 @@ RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, in
 std::vector<std::uint8_t> Renderer::render_mask(const Camera& camera, int threads) const {
     const int w = camera.intrinsics.w, h = camera.intrinsics.h;
     std::vector<std::uint8_t> mask(static_cast<std::size_t>(w) * h, 0);
-    for_rows(h, threads, [&](int, int y) {
+    parallel_for(static_cast<std::size_t>(std::max(h, 0)), static_cast<unsigned>(std::max(threads, 1)), [&](std::size_t row) {
+        const int y = static_cast<int>(row);
         for (int x = 0; x < w; ++x)
             if (m_impl->trace_primary(camera, x, y, nullptr))
                 mask[static_cast<std::size_t>(y) * w + x] = 255;

@@ -1,6 +1,7 @@
 #include "visibility/visibility.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "shared/lambert.h"
 
@@ -11,10 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <exception>
 #include <limits>
-#include <mutex>
-#include <thread>
 
 namespace specula {
 
@@ -45,19 +43,14 @@ std::vector<PixelHit> depth_map(const RayScene& scene, const Camera& cam, unsign
     const int w = cam.intrinsics.w, h = cam.intrinsics.h;
     std::vector<PixelHit> depth(std::size_t(w) * std::size_t(h));
     const glm::vec3 eye(cam.center());
-    std::atomic<int> next_row{0};
-    auto rows = [&] {
-        for (int y = next_row++; y < h; y = next_row++)
-            for (int x = 0; x < w; ++x) {
-                const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
-                if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit))
-                    depth[std::size_t(y) * w + x] = {hit->t, hit->triangle, hit->u, hit->v};
-            }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows);
-    rows();
-    for (std::thread& t : pool) t.join();
+    parallel_for(std::size_t(std::max(h, 0)), threads, [&](std::size_t row) {
+        const int y = static_cast<int>(row);
+        for (int x = 0; x < w; ++x) {
+            const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
+            if (const auto hit = scene.intersect(eye, dir, 0.0f, kNoHit))
+                depth[std::size_t(y) * w + x] = {hit->t, hit->triangle, hit->u, hit->v};
+        }
+    });
     return depth;
 }
 
@@ -85,41 +78,36 @@ std::uint64_t shadow_map(const RayScene& scene, const Mesh& mesh, std::span<cons
     const glm::vec3 eye(cam.center());
     const float offset = scene.ray_offset();
     const bool vertex_normals = mesh.normals.size() == mesh.positions.size();
-    std::atomic<int> next_row{0};
     std::atomic<std::uint64_t> rays{0};
-    auto rows = [&] {
+    parallel_for(std::size_t(std::max(h, 0)), threads, [&](std::size_t row) {
+        const int y = static_cast<int>(row);
         std::uint64_t cast = 0;
-        for (int y = next_row++; y < h; y = next_row++)
-            for (int x = 0; x < w; ++x) {
-                const PixelHit& hit = depth[std::size_t(y) * w + x];
-                if (hit.t == kNoHit) continue;
-                const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
-                const glm::vec3 p = eye + (hit.t - offset) * dir;
-                const glm::vec3 to_light = light - p;
-                const float d = glm::length(to_light);
-                const glm::vec3 u = to_light / d;
-                glm::vec3 face = face_normal[hit.triangle];
-                if (glm::dot(face, dir) > 0.0f) face = -face;
-                glm::vec3 n = face;
-                if (vertex_normals) {
-                    const glm::uvec3 tri = mesh.triangles[hit.triangle];
-                    const glm::vec2 b = barycentrics(mesh.positions[tri.x], mesh.positions[tri.y], mesh.positions[tri.z],
-                                                     eye + hit.t * dir);
-                    n = (1.0f - b.x - b.y) * mesh.normals[tri.x] + b.x * mesh.normals[tri.y] + b.y * mesh.normals[tri.z];
-                }
-                if (!(glm::dot(n, u) > 0.0f) || !(glm::dot(face, u) > 0.0f)) {
-                    out[std::size_t(y) * w + x] = 1u;
-                    continue;
-                }
-                ++cast;
-                if (scene.occluded(p, u, offset, d - offset)) out[std::size_t(y) * w + x] = 1u;
+        for (int x = 0; x < w; ++x) {
+            const PixelHit& hit = depth[std::size_t(y) * w + x];
+            if (hit.t == kNoHit) continue;
+            const glm::vec3 dir(cam.ray_direction(x + 0.5, y + 0.5));
+            const glm::vec3 p = eye + (hit.t - offset) * dir;
+            const glm::vec3 to_light = light - p;
+            const float d = glm::length(to_light);
+            const glm::vec3 u = to_light / d;
+            glm::vec3 face = face_normal[hit.triangle];
+            if (glm::dot(face, dir) > 0.0f) face = -face;
+            glm::vec3 n = face;
+            if (vertex_normals) {
+                const glm::uvec3 tri = mesh.triangles[hit.triangle];
+                const glm::vec2 b = barycentrics(mesh.positions[tri.x], mesh.positions[tri.y], mesh.positions[tri.z],
+                                                 eye + hit.t * dir);
+                n = (1.0f - b.x - b.y) * mesh.normals[tri.x] + b.x * mesh.normals[tri.y] + b.y * mesh.normals[tri.z];
             }
+            if (!(glm::dot(n, u) > 0.0f) || !(glm::dot(face, u) > 0.0f)) {
+                out[std::size_t(y) * w + x] = 1u;
+                continue;
+            }
+            ++cast;
+            if (scene.occluded(p, u, offset, d - offset)) out[std::size_t(y) * w + x] = 1u;
+        }
         rays += cast;
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows);
-    rows();
-    for (std::thread& t : pool) t.join();
+    });
     return rays;
 }
 
@@ -277,118 +265,102 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                                          std::max(1u, options.threads), shadows[f]);
     }
 
-    const std::size_t chunks = (particles.size() + kChunk - 1) / kChunk;
-    std::atomic<std::size_t> next_chunk{0};
-    const unsigned thread_count = std::max(1u, std::min<unsigned>(options.threads, unsigned(std::max<std::size_t>(chunks, 1))));
+    // Work is split by chunks of particles; every particle's bits depend on that particle alone.
+    const unsigned threads = std::max(1u, options.threads);
+    const unsigned thread_count = parallel_workers(particles.size(), threads, kChunk);
     std::vector<ThreadCounts> counts(thread_count);
-    std::exception_ptr failure;
-    std::mutex failure_mutex;
+    struct Scratch {
+        std::vector<Ray> rays;
+        std::vector<Target> targets;
+        std::vector<std::uint8_t> occluded;
+    };
+    std::vector<Scratch> scratch(thread_count);
+    parallel_for_chunks(particles.size(), threads, kChunk, [&](unsigned worker, std::size_t begin, std::size_t end) {
+        ThreadCounts& c = counts[worker];
+        std::vector<Ray>& rays = scratch[worker].rays;
+        std::vector<Target>& targets = scratch[worker].targets;
+        std::vector<std::uint8_t>& occluded = scratch[worker].occluded;
+        for (std::size_t p = begin; p < end; ++p) {
+            const Particle& particle = particles[p];
+            const glm::vec3 pos = particle.p();
+            const glm::vec3 n = particle.n();
+            const glm::vec3 face = face_normal[particle.triangle];
+            std::uint32_t* seen = &vis.seen[p * vis.view_words];
+            std::uint32_t* lit = &vis.lit[p * vis.frame_words];
+            rays.clear();
+            targets.clear();
 
-    auto work = [&](unsigned thread) {
-        try {
-            ThreadCounts& c = counts[thread];
-            std::vector<Ray> rays;
-            std::vector<Target> targets;
-            std::vector<std::uint8_t> occluded;
-            for (std::size_t chunk = next_chunk++; chunk < chunks; chunk = next_chunk++) {
-                const std::size_t end = std::min(particles.size(), (chunk + 1) * kChunk);
-                for (std::size_t p = chunk * kChunk; p < end; ++p) {
-                    const Particle& particle = particles[p];
-                    const glm::vec3 pos = particle.p();
-                    const glm::vec3 n = particle.n();
-                    const glm::vec3 face = face_normal[particle.triangle];
-                    std::uint32_t* seen = &vis.seen[p * vis.view_words];
-                    std::uint32_t* lit = &vis.lit[p * vis.frame_words];
-                    rays.clear();
-                    targets.clear();
-
-                    for (std::uint32_t v = 0; v < views.size(); ++v) {
-                        const glm::vec3 to_cam = view_center[v] - pos;
-                        if (!(glm::dot(n, to_cam) > 0.0f) || !(glm::dot(face, to_cam) > 0.0f)) continue;
-                        const Camera& cam = views[v].camera;
-                        const auto q = cam.project(glm::dvec3(pos));
-                        if (!q || !cam.inside(*q)) continue;
-                        if (!views[v].flags.empty()) {
-                            const std::size_t px = static_cast<std::size_t>(q->x), py = static_cast<std::size_t>(q->y);
-                            if (views[v].flags[py * std::size_t(cam.intrinsics.w) + px] & options.reject_flags) continue;
-                        }
-                        if (footprint_test && !footprint_on_surface(cam, depth[v], *q, pos, n, options.footprint_tolerance)) {
-                            ++c.footprint_rejected;
-                            continue;
-                        }
-                        if (skip_rays) {
-                            seen[v / 32] |= 1u << (v % 32);
-                            ++c.rays_avoided;
-                        } else {
-                            rays.push_back(scene.ray_toward(pos, n, view_center[v]));
-                            targets.push_back({true, v});
-                        }
-                    }
-                    for (std::uint32_t f = 0; f < lights.size(); ++f) {
-                        const glm::vec3 light = glm::vec3(lights[f].position);
-                        const glm::vec3 to_light = light - pos;
-                        if (!(glm::dot(n, to_light) > 0.0f) || !(glm::dot(face, to_light) > 0.0f)) continue;
-                        if (skip_rays) {
-                            lit[f / 32] |= 1u << (f % 32);
-                            ++c.rays_avoided;
-                        } else {
-                            rays.push_back(scene.ray_toward(pos, n, light));
-                            targets.push_back({false, f});
-                        }
-                    }
-                    if (!rays.empty()) {
-                        occluded.resize(rays.size());
-                        scene.occluded(rays, occluded);
-                        c.rays_cast += rays.size();
-                        for (std::size_t i = 0; i < rays.size(); ++i) {
-                            if (occluded[i]) {
-                                ++c.rays_occluded;
-                                continue;
-                            }
-                            const Target t = targets[i];
-                            (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
-                        }
-                    }
-                    // A lit frame whose sample would read a dark pixel (shadow map) does not light it.
-                    for (std::uint32_t f = 0; f < shadows.size(); ++f) {
-                        if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
-                        const std::uint32_t v = options.frame_view[f];
-                        if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
-                        const auto q = views[v].camera.project(glm::dvec3(pos));
-                        if (q && any_tap_set(views[v].camera, shadows[f], *q)) {
-                            lit[f / 32] &= ~(1u << (f % 32));
-                            ++c.shadow_edge_rejected;
-                        }
-                    }
-
-                    // Best view (thesis 3.1.2): smallest angle between the normal and the direction to the camera.
-                    float best = -2.0f;
-                    for (std::uint32_t v = 0; v < views.size(); ++v) {
-                        if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
-                        const float cosine = glm::dot(n, glm::normalize(view_center[v] - pos));
-                        if (cosine > best) {
-                            best = cosine;
-                            vis.best_view[p] = static_cast<std::int32_t>(v);
-                        }
-                    }
+            for (std::uint32_t v = 0; v < views.size(); ++v) {
+                const glm::vec3 to_cam = view_center[v] - pos;
+                if (!(glm::dot(n, to_cam) > 0.0f) || !(glm::dot(face, to_cam) > 0.0f)) continue;
+                const Camera& cam = views[v].camera;
+                const auto q = cam.project(glm::dvec3(pos));
+                if (!q || !cam.inside(*q)) continue;
+                if (!views[v].flags.empty()) {
+                    const std::size_t px = static_cast<std::size_t>(q->x), py = static_cast<std::size_t>(q->y);
+                    if (views[v].flags[py * std::size_t(cam.intrinsics.w) + px] & options.reject_flags) continue;
+                }
+                if (footprint_test && !footprint_on_surface(cam, depth[v], *q, pos, n, options.footprint_tolerance)) {
+                    ++c.footprint_rejected;
+                    continue;
+                }
+                if (skip_rays) {
+                    seen[v / 32] |= 1u << (v % 32);
+                    ++c.rays_avoided;
+                } else {
+                    rays.push_back(scene.ray_toward(pos, n, view_center[v]));
+                    targets.push_back({true, v});
                 }
             }
-        } catch (...) {
-            const std::lock_guard lock(failure_mutex);
-            if (!failure) failure = std::current_exception();
-            next_chunk = chunks; // stop the others early
-        }
-    };
+            for (std::uint32_t f = 0; f < lights.size(); ++f) {
+                const glm::vec3 light = glm::vec3(lights[f].position);
+                const glm::vec3 to_light = light - pos;
+                if (!(glm::dot(n, to_light) > 0.0f) || !(glm::dot(face, to_light) > 0.0f)) continue;
+                if (skip_rays) {
+                    lit[f / 32] |= 1u << (f % 32);
+                    ++c.rays_avoided;
+                } else {
+                    rays.push_back(scene.ray_toward(pos, n, light));
+                    targets.push_back({false, f});
+                }
+            }
+            if (!rays.empty()) {
+                occluded.resize(rays.size());
+                scene.occluded(rays, occluded);
+                c.rays_cast += rays.size();
+                for (std::size_t i = 0; i < rays.size(); ++i) {
+                    if (occluded[i]) {
+                        ++c.rays_occluded;
+                        continue;
+                    }
+                    const Target t = targets[i];
+                    (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
+                }
+            }
+            // A lit frame whose sample would read a dark pixel (shadow map) does not light it.
+            for (std::uint32_t f = 0; f < shadows.size(); ++f) {
+                if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
+                const std::uint32_t v = options.frame_view[f];
+                if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
+                const auto q = views[v].camera.project(glm::dvec3(pos));
+                if (q && any_tap_set(views[v].camera, shadows[f], *q)) {
+                    lit[f / 32] &= ~(1u << (f % 32));
+                    ++c.shadow_edge_rejected;
+                }
+            }
 
-    if (thread_count == 1) {
-        work(0);
-    } else {
-        std::vector<std::thread> pool;
-        pool.reserve(thread_count);
-        for (unsigned t = 0; t < thread_count; ++t) pool.emplace_back(work, t);
-        for (std::thread& t : pool) t.join();
-    }
-    if (failure) std::rethrow_exception(failure);
+            // Best view (thesis 3.1.2): smallest angle between the normal and the direction to the camera.
+            float best = -2.0f;
+            for (std::uint32_t v = 0; v < views.size(); ++v) {
+                if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
+                const float cosine = glm::dot(n, glm::normalize(view_center[v] - pos));
+                if (cosine > best) {
+                    best = cosine;
+                    vis.best_view[p] = static_cast<std::int32_t>(v);
+                }
+            }
+        }
+    });
 
     st.threads = thread_count;
     for (const ThreadCounts& c : counts) {

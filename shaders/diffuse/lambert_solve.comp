@@ -30,24 +30,11 @@ layout(std430, set = 0, binding = 6) writeonly buffer Results { LambertPairResul
 
 #include "shared/lambert_sample.glsl"
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint frame_words;
-    uint mode;
-    uint iterations;
-    float min_light_cos;
-    float tau;
-    float k_sigma;
-    float min_rcond;
-    uint global_view_base; // global index of the batch's first view
-    float lobe[9];         // known lobe: cx rgb, cz rgb, n rgb (zero: none; shared/lambert.h)
-} pc;
-
-const float kPi = 3.14159265358979323846;
+layout(push_constant) uniform PushBlock { LambertPairPush pc; }; // shared header: one definition for GLSL and C++
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     LambertPairKey key = keys[e];
     ParticleGpu part = particles[key.particle];
     LambertViewGpu view = views[key.view];
@@ -96,9 +83,9 @@ void main() {
         se[ns] = fr.intensity.xyz * (cosl / d2);
         float lb = cosl * nv;
         float la = dot(u, vdir) - lb;
-        vec3 spec = vec3(lambert_lobe(pc.lobe[0], pc.lobe[3], pc.lobe[6], la, lb),
-                         lambert_lobe(pc.lobe[1], pc.lobe[4], pc.lobe[7], la, lb),
-                         lambert_lobe(pc.lobe[2], pc.lobe[5], pc.lobe[8], la, lb));
+        vec3 spec = vec3(lafortune_eval_ab(pc.lobe[0], pc.lobe[3], pc.lobe[6], la, lb),
+                         lafortune_eval_ab(pc.lobe[1], pc.lobe[4], pc.lobe[7], la, lb),
+                         lafortune_eval_ab(pc.lobe[2], pc.lobe[5], pc.lobe[8], la, lb));
         sc[ns] = smp.c - spec * se[ns];
         sa[ns] = u / d2;
         ses[ns] = se[ns].x + se[ns].y + se[ns].z;

@@ -22,20 +22,15 @@ layout(std430, set = 0, binding = 1) readonly buffer Pairs { LambertPairResult p
 layout(std430, set = 0, binding = 2) readonly buffer Particles { ParticleGpu particles[]; };
 layout(std430, set = 0, binding = 3) writeonly buffer Results { LambertParticleResult results[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint particle_base; // global index of the chunk's first particle
-    float view_tau;
-    float view_abs;
-} pc;
+layout(push_constant) uniform PushBlock { LambertCombinePush pc; }; // shared header: one definition for GLSL and C++
 
 float lum(LambertPairResult p) {
     return p.albedo.x + p.albedo.y + p.albedo.z;
 }
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint begin = offsets[e];
     uint end = offsets[e + 1u];
     LambertParticleResult r;

@@ -12,27 +12,18 @@
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
 #include "shared/lafortune.h"
+#include "shared/factorization.h"
 
 layout(local_size_x_id = 0) in;
 
 layout(std430, set = 0, binding = 0) writeonly buffer Matrix { float f[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint res_h;
-    uint res_d;
-    vec4 cx; // rgb in xyz
-    vec4 cz;
-    vec4 n;
-    uint param; // kGshdPlain, kGshdMirrored or kGshdWarped
-    float warp_s;
-    float warp_k[3];
-} pc;
+layout(push_constant) uniform PushBlock { BrdfMatrixPush pc; }; // shared header: one definition for GLSL and C++
 
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint cols = pc.res_d * pc.res_d;
     uint row = e / cols;
     uint col = e - row * cols;
@@ -50,7 +41,7 @@ void main() {
         if (p.u.z > kGshdMinCos && p.v.z > kGshdMinCos)
             value = gshd_clamp_value(lafortune_eval_rgb(pc.cx.xyz, pc.cz.xyz, pc.n.xyz, p.u, p.v));
     }
-    uint plane = pc.element_count;
+    uint plane = pc.dispatch.element_count;
     f[e] = value.x;
     f[plane + e] = value.y;
     f[2u * plane + e] = value.z;

@@ -8,23 +8,20 @@
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
+#include "shared/factorization.h"
 
 layout(local_size_x_id = 0) in;
 
 layout(std430, set = 0, binding = 0) readonly buffer Grid { float grid[]; };
 layout(std430, set = 0, binding = 1) writeonly buffer Cube { float cube[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint grid_res;
-    uint cube_res;
-} pc;
+layout(push_constant) uniform PushBlock { CubemapPush pc; }; // shared header: one definition for GLSL and C++
 
 vec3 fetch(uint i) { return vec3(grid[3u * i], grid[3u * i + 1u], grid[3u * i + 2u]); }
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint face_texels = pc.cube_res * pc.cube_res;
     uint face = e / face_texels;
     uint rem = e - face * face_texels;

@@ -13,6 +13,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
+#include "shared/factorization.h"
 
 layout(local_size_x_id = 0) in;
 
@@ -20,14 +21,7 @@ layout(std430, set = 0, binding = 0) readonly buffer Matrix { float f[]; };
 layout(std430, set = 0, binding = 1) buffer GValues { float g[]; };
 layout(std430, set = 0, binding = 2) writeonly buffer HValues { float hv[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint rows;
-    uint cols;
-    uint pass_index;
-    float p;
-    uint weighting;
-} pc;
+layout(push_constant) uniform PushBlock { DecompositionPush pc; }; // shared header: one definition for GLSL and C++
 
 float power_term(float x) {
     if (pc.p == 2.0f) return x * x;
@@ -42,8 +36,8 @@ float power_root(float x) {
 }
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint c = e % 3u;
     uint plane = c * pc.rows * pc.cols;
     float total = 0.0f;

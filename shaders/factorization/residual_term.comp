@@ -13,6 +13,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/gshd.h"
+#include "shared/factorization.h"
 
 layout(local_size_x_id = 0) in;
 
@@ -20,13 +21,7 @@ layout(std430, set = 0, binding = 0) readonly buffer Matrix { float f[]; };
 layout(std430, set = 0, binding = 1) buffer GValues { float g[]; };
 layout(std430, set = 0, binding = 2) buffer HValues { float hv[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint rows;
-    uint cols;
-    uint term;
-    uint pass_index;
-} pc;
+layout(push_constant) uniform PushBlock { ResidualTermPush pc; }; // shared header: one definition for GLSL and C++
 
 // R_term(h, d) for channel c (callers skip the invalid entries of F).
 float residual(uint c, uint h, uint d) {
@@ -58,8 +53,8 @@ void blocked_add(inout Blocked s, float x, float w) {
 }
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     uint c = e % 3u;
     uint i = e / 3u;
     Blocked s = Blocked(0.0f, 0.0f, 0.0f, 0.0f, 0u, 0u);

@@ -17,25 +17,17 @@ layout(std430, set = 0, binding = 2) readonly buffer Mask { uint mask[]; };
 layout(std430, set = 0, binding = 3) writeonly buffer Partials { MetricsPartial partials[]; };
 layout(std430, set = 0, binding = 4) writeonly buffer Luma { vec2 luma[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint width;
-    uint height;
-    uint channels;
-    uint color_channels;
-    uint has_mask;
-    uint pad;
-} pc;
+layout(push_constant) uniform PushBlock { MetricsSumsPush pc; }; // shared header: one definition for GLSL and C++
 
 shared vec4 s0[kMetricsGroupSize]; // count, sum_sq, sum_abs, sum_l2
 shared vec4 s1[kMetricsGroupSize]; // sum_ab, sum_aa, sum_bb, 0
 
 void main() {
-    uint p = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
+    uint p = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
     uint l = gl_LocalInvocationID.x;
     vec4 t0 = vec4(0.0);
     vec4 t1 = vec4(0.0);
-    if (p < pc.element_count) {
+    if (p < pc.dispatch.element_count) {
         uint base = p * pc.channels;
         vec3 va = vec3(0.0);
         vec3 vb = vec3(0.0);
@@ -62,7 +54,7 @@ void main() {
         barrier();
     }
     if (l == 0u) {
-        uint g = pc.element_base / kMetricsGroupSize + gl_WorkGroupID.x;
+        uint g = pc.dispatch.element_base / kMetricsGroupSize + gl_WorkGroupID.x;
         MetricsPartial o;
         o.count = s0[0].x;
         o.sum_sq = s0[0].y;

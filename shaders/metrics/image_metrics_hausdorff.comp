@@ -17,17 +17,7 @@ layout(std430, set = 0, binding = 1) readonly buffer ImageY { float ys[]; };
 layout(std430, set = 0, binding = 2) readonly buffer Mask { uint mask[]; };
 layout(std430, set = 0, binding = 3) writeonly buffer Partials { vec2 partials[]; }; // max d^2, capped (0/1)
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint width;
-    uint height;
-    uint channels;
-    uint color_channels;
-    uint has_mask;
-    int max_radius;
-    float delta;
-    uint pad;
-} pc;
+layout(push_constant) uniform PushBlock { HausdorffPush pc; }; // shared header: one definition for GLSL and C++
 
 shared vec2 s[kMetricsGroupSize];
 
@@ -49,10 +39,10 @@ void visit(int qx, int qy) {
 }
 
 void main() {
-    uint p = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
+    uint p = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
     uint l = gl_LocalInvocationID.x;
     vec2 t = vec2(0.0);
-    if (p < pc.element_count && (pc.has_mask == 0u || mask[p] != 0u)) {
+    if (p < pc.dispatch.element_count && (pc.has_mask == 0u || mask[p] != 0u)) {
         py = int(p / pc.width);
         px = int(p - uint(py) * pc.width);
         x_value = vec3(0.0);
@@ -80,5 +70,5 @@ void main() {
         if (l < stride) s[l] = max(s[l], s[l + stride]);
         barrier();
     }
-    if (l == 0u) partials[pc.element_base / kMetricsGroupSize + gl_WorkGroupID.x] = s[0];
+    if (l == 0u) partials[pc.dispatch.element_base / kMetricsGroupSize + gl_WorkGroupID.x] = s[0];
 }

@@ -17,6 +17,7 @@
 #ifndef SPECULA_METRICS_IMAGE_METRICS_SHARED_H
 #define SPECULA_METRICS_IMAGE_METRICS_SHARED_H
 #include "shared/prelude.h"
+#include "shared/dispatch.h"
 
 SPECULA_SHARED_BEGIN
 
@@ -52,6 +53,42 @@ struct SsimMoments {
     float ab;
 };
 
+// Push constants of the four kernels.
+struct MetricsSumsPush { // image_metrics.comp
+    DispatchHeader dispatch;
+    uint width;
+    uint height;
+    uint channels;
+    uint color_channels;
+    uint has_mask;
+    uint pad;
+};
+struct SsimHPush { // image_metrics_ssim_h.comp
+    DispatchHeader dispatch;
+    uint width;
+    uint height;
+};
+struct SsimVPush { // image_metrics_ssim_v.comp
+    DispatchHeader dispatch;
+    uint width;
+    uint height;
+    uint has_mask;
+    float c1;
+    float c2;
+    uint pad;
+};
+struct HausdorffPush { // image_metrics_hausdorff.comp
+    DispatchHeader dispatch;
+    uint width;
+    uint height;
+    uint channels;
+    uint color_channels;
+    uint has_mask;
+    int max_radius;
+    float delta;
+    uint pad;
+};
+
 // The scalar math, written once over METRICS_REAL: float here (GLSL and C++),
 // double in namespace specula::shared::f64 (the CPU reference).
 #define METRICS_REAL float
@@ -64,6 +101,10 @@ SPECULA_SHARED_END
 #include <cstddef>
 static_assert(sizeof(specula::shared::MetricsPartial) == 32);
 static_assert(sizeof(specula::shared::SsimMoments) == 20 && offsetof(specula::shared::SsimMoments, ab) == 16);
+static_assert(sizeof(specula::shared::MetricsSumsPush) == 32);
+static_assert(sizeof(specula::shared::SsimHPush) == 16);
+static_assert(sizeof(specula::shared::SsimVPush) == 32 && offsetof(specula::shared::SsimVPush, c1) == 20);
+static_assert(sizeof(specula::shared::HausdorffPush) == 40 && offsetof(specula::shared::HausdorffPush, delta) == 32);
 namespace specula::shared::f64 {
 using namespace glm;
 #define METRICS_REAL double

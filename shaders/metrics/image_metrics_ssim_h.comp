@@ -13,15 +13,11 @@ layout(local_size_x_id = 0) in;
 layout(std430, set = 0, binding = 0) readonly buffer Luma { vec2 luma[]; };
 layout(std430, set = 0, binding = 1) writeonly buffer Moments { SsimMoments moments[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint width;
-    uint height;
-} pc;
+layout(push_constant) uniform PushBlock { SsimHPush pc; }; // shared header: one definition for GLSL and C++
 
 void main() {
-    uint p = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (p >= pc.element_count) return;
+    uint p = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (p >= pc.dispatch.element_count) return;
     int x = int(p % pc.width);
     uint row = p - uint(x);
     float wsum = 0.0;

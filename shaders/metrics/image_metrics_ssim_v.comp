@@ -14,23 +14,15 @@ layout(std430, set = 0, binding = 0) readonly buffer Moments { SsimMoments momen
 layout(std430, set = 0, binding = 1) readonly buffer Mask { uint mask[]; };
 layout(std430, set = 0, binding = 2) writeonly buffer Partials { vec2 partials[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint width;
-    uint height;
-    uint has_mask;
-    float c1;
-    float c2;
-    uint pad;
-} pc;
+layout(push_constant) uniform PushBlock { SsimVPush pc; }; // shared header: one definition for GLSL and C++
 
 shared vec2 s[kMetricsGroupSize];
 
 void main() {
-    uint p = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
+    uint p = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
     uint l = gl_LocalInvocationID.x;
     vec2 t = vec2(0.0);
-    if (p < pc.element_count && (pc.has_mask == 0u || mask[p] != 0u)) {
+    if (p < pc.dispatch.element_count && (pc.has_mask == 0u || mask[p] != 0u)) {
         int y = int(p / pc.width);
         uint x = p - uint(y) * pc.width;
         float wsum = 0.0;
@@ -55,5 +47,5 @@ void main() {
         if (l < stride) s[l] += s[l + stride];
         barrier();
     }
-    if (l == 0u) partials[pc.element_base / kMetricsGroupSize + gl_WorkGroupID.x] = s[0];
+    if (l == 0u) partials[pc.dispatch.element_base / kMetricsGroupSize + gl_WorkGroupID.x] = s[0];
 }

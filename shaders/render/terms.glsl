@@ -11,8 +11,6 @@
 #include "shared/lafortune.h"
 #include "shared/tangent_frame.h"
 
-const float kPi = 3.14159265358979;
-
 // The light's visibility V in [0, 1] at a surface point (1 = lit): the shadow map
 // (set 0 binding 2, a sampler2DShadow with compare LESS_OR_EQUAL, 2x2 PCF where the depth
 // format filters linearly) looked up from the normal-offset point (shared/render.h

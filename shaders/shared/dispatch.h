@@ -9,27 +9,23 @@
 // The kernel's element index is dispatch_element(element_base, gl_GlobalInvocationID.x);
 // invocations with an index >= element_count return at once. Every split sees the same
 // buffers at the same offsets: index buffers by the element index, not by the invocation.
-//   GLSL:  layout(push_constant) uniform Push { SPECULA_DISPATCH_HEADER uint my_field; } pc;
-//   C++:   struct MyPush { gpu::DispatchHeader dispatch; uint32_t my_field; };
+// A kernel's push constants are one struct, defined once in a shared header that both
+// glslang and the C++ compiler read (with static_asserted offsets), starting with the header:
+//   shared header: struct MyPush { DispatchHeader dispatch; uint my_field; };
+//   GLSL:          layout(push_constant) uniform PushBlock { MyPush pc; };  ... pc.my_field
+//   C++:           seq.dispatch_1d(pipeline, buffers, count, shared::MyPush{.my_field = 1});
+// (push-constant blocks use the std430 layout, so C++ and GLSL offsets agree where the
+// static_asserts say so.)
 #ifndef SPECULA_SHARED_DISPATCH_H
 #define SPECULA_SHARED_DISPATCH_H
 #include "shared/prelude.h"
 
-#ifdef __cplusplus
-namespace specula::shared {
-struct DispatchHeader {
-    uint32_t element_base = 0;
-    uint32_t element_count = 0;
-};
-static_assert(sizeof(DispatchHeader) == 8);
-} // namespace specula::shared
-#else
-#define SPECULA_DISPATCH_HEADER \
-    uint element_base;          \
-    uint element_count;
-#endif
-
 SPECULA_SHARED_BEGIN
+
+struct DispatchHeader {
+    uint element_base;
+    uint element_count;
+};
 
 const uint kDispatchHeaderBytes = 8u;
 
@@ -38,4 +34,9 @@ SHARED_FN uint dispatch_element(uint element_base, uint invocation) {
 }
 
 SPECULA_SHARED_END
+
+#ifdef __cplusplus
+static_assert(sizeof(specula::shared::DispatchHeader) == 8);
+#endif
+
 #endif

@@ -57,7 +57,7 @@
 //    every Lafortune lobe, off-specular (|Cx| != |Cz|) and Cz < 0 ones included, where parts 1
 //    and 4 are rank 1 only for Cx = +-Cz. The mirrored GSHD is the warp (-1, 1) without the
 //    radial factor. Each channel has its own k (the lobe's warp is (s, k_r, k_g, k_b), s shared;
-//    engine/core/factor_param.h warp_for_lobe): channel c's F, and its lookups when rendering,
+//    engine/material/factor_param.h warp_for_lobe): channel c's F, and its lookups when rendering,
 //    use the pair in the warp (s, k_c), so every channel is exactly rank 1 (one shared k left
 //    1.0-1.3% matrix error on the cologne and vase lobes, whose channels' k differ by 3%, which
 //    further terms did not remove). The renderer computes the coordinates once per channel and
@@ -99,7 +99,7 @@ const float kGshdMinValue = 1.0e-30f;
 // to the total, so the float sum of K terms has a relative error <= (64 + K / 64) eps.
 const uint kGshdSumBlock = 64u;
 const uint kCubeFaces = 6u;
-// The parametrizations of parts 4 and 5 (engine/core/factor_param.h FactorParam has these values).
+// The parametrizations of parts 4 and 5 (engine/material/factor_param.h FactorParam has these values).
 const uint kGshdPlain = 0u;
 const uint kGshdMirrored = 1u;
 const uint kGshdWarped = 2u;

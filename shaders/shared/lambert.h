@@ -66,6 +66,8 @@
 #ifndef SPECULA_SHARED_LAMBERT_H
 #define SPECULA_SHARED_LAMBERT_H
 #include "shared/prelude.h"
+#include "shared/dispatch.h"
+#include "shared/lafortune.h"
 
 SPECULA_SHARED_BEGIN
 
@@ -160,6 +162,28 @@ struct LambertParticleResult {
     uint pad1;
 };
 
+// Push constants of the pair step (diffuse/lambert_solve.comp).
+struct LambertPairPush {
+    DispatchHeader dispatch;
+    uint frame_words;
+    uint mode;             // kLambertModeAlbedo or kLambertModePhotometric
+    uint iterations;
+    float min_light_cos;
+    float tau;
+    float k_sigma;
+    float min_rcond;
+    uint global_view_base; // global index of the batch's first view
+    float lobe[9];         // known lobe: cx rgb, cz rgb, n rgb (zero: none; see "known lobe" above)
+};
+
+// Push constants of the combine step (diffuse/lambert_solve_combine.comp).
+struct LambertCombinePush {
+    DispatchHeader dispatch;
+    uint particle_base; // global index of the chunk's first particle
+    float view_tau;
+    float view_abs;
+};
+
 SHARED_FN uint lambert_pack4(uint a, uint b, uint c, uint d) {
     return min(a, 255u) | (min(b, 255u) << 8u) | (min(c, 255u) << 16u) | (min(d, 255u) << 24u);
 }
@@ -178,11 +202,14 @@ SHARED_FN uint lambert_byte(uint packed, uint i) {
 SPECULA_SHARED_END
 
 #ifdef __cplusplus
+#include <cstddef>
 static_assert(sizeof(specula::shared::LambertViewGpu) == 112);
 static_assert(sizeof(specula::shared::LambertFrameGpu) == 48);
 static_assert(sizeof(specula::shared::LambertPairKey) == 12);
 static_assert(sizeof(specula::shared::LambertPairResult) == 48);
 static_assert(sizeof(specula::shared::LambertParticleResult) == 96);
+static_assert(sizeof(specula::shared::LambertPairPush) == 76 && offsetof(specula::shared::LambertPairPush, lobe) == 40);
+static_assert(sizeof(specula::shared::LambertCombinePush) == 20);
 namespace specula::shared::f64 {
 using namespace glm;
 #define LAMBERT_REAL double

@@ -60,14 +60,6 @@ SHARED_FN LAMBERT_REAL lambert_angle_deg(LAMBERT_VEC3 a, LAMBERT_VEC3 b) {
     return atan(length(cross(a, b)), dot(a, b)) * LAMBERT_REAL(57.29577951308232);
 }
 
-// Joint estimate (lambert.h, "known lobe"): the lobe's value f_s(u, v) for one channel,
-// from a = u.v - (n.u)(n.v) and b = (n.u)(n.v), the tangent-frame products ux vx + uy vy
-// and uz vz of shared/lafortune.h (the lobe is isotropic, so no tangent is needed).
-SHARED_FN LAMBERT_REAL lambert_lobe(LAMBERT_REAL cx, LAMBERT_REAL cz, LAMBERT_REAL n, LAMBERT_REAL a, LAMBERT_REAL b) {
-    LAMBERT_REAL base = cx * a + cz * b;
-    return base > LAMBERT_REAL(0.0) ? pow(base, n) : LAMBERT_REAL(0.0);
-}
-
 // Octahedral decoding of a unit normal (lambert.h surface maps): e in [-1, 1]^2 as
 // unpackSnorm2x16 returns it.
 SHARED_FN LAMBERT_VEC3 lambert_oct_decode(LAMBERT_VEC2 e) {

@@ -23,4 +23,14 @@
 #define SPECULA_SHARED_END
 #endif
 
+// pi, the project's one definition: a float constant in GLSL, a double in C++ (specula::kPi,
+// visible in specula::shared and its f64 twin too).
+#ifdef __cplusplus
+namespace specula {
+inline constexpr double kPi = 3.14159265358979323846;
+}
+#else
+const float kPi = 3.14159265358979323846;
+#endif
+
 #endif

@@ -29,6 +29,7 @@
 #ifndef SPECULA_SHARED_RESIDUALS_H
 #define SPECULA_SHARED_RESIDUALS_H
 #include "shared/prelude.h"
+#include "shared/dispatch.h"
 #include "shared/tangent_frame.h"
 
 SPECULA_SHARED_BEGIN
@@ -44,6 +45,13 @@ struct ResidualSample {
     vec4 v; // xyz: view direction (tangent frame); w: Ebar
     vec3 f; // f_s per channel
     uint status; // kResidual*
+};
+
+// Push constants of specular/residuals.comp.
+struct ResidualPush {
+    DispatchHeader dispatch;
+    uint frame_words;
+    float min_light_cos;
 };
 
 // Irradiance factor E = I max(0, n.u) / d^2 (the diffuse solve's, shared/lambert.h).
@@ -64,6 +72,7 @@ SPECULA_SHARED_END
 static_assert(sizeof(specula::shared::ResidualSample) == 48);
 static_assert(offsetof(specula::shared::ResidualSample, v) == 16 && offsetof(specula::shared::ResidualSample, f) == 32 &&
               offsetof(specula::shared::ResidualSample, status) == 44);
+static_assert(sizeof(specula::shared::ResidualPush) == 16);
 #endif
 
 #endif

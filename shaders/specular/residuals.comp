@@ -29,17 +29,13 @@ layout(std430, set = 0, binding = 5) readonly buffer Pixels { uvec4 pixels[]; };
 layout(std430, set = 0, binding = 6) readonly buffer Keys { LambertPairKey keys[]; };
 layout(std430, set = 0, binding = 7) writeonly buffer Samples { ResidualSample samples[]; };
 
-layout(push_constant) uniform Push {
-    SPECULA_DISPATCH_HEADER
-    uint frame_words;
-    float min_light_cos;
-} pc;
+layout(push_constant) uniform PushBlock { ResidualPush pc; }; // shared header: one definition for GLSL and C++
 
 #include "shared/lambert_sample.glsl"
 
 void main() {
-    uint e = dispatch_element(pc.element_base, gl_GlobalInvocationID.x);
-    if (e >= pc.element_count) return;
+    uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
+    if (e >= pc.dispatch.element_count) return;
     LambertPairKey key = keys[e];
     ParticleGpu part = particles[key.particle];
     LambertViewGpu view = views[key.view];

@@ -315,6 +315,20 @@ TEST(CaptureLoad, SingleThreadMatchesParallel) {
     }
 }
 
+// Frames are decoded in parallel (core/parallel.h): a broken image in a worker thread
+// reaches the caller as the InputError itself, and with two broken frames it is always
+// the first one's, as a single thread reports it.
+TEST(CaptureLoad, ParallelDecodeReportsTheFirstBrokenFrame) {
+    CaptureFixture fx;
+    write_text_file(fx.dir / CaptureFixture::image_name(1, 1), "not a png at all"); // frames[1]
+    write_text_file(fx.dir / CaptureFixture::image_name(0, 1), "not a png at all"); // frames[3]
+    for (int threads : {1, 4, 4, 4, 4, 4, 4, 4, 4}) {
+        const InputError e = expect_input_error([&] { (void)fx.load({.threads = threads}); });
+        EXPECT_EQ(e.field(), "frames[1].file_path") << threads << " threads: " << e.what();
+        EXPECT_EQ(e.file(), fx.dir / CaptureFixture::image_name(1, 1)) << threads << " threads: " << e.what();
+    }
+}
+
 TEST(CaptureJson, UnknownFieldsSurviveRoundTrip) {
     CaptureFixture fx;
     fx.j["rig"] = {{"name", "six-light dome"}, {"serial", 42}};

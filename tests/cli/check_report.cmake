@@ -18,8 +18,12 @@ foreach(needle "Planner decisions" "<code>occlusion_rays</code>" "<code>specular
     message(FATAL_ERROR "report.html lacks '${needle}'")
   endif()
 endforeach()
-# report.json names the same decisions.
+# report.json names the same decisions, and the version of project(VERSION).
 file(READ "${OUT}/report.json" report)
+string(JSON version GET "${report}" specula_version)
+if(DEFINED VERSION AND NOT version STREQUAL VERSION)
+  message(FATAL_ERROR "report.json: specula_version is '${version}', expected '${VERSION}'")
+endif()
 string(JSON count LENGTH "${report}" planner)
 if(count LESS 5)
   message(FATAL_ERROR "report.json: planner has ${count} decisions, expected 5")

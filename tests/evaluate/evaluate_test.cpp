@@ -46,7 +46,7 @@ Bundle bundle_from_truth(const synth::Preset& p) {
     if (b.albedo.empty()) b.albedo = Image(1, 1, 3);
     if (p.material.albedo_texture.empty())
         for (int c = 0; c < 3; ++c) b.albedo.at(0, 0, c) = p.material.albedo_value[c];
-    b.lobe = p.material.lobe;
+    b.material.specular = p.material.lobe;
     return b;
 }
 
@@ -144,7 +144,7 @@ TEST_F(EvaluateTest, HalvedAlbedoScoresWorse) {
 TEST_F(EvaluateTest, CpuAndVulkanMetricsAgree) {
     const SphereCapture& s = sphere();
     const EvaluationResult vk = evaluate(ctx(), s.truth, s.capture, {.max_frames_per_split = 2});
-    const EvaluationResult cpu = evaluate(ctx(), s.truth, s.capture, {.metrics_backend = MetricsBackend::Cpu, .max_frames_per_split = 2});
+    const EvaluationResult cpu = evaluate(ctx(), s.truth, s.capture, {.metrics_backend = Backend::Cpu, .max_frames_per_split = 2});
     ASSERT_EQ(vk.frames.size(), cpu.frames.size());
     EXPECT_NEAR(vk.metrics.test_masked.q1, cpu.metrics.test_masked.q1, 1e-4);
     EXPECT_NEAR(vk.metrics.train_full.q2, cpu.metrics.train_full.q2, 1e-4);
@@ -168,7 +168,7 @@ TEST_F(EvaluateTest, WritesSheetsOfChosenFrames) {
 TEST_F(EvaluateTest, FactorizedWithoutCubeMapsIsRefused) {
     const SphereCapture& s = sphere();
     try {
-        (void)evaluate(ctx(), s.truth, s.capture, {.render = {.specular = render::SpecularModel::Factorized}, .bundle_name = "truth.glb"});
+        (void)evaluate(ctx(), s.truth, s.capture, {.render = {.specular = render::SpecularPath::Factorized}, .bundle_name = "truth.glb"});
         FAIL() << "expected an error";
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("truth.glb"), std::string::npos) << e.what();
@@ -183,27 +183,21 @@ TEST_F(EvaluateTest, FactorizedWithoutCubeMapsIsRefused) {
 TEST_F(EvaluateTest, FactorizedBundleIsLookedUpInItsParametrization) {
     const SphereCapture& s = sphere();
     const EvaluationResult analytic = evaluate(ctx(), s.truth, s.capture, {});
-    const auto to_cube = [](const factorization::Cubemap& c) {
-        BundleCubeMap out{c.res, {}};
-        for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
-        return out;
-    };
-    const EvaluateOptions factorized{.render = {.specular = render::SpecularModel::Factorized}};
+    const EvaluateOptions factorized{.render = {.specular = render::SpecularPath::Factorized}};
     double psnr[2] = {0.0, 0.0}; // per FactorParam
     for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored}) {
-        const factorization::Factorization f = factorization::factorize_cpu(*s.truth.lobe, {.param = param});
+        const factorization::Factorization f =
+            factorization::factorize_cpu(std::get<LafortuneRgb>(*s.truth.material.specular), {.param = param});
         Bundle b = s.truth;
-        b.cube_g = to_cube(f.cube_g);
-        b.cube_h = to_cube(f.cube_h);
-        for (const factorization::FactorTerm& t : f.extra) b.extra_terms.push_back({to_cube(t.cube_g), to_cube(t.cube_h)});
-        b.factor_param = param;
+        b.material.factorized = f.cubes;
+        b.material.factorized->param = param;
         const EvaluationResult r = evaluate(ctx(), b, s.capture, factorized);
         std::printf("%s K = %u: train masked PSNR %.2f dB (analytic %.2f dB)\n", to_string(param), f.term_count(),
                     r.metrics.train_masked.psnr, analytic.metrics.train_masked.psnr);
         EXPECT_GE(r.metrics.train_masked.psnr, 40.0) << to_string(param);
         psnr[static_cast<std::size_t>(param)] = r.metrics.train_masked.psnr;
         if (param == FactorParam::Mirrored) {
-            b.factor_param = FactorParam::Gshd;
+            b.material.factorized->param = FactorParam::Gshd;
             const EvaluationResult wrong = evaluate(ctx(), b, s.capture, factorized);
             std::printf("mirrored cube-maps looked up as gshd: %.2f dB\n", wrong.metrics.train_masked.psnr);
             EXPECT_LE(wrong.metrics.train_masked.psnr, r.metrics.train_masked.psnr - 10.0);

@@ -34,11 +34,13 @@ inline BundlePieces make_pieces(int rings = 6, int segments = 10) {
     return p;
 }
 
-inline BundleCubeMap random_cube(std::uint32_t res, unsigned seed) {
-    BundleCubeMap c{res, std::vector<float>(std::size_t{6} * res * res * 3)};
+/// 6 * res^2 texels, r, g, b of each drawn in turn from a seeded generator.
+inline CubeMap random_cube(std::uint32_t res, unsigned seed) {
+    CubeMap c{res, std::vector<glm::vec3>(std::size_t{6} * res * res)};
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(0.0f, 3.0f);
-    for (float& v : c.rgb) v = u(rng);
+    for (glm::vec3& t : c.texels)
+        for (int ch = 0; ch < 3; ++ch) t[ch] = u(rng);
     return c;
 }
 

@@ -33,9 +33,21 @@ template <class V> bool same_bits(const std::vector<V>& a, const std::vector<V>&
     return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(V)) == 0);
 }
 
+/// The bundle's Lafortune lobe (the test bundles hold no other family).
+const LafortuneRgb& lobe_of(const Bundle& b) { return std::get<LafortuneRgb>(*b.material.specular); }
+
+/// A material with the lobe and no factorization.
+Material with_lobe(const LafortuneRgb& lobe) { return Material{.specular = lobe}; }
+
+/// Term k's cube-maps (k = 0: the thesis's term, "cubeG"/"cubeH").
+const FactorTerm& term(const Bundle& b, std::size_t k) { return b.material.factorized->terms.at(k); }
+FactorTerm& term(Bundle& b, std::size_t k) { return b.material.factorized->terms.at(k); }
+/// The number of terms after the first (the extension's "cubeTerms").
+std::size_t further_terms(const Bundle& b) { return b.material.factorized ? b.material.factorized->terms.size() - 1 : 0; }
+
 TEST(MakeBundle, SplitsVerticesAndCornerUvsInvertsIt) {
     const test::BundlePieces p = test::make_pieces();
-    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
     ASSERT_EQ(b.mesh.triangles.size(), p.mesh.triangles.size());
     ASSERT_TRUE(b.mesh.has_texcoords());
     ASSERT_EQ(b.mesh.normals.size(), b.mesh.positions.size());
@@ -54,8 +66,8 @@ TEST(MakeBundle, SplitsVerticesAndCornerUvsInvertsIt) {
     EXPECT_EQ(b.mesh.positions.size(), distinct.size());
     EXPECT_GT(b.mesh.positions.size(), p.mesh.positions.size()); // the atlas has seams
     EXPECT_TRUE(same_bits(b.albedo.pixels, p.albedo.pixels));
-    ASSERT_TRUE(b.lobe.has_value());
-    EXPECT_EQ(b.lobe->n, p.lobe.n);
+    ASSERT_TRUE(b.material.specular.has_value());
+    EXPECT_EQ(lobe_of(b).n, p.lobe.n);
 }
 
 TEST(MakeBundle, MergesSharedCornersOnlyWhenTheirUvIsIdentical) {
@@ -64,24 +76,23 @@ TEST(MakeBundle, MergesSharedCornersOnlyWhenTheirUvIsIdentical) {
     m.triangles = {{0, 1, 2}, {0, 2, 3}};
     const Image albedo(2, 2, 3, 0.5f);
     const std::vector<glm::vec2> same = {{0, 0}, {1, 0}, {1, 1}, {0, 0}, {1, 1}, {0, 1}};
-    const Bundle a = make_bundle(m, same, albedo, std::nullopt);
+    const Bundle a = make_bundle(m, same, albedo, Material{});
     EXPECT_EQ(a.mesh.positions.size(), 4u);
     EXPECT_EQ(a.mesh.normals.size(), 4u); // computed: the mesh had none
     EXPECT_EQ(a.mesh.normals[0], glm::vec3(0, 0, 1));
     const std::vector<glm::vec2> seam = {{0, 0}, {0.5f, 0}, {0.5f, 0.5f}, {0.6f, 0.6f}, {1, 1}, {0.6f, 1}};
-    const Bundle b = make_bundle(m, seam, albedo, std::nullopt);
+    const Bundle b = make_bundle(m, seam, albedo, Material{});
     EXPECT_EQ(b.mesh.positions.size(), 6u);
     EXPECT_TRUE(same_bits(corner_uvs(b.mesh), seam));
-    EXPECT_THROW((void)make_bundle(m, std::span(seam).first(5), albedo, std::nullopt), Error);
+    EXPECT_THROW((void)make_bundle(m, std::span(seam).first(5), albedo, Material{}), Error);
     EXPECT_THROW((void)corner_uvs(m), Error);
 }
 
 TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
     const test::BundlePieces p = test::make_pieces();
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.lobe_status = {"converged", "converged", "max_iterations"};
-    b.cube_g = test::random_cube(8, 1);
-    b.cube_h = test::random_cube(16, 2);
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.status = {"converged", "converged", "max_iterations"};
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(8, 1), test::random_cube(16, 2)}}};
     b.albedo.pixels[5] = 1.0e-42f;          // a denormal
     b.albedo.pixels[6] = -0.0f;             // a negative zero
     b.albedo.pixels[7] = 0.1f + 1.0e-8f;    // no decimal round trip needed: raw bits
@@ -99,18 +110,18 @@ TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
     EXPECT_EQ(r.albedo.height, b.albedo.height);
     EXPECT_EQ(r.albedo.channels, b.albedo.channels);
     EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
-    ASSERT_TRUE(r.lobe.has_value());
-    EXPECT_EQ(r.lobe->cx, b.lobe->cx);
-    EXPECT_EQ(r.lobe->cz, b.lobe->cz);
-    EXPECT_EQ(r.lobe->n, b.lobe->n);
-    EXPECT_EQ(r.lobe_status, b.lobe_status);
-    ASSERT_TRUE(r.cube_g && r.cube_h);
-    EXPECT_EQ(r.cube_g->resolution, 8u);
-    EXPECT_EQ(r.cube_h->resolution, 16u);
-    EXPECT_TRUE(same_bits(r.cube_g->rgb, b.cube_g->rgb));
-    EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
+    ASSERT_TRUE(r.material.specular.has_value());
+    EXPECT_EQ(lobe_of(r).cx, lobe_of(b).cx);
+    EXPECT_EQ(lobe_of(r).cz, lobe_of(b).cz);
+    EXPECT_EQ(lobe_of(r).n, lobe_of(b).n);
+    EXPECT_EQ(r.material.status, b.material.status);
+    ASSERT_TRUE(r.material.factorized.has_value());
+    EXPECT_EQ(term(r, 0).g.resolution, 8u);
+    EXPECT_EQ(term(r, 0).h.resolution, 16u);
+    EXPECT_TRUE(same_bits(term(r, 0).g.texels, term(b, 0).g.texels));
+    EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(b, 0).h.texels));
     EXPECT_EQ(r.info, b.info);
-    EXPECT_TRUE(r.extra_terms.empty());
+    EXPECT_EQ(further_terms(r), 0u);
     EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"]["version"], 1)
         << "a one-term bundle stays version 1 (older readers load it)";
     // Writing what was read gives the same file, byte for byte.
@@ -120,32 +131,31 @@ TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
 
 TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
     const test::BundlePieces p = test::make_pieces();
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.cube_g = test::random_cube(8, 1);
-    b.cube_h = test::random_cube(16, 2);
-    b.extra_terms = {{test::random_cube(8, 3), test::random_cube(16, 4)}, {test::random_cube(8, 5), test::random_cube(16, 6)}};
-    b.extra_terms[1].g.rgb[3] = -0.25f; // residual terms take either sign
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(8, 1), test::random_cube(16, 2)},
+                                                         {test::random_cube(8, 3), test::random_cube(16, 4)},
+                                                         {test::random_cube(8, 5), test::random_cube(16, 6)}}};
+    term(b, 2).g.texels[1].x = -0.25f; // float 3 of the cube-map: residual terms take either sign
     TempDir dir("bundle");
     const auto file = dir / "terms.glb";
     write_bundle(file, b);
     EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"]["version"], 2);
     const Bundle r = read_bundle(file);
-    ASSERT_EQ(r.extra_terms.size(), 2u);
-    for (std::size_t k = 0; k < 2; ++k) {
-        EXPECT_EQ(r.extra_terms[k].g.resolution, 8u);
-        EXPECT_EQ(r.extra_terms[k].h.resolution, 16u);
-        EXPECT_TRUE(same_bits(r.extra_terms[k].g.rgb, b.extra_terms[k].g.rgb));
-        EXPECT_TRUE(same_bits(r.extra_terms[k].h.rgb, b.extra_terms[k].h.rgb));
+    ASSERT_EQ(further_terms(r), 2u);
+    for (std::size_t k = 1; k <= 2; ++k) {
+        EXPECT_EQ(term(r, k).g.resolution, 8u);
+        EXPECT_EQ(term(r, k).h.resolution, 16u);
+        EXPECT_TRUE(same_bits(term(r, k).g.texels, term(b, k).g.texels));
+        EXPECT_TRUE(same_bits(term(r, k).h.texels, term(b, k).h.texels));
     }
     write_bundle(dir / "again.glb", r);
     EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
     // Inconsistent further terms are refused on writing.
     Bundle bad = b;
-    bad.extra_terms[0].h.rgb.pop_back();
+    term(bad, 1).h.texels.pop_back();
     EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
     bad = b;
-    bad.cube_g.reset();
-    bad.cube_h.reset();
+    bad.material.factorized->terms.clear(); // a factorization without its terms
     EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
 }
 
@@ -154,49 +164,48 @@ TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
 // version 1 or 2) and read as plain GSHD.
 TEST(Bundle, RoundTripWithTheMirroredParametrization) {
     const test::BundlePieces p = test::make_pieces();
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.cube_g = test::random_cube(8, 1);
-    b.cube_h = test::random_cube(16, 2);
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(8, 1), test::random_cube(16, 2)}}};
     TempDir dir("bundle");
     write_bundle(dir / "plain.glb", b);
     const json plain = test::glb_json(dir / "plain.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
     EXPECT_EQ(plain["version"], 1);
     EXPECT_FALSE(plain.contains("parametrization"));
-    EXPECT_EQ(read_bundle(dir / "plain.glb").factor_param, FactorParam::Gshd);
+    EXPECT_EQ(read_bundle(dir / "plain.glb").material.factorized->param, FactorParam::Gshd);
     for (const std::size_t terms : {1u, 3u}) {
-        b.extra_terms.assign(terms - 1, {test::random_cube(8, 3), test::random_cube(16, 4)});
-        b.factor_param = FactorParam::Mirrored;
+        b.material.factorized->terms.resize(1);
+        b.material.factorized->terms.insert(b.material.factorized->terms.end(), terms - 1,
+                                            {test::random_cube(8, 3), test::random_cube(16, 4)});
+        b.material.factorized->param = FactorParam::Mirrored;
         const auto file = dir / ("mirrored" + std::to_string(terms) + ".glb");
         write_bundle(file, b);
         const json ext = test::glb_json(file)["materials"][0]["extensions"]["SPECULA_lafortune"];
         EXPECT_EQ(ext["version"], 3);
         EXPECT_EQ(ext["parametrization"], "mirrored");
         const Bundle r = read_bundle(file);
-        EXPECT_EQ(r.factor_param, FactorParam::Mirrored);
-        EXPECT_EQ(r.extra_terms.size(), terms - 1);
-        EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
+        EXPECT_EQ(r.material.factorized->param, FactorParam::Mirrored);
+        EXPECT_EQ(further_terms(r), terms - 1);
+        EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(b, 0).h.texels));
         write_bundle(dir / "again.glb", r);
         EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
     }
     // Warped (shared/gshd.h part 5): version 4, the parametrization and its warp, bit for bit.
-    b.extra_terms.clear();
-    b.factor_param = FactorParam::Warped;
-    b.factor_warp = glm::vec4(-1.0f, 0.4661f, 0.473f, 0.48f);
+    b.material.factorized->terms.resize(1);
+    b.material.factorized->param = FactorParam::Warped;
+    b.material.factorized->warp = glm::vec4(-1.0f, 0.4661f, 0.473f, 0.48f);
     write_bundle(dir / "warped.glb", b);
     const json warped = test::glb_json(dir / "warped.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
     EXPECT_EQ(warped["version"], 4);
     EXPECT_EQ(warped["parametrization"], "warped");
     EXPECT_EQ(warped["warp"].size(), 4u);
     const Bundle rw = read_bundle(dir / "warped.glb");
-    EXPECT_EQ(rw.factor_param, FactorParam::Warped);
-    EXPECT_EQ(rw.factor_warp, b.factor_warp);
+    EXPECT_EQ(rw.material.factorized->param, FactorParam::Warped);
+    EXPECT_EQ(rw.material.factorized->warp, b.material.factorized->warp);
     Bundle no_lobe = b;
-    no_lobe.lobe.reset(); // the radial factor needs the lobe
+    no_lobe.material.specular.reset(); // the radial factor needs the lobe
     EXPECT_THROW(write_bundle(dir / "bad.glb", no_lobe), InputError);
     // Without cube-maps the parametrization means nothing and is not written.
-    b.cube_g.reset();
-    b.cube_h.reset();
-    b.extra_terms.clear();
+    b.material.factorized.reset();
     write_bundle(dir / "diffuse.glb", b);
     const json none = test::glb_json(dir / "diffuse.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
     EXPECT_EQ(none["version"], 1);
@@ -206,7 +215,7 @@ TEST(Bundle, RoundTripWithTheMirroredParametrization) {
 TEST(Bundle, MaterialCarriesTheViewerApproximationAndAnOptionalExtension) {
     const test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
-    write_bundle(dir / "b.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe));
+    write_bundle(dir / "b.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe)));
     const json doc = test::glb_json(dir / "b.glb");
     EXPECT_EQ(doc["extensionsUsed"], json::array({"SPECULA_lafortune"}));
     EXPECT_FALSE(doc.contains("extensionsRequired"));
@@ -232,17 +241,16 @@ TEST(Bundle, MaterialCarriesTheViewerApproximationAndAnOptionalExtension) {
 TEST(Bundle, WithoutLobeOrCubeMaps) {
     const test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
-    write_bundle(dir / "d.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, std::nullopt));
+    write_bundle(dir / "d.glb", make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{}));
     const json doc = test::glb_json(dir / "d.glb");
     const json& ext = doc["materials"][0]["extensions"]["SPECULA_lafortune"];
     EXPECT_FALSE(ext.contains("lobe"));
     EXPECT_FALSE(ext.contains("cubeG"));
     EXPECT_EQ(doc["materials"][0]["pbrMetallicRoughness"]["roughnessFactor"].get<double>(), 1.0);
     const Bundle r = read_bundle(dir / "d.glb");
-    EXPECT_FALSE(r.lobe.has_value());
-    EXPECT_TRUE(r.lobe_status.empty());
-    EXPECT_FALSE(r.cube_g.has_value());
-    EXPECT_FALSE(r.cube_h.has_value());
+    EXPECT_FALSE(r.material.specular.has_value());
+    EXPECT_TRUE(r.material.status.empty());
+    EXPECT_FALSE(r.material.factorized.has_value());
     EXPECT_TRUE(same_bits(r.albedo.pixels, p.albedo.pixels));
     EXPECT_TRUE(r.warnings.empty());
 }
@@ -251,7 +259,7 @@ TEST(Bundle, ForeignGlbWithoutMaterialIsRefusedNamingTheField) {
     test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
     // A plain mesh (write_mesh_glb) with texture coordinates but no material.
-    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, std::nullopt);
+    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{});
     write_mesh_glb(dir / "plain.glb", b.mesh);
     try {
         (void)read_bundle(dir / "plain.glb");
@@ -274,17 +282,16 @@ TEST(Bundle, ForeignGlbWithoutMaterialIsRefusedNamingTheField) {
 TEST(Bundle, ForeignGlbWithBaseColourIsReadDiffuseOnlyWithAWarning) {
     const test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.cube_g = test::random_cube(4, 3);
-    b.cube_h = test::random_cube(4, 4);
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(4, 3), test::random_cube(4, 4)}}};
     write_bundle(dir / "f.glb", b);
     json doc = test::glb_json(dir / "f.glb");
     doc["materials"][0].erase("extensions");
     doc.erase("extensionsUsed");
     test::rewrite_glb_json(dir / "f.glb", doc);
     const Bundle r = read_bundle(dir / "f.glb");
-    EXPECT_FALSE(r.lobe.has_value());
-    EXPECT_FALSE(r.cube_g.has_value());
+    EXPECT_FALSE(r.material.specular.has_value());
+    EXPECT_FALSE(r.material.factorized.has_value());
     ASSERT_FALSE(r.warnings.empty());
     EXPECT_NE(r.warnings.back().find("diffuse-only"), std::string::npos);
     EXPECT_EQ(r.albedo.channels, 3);
@@ -297,9 +304,8 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     const test::BundlePieces p = test::make_pieces();
     TempDir dir("bundle");
     const auto file = dir / "e.glb";
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.cube_g = test::random_cube(4, 5);
-    b.cube_h = test::random_cube(4, 6);
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(4, 5), test::random_cube(4, 6)}}};
     write_bundle(file, b);
     const json good = test::glb_json(file);
     const std::string ext = "materials[0].extensions.SPECULA_lafortune";
@@ -389,7 +395,7 @@ TEST(Bundle, ErrorsNameTheFileAndTheField) {
     EXPECT_THROW((void)read_bundle(dir / "missing.glb"), InputError);
     // Writing an inconsistent bundle.
     Bundle bad = b;
-    bad.cube_h->rgb.pop_back();
+    term(bad, 0).h.texels.pop_back();
     EXPECT_THROW(write_bundle(dir / "bad.glb", bad), InputError);
     EXPECT_FALSE(std::filesystem::exists(dir / "bad.glb"));
 }
@@ -407,21 +413,20 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     if (std::system("command -v node >/dev/null 2>&1") != 0)
         GTEST_SKIP() << "node is not installed (tools/install-deps.sh installs nodejs and gltf-validator)";
     const test::BundlePieces p = test::make_pieces();
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.lobe_status = {"converged", "converged", "converged"};
-    b.cube_g = test::random_cube(8, 1);
-    b.cube_h = test::random_cube(8, 2);
-    b.extra_terms = {{test::random_cube(8, 3), test::random_cube(8, 4)}}; // version 2, cubeTerms
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.status = {"converged", "converged", "converged"};
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(8, 1), test::random_cube(8, 2)},
+                                                         {test::random_cube(8, 3), test::random_cube(8, 4)}}}; // version 2, cubeTerms
     TempDir dir("bundle");
     for (const int kind : {0, 1, 2, 3}) { // lobe; mirrored (version 3); warped (version 4); diffuse only
-        if (kind == 1) b.factor_param = FactorParam::Mirrored;
+        if (kind == 1) b.material.factorized->param = FactorParam::Mirrored;
         if (kind == 2) {
-            b.factor_param = FactorParam::Warped;
-            b.factor_warp = warp_for_lobe(*b.lobe).value();
+            b.material.factorized->param = FactorParam::Warped;
+            b.material.factorized->warp = warp_for_lobe(lobe_of(b)).value();
         }
         if (kind == 3) {
-            b.factor_param = FactorParam::Gshd;
-            b.lobe.reset();
+            b.material.factorized->param = FactorParam::Gshd;
+            b.material.specular.reset();
         }
         const auto file = dir / (kind == 0 ? "lobe.glb" : kind == 1 ? "mirrored.glb" : kind == 2 ? "warped.glb" : "diffuse.glb");
         write_bundle(file, b);
@@ -456,23 +461,23 @@ TEST(Bundle, LegacyBundlesReadExactlyAndRewriteByteForByte) {
         EXPECT_EQ(r.albedo.width, 3);
         EXPECT_EQ(r.albedo.height, 2);
         EXPECT_TRUE(same_bits(r.albedo.pixels, want.albedo.pixels));
-        ASSERT_TRUE(r.lobe.has_value());
-        EXPECT_EQ(r.lobe->cx, want.lobe->cx);
-        EXPECT_EQ(r.lobe->cz, want.lobe->cz);
-        EXPECT_EQ(r.lobe->n, want.lobe->n);
-        EXPECT_EQ(r.lobe_status, want.lobe_status);
-        ASSERT_TRUE(r.cube_g && r.cube_h);
-        EXPECT_EQ(r.cube_g->resolution, 1u);
-        EXPECT_EQ(r.cube_h->resolution, 2u);
-        EXPECT_TRUE(same_bits(r.cube_g->rgb, want.cube_g->rgb));
-        EXPECT_TRUE(same_bits(r.cube_h->rgb, want.cube_h->rgb));
-        ASSERT_EQ(r.extra_terms.size(), want.extra_terms.size());
-        for (std::size_t k = 0; k < r.extra_terms.size(); ++k) {
-            EXPECT_TRUE(same_bits(r.extra_terms[k].g.rgb, want.extra_terms[k].g.rgb));
-            EXPECT_TRUE(same_bits(r.extra_terms[k].h.rgb, want.extra_terms[k].h.rgb));
+        ASSERT_TRUE(r.material.specular.has_value());
+        EXPECT_EQ(lobe_of(r).cx, lobe_of(want).cx);
+        EXPECT_EQ(lobe_of(r).cz, lobe_of(want).cz);
+        EXPECT_EQ(lobe_of(r).n, lobe_of(want).n);
+        EXPECT_EQ(r.material.status, want.material.status);
+        ASSERT_TRUE(r.material.factorized.has_value());
+        EXPECT_EQ(term(r, 0).g.resolution, 1u);
+        EXPECT_EQ(term(r, 0).h.resolution, 2u);
+        EXPECT_TRUE(same_bits(term(r, 0).g.texels, term(want, 0).g.texels));
+        EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(want, 0).h.texels));
+        ASSERT_EQ(further_terms(r), further_terms(want));
+        for (std::size_t k = 1; k <= further_terms(r); ++k) {
+            EXPECT_TRUE(same_bits(term(r, k).g.texels, term(want, k).g.texels));
+            EXPECT_TRUE(same_bits(term(r, k).h.texels, term(want, k).h.texels));
         }
-        EXPECT_EQ(r.factor_param, want.factor_param);
-        EXPECT_EQ(r.factor_warp, want.factor_warp);
+        EXPECT_EQ(r.material.factorized->param, want.material.factorized->param);
+        EXPECT_EQ(r.material.factorized->warp, want.material.factorized->warp);
         EXPECT_EQ(r.info, want.info);
         ASSERT_TRUE(r.info["texels"].is_number_unsigned());
         EXPECT_EQ(r.info["texels"].get<std::uint64_t>(), 5000000000ull); // not narrowed to int
@@ -510,7 +515,7 @@ TEST(BundleGuard, JsonNestingInTheExtensionIsRefusedWithoutCrashing) {
     const test::BundlePieces p = test::make_pieces(3, 4);
     TempDir dir("bundle");
     const auto file = dir / "deep.glb";
-    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe));
+    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe)));
     const std::string deep = "\"deep\":" + std::string(100000, '[') + std::string(100000, ']') + ",";
     test::rewrite_glb_text(file, bundle_text_with(file, "\"info\":{", deep));
     expect_bundle_refusal(file, "materials[0].extensions.SPECULA_lafortune.info.deep", "deeper than 256");
@@ -520,7 +525,7 @@ TEST(BundleGuard, DuplicateKeyInTheExtensionIsRefused) {
     const test::BundlePieces p = test::make_pieces(3, 4);
     TempDir dir("bundle");
     const auto file = dir / "dup.glb";
-    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe));
+    write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe)));
     // Two versions: a reader keeping the first and one keeping the last would read different bundles.
     test::rewrite_glb_text(file, bundle_text_with(file, "\"SPECULA_lafortune\":{", "\"version\":4,"));
     expect_bundle_refusal(file, "materials[0].extensions.SPECULA_lafortune.version", "duplicate JSON key");
@@ -530,13 +535,13 @@ TEST(BundleGuard, RequiredExtensionsAreHonouredOrRefused) {
     const test::BundlePieces p = test::make_pieces(3, 4);
     TempDir dir("bundle");
     const auto file = dir / "req.glb";
-    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
+    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
     write_bundle(file, b);
     json doc = test::glb_json(file);
     doc["extensionsRequired"] = {"SPECULA_lafortune"}; // its own extension: honoured
     test::rewrite_glb_json(file, doc);
     const Bundle r = read_bundle(file);
-    ASSERT_TRUE(r.lobe.has_value());
+    ASSERT_TRUE(r.material.specular.has_value());
     EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
     doc["extensionsRequired"] = {"SPECULA_lafortune", "KHR_draco_mesh_compression"};
     test::rewrite_glb_json(file, doc);
@@ -548,9 +553,8 @@ TEST(BundleGuard, RequiredExtensionsAreHonouredOrRefused) {
 TEST(BundleGuard, ExternalBufferReadsTheSameAndStaysInItsFolder) {
     const test::BundlePieces p = test::make_pieces(3, 4);
     TempDir dir("bundle");
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, p.lobe);
-    b.cube_g = test::random_cube(4, 1);
-    b.cube_h = test::random_cube(4, 2);
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.material.factorized = FactorizedSpecular{.terms = {{test::random_cube(4, 1), test::random_cube(4, 2)}}};
     write_bundle(dir / "b.glb", b);
     const std::string glb = read_text_file(dir / "b.glb");
     std::uint32_t json_len = 0, bin_len = 0;
@@ -566,7 +570,7 @@ TEST(BundleGuard, ExternalBufferReadsTheSameAndStaysInItsFolder) {
     const Bundle r = read_bundle(file);
     EXPECT_TRUE(same_bits(r.mesh.positions, b.mesh.positions));
     EXPECT_TRUE(same_bits(r.albedo.pixels, b.albedo.pixels));
-    EXPECT_TRUE(same_bits(r.cube_h->rgb, b.cube_h->rgb));
+    EXPECT_TRUE(same_bits(term(r, 0).h.texels, term(b, 0).h.texels));
     doc["buffers"][0]["uri"] = "../b.bin";
     write_text_file(file, doc.dump());
     expect_bundle_refusal(file, "buffers[0].uri", "leaves the glTF file's folder");

@@ -11,9 +11,10 @@
 
 namespace specula::test {
 
-inline BundleCubeMap ramp_cube(std::uint32_t res, float start, float step) {
-    BundleCubeMap c{res, std::vector<float>(std::size_t{6} * res * res * 3)};
-    for (std::size_t i = 0; i < c.rgb.size(); ++i) c.rgb[i] = start + step * static_cast<float>(i);
+/// Float i of the cube-map (texel i / 3, channel i % 3) is start + step * i.
+inline CubeMap ramp_cube(std::uint32_t res, float start, float step) {
+    CubeMap c{res, std::vector<glm::vec3>(std::size_t{6} * res * res)};
+    for (std::size_t i = 0; i < 3 * c.texels.size(); ++i) c.texels[i / 3][static_cast<int>(i % 3)] = start + step * static_cast<float>(i);
     return c;
 }
 
@@ -28,15 +29,14 @@ inline Bundle legacy_bundle(int version) {
     for (std::size_t i = 0; i < b.albedo.pixels.size(); ++i) b.albedo.pixels[i] = 0.0625f * static_cast<float>(i);
     b.albedo.pixels[4] = 1.5f;                                       // above 1: the float copy keeps it
     b.albedo.pixels[5] = std::numeric_limits<float>::denorm_min();   // raw bits, not decimal
-    b.lobe = LafortuneRgb{{-0.9f, -0.8f, -0.7f}, {0.95f, 0.85f, 0.75f}, {24.0f, 30.0f, 36.5f}};
-    b.lobe_status = {"converged", "converged", "max_iterations"};
-    b.cube_g = ramp_cube(1, 0.5f, 0.125f);
-    b.cube_h = ramp_cube(2, 2.0f, -0.03125f);
+    b.material.specular = LafortuneRgb{{-0.9f, -0.8f, -0.7f}, {0.95f, 0.85f, 0.75f}, {24.0f, 30.0f, 36.5f}};
+    b.material.status = {"converged", "converged", "max_iterations"};
+    b.material.factorized = FactorizedSpecular{.terms = {{ramp_cube(1, 0.5f, 0.125f), ramp_cube(2, 2.0f, -0.03125f)}}};
     b.info = {{"specula_version", "legacy-fixture"}, {"texels", 5000000000ull}, {"summary", {{"psnr_db", 41.25}}}};
     if (version == 4) {
-        b.extra_terms = {{ramp_cube(1, -0.25f, 0.0625f), ramp_cube(2, 1.0f, 0.015625f)}};
-        b.factor_param = FactorParam::Warped;
-        b.factor_warp = glm::vec4(-1.0f, 0.5f, 0.75f, 1.25f);
+        b.material.factorized->terms.push_back({ramp_cube(1, -0.25f, 0.0625f), ramp_cube(2, 1.0f, 0.015625f)});
+        b.material.factorized->param = FactorParam::Warped;
+        b.material.factorized->warp = glm::vec4(-1.0f, 0.5f, 0.75f, 1.25f);
     }
     return b;
 }

@@ -96,7 +96,7 @@ TEST(Factorization, SeparableLobeIsExact) {
     // a constant lobe (N -> 0 limit: N = 1e-6, base > 0 everywhere) is separable: F = 1.
     const LafortuneRgb flat = gray(0.0f, 1.0f, 1e-6f);
     auto f = factorize_cpu(flat, {.grid_h = 8, .grid_d = 8, .keep_matrix = true});
-    EXPECT_LT(matrix_relative_rms(*f.matrix, f.decomposition), 1e-5);
+    EXPECT_LT(matrix_relative_rms(*f.matrix, f.grids[0]), 1e-5);
 }
 
 TEST(Factorization, ErrorDecreasesAsGridRefines) {
@@ -106,9 +106,9 @@ TEST(Factorization, ErrorDecreasesAsGridRefines) {
         double last = 1e9;
         for (uint32_t res : {6u, 12u, 24u}) {
             auto f = factorize_cpu(lobe, {.grid_h = res, .grid_d = res, .keep_matrix = true});
-            const DirectError e = direct_relative_rms(lobe, f.decomposition, &f.cube_g, &f.cube_h, 1u << 16);
+            const DirectError e = direct_relative_rms(lobe, f.grids[0], &f.cubes.terms[0].g, &f.cubes.terms[0].h, 1u << 16);
             std::printf("res %u: matrix %.4f direct(grid) %.4f direct(cube) %.4f\n", res,
-                        matrix_relative_rms(*f.matrix, f.decomposition), e.grid, e.cube);
+                        matrix_relative_rms(*f.matrix, f.grids[0]), e.grid, e.cube);
             EXPECT_LT(e.grid, last);
             last = e.grid;
         }
@@ -135,7 +135,7 @@ bool all_finite(const Factorization& f) {
             if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z)) return false;
         return true;
     };
-    return ok(f.decomposition.g) && ok(f.decomposition.h) && ok(f.cube_g.texels) && ok(f.cube_h.texels);
+    return ok(f.grids[0].g) && ok(f.grids[0].h) && ok(f.cubes.terms[0].g.texels) && ok(f.cubes.terms[0].h.texels);
 }
 
 const LafortuneRgb kExtreme[] = {
@@ -150,9 +150,9 @@ TEST(Factorization, NeverNaNOnCpu) {
     for (const LafortuneRgb& lobe : kExtreme) {
         auto f = factorize_cpu(lobe, {.grid_h = 10, .grid_d = 8, .keep_matrix = true});
         EXPECT_TRUE(all_finite(f));
-        const DirectError e = direct_relative_rms(lobe, f.decomposition, &f.cube_g, &f.cube_h, 4096);
+        const DirectError e = direct_relative_rms(lobe, f.grids[0], &f.cubes.terms[0].g, &f.cubes.terms[0].h, 4096);
         EXPECT_TRUE(std::isfinite(e.grid) && std::isfinite(e.cube));
-        EXPECT_TRUE(std::isfinite(matrix_relative_rms(*f.matrix, f.decomposition)));
+        EXPECT_TRUE(std::isfinite(matrix_relative_rms(*f.matrix, f.grids[0])));
     }
 }
 
@@ -170,9 +170,9 @@ TEST_F(FactorizationVulkan, NeverNaNAndMatchesCpuEndToEnd) {
     const LafortuneRgb pepsi = gray(-0.8962f, 0.7587f, 10.11f);
     const auto a = factorize_cpu(pepsi, {.grid_h = 16, .grid_d = 12});
     const auto b = vk.run(pepsi, {.grid_h = 16, .grid_d = 12});
-    for (const auto* pair : {&a.cube_g, &a.cube_h}) {
-        const Cubemap& ca = *pair;
-        const Cubemap& cb = pair == &a.cube_g ? b.cube_g : b.cube_h;
+    for (const auto* pair : {&a.cubes.terms[0].g, &a.cubes.terms[0].h}) {
+        const CubeMap& ca = *pair;
+        const CubeMap& cb = pair == &a.cubes.terms[0].g ? b.cubes.terms[0].g : b.cubes.terms[0].h;
         ASSERT_EQ(ca.texels.size(), cb.texels.size());
         double mx = 0.0, worst = 0.0;
         for (std::size_t i = 0; i < ca.texels.size(); ++i)
@@ -209,30 +209,30 @@ const PresetLobe kPresetLobes[] = {
 // (The thesis's GSHD, forced; the mirrored parametrization's figures are below.)
 TEST(FactorizationTerms, ErrorDecreasesWithKOnThePresetLobes) {
     for (const PresetLobe& l : kPresetLobes) {
-        const Factorization f = factorize_cpu(l.lobe, {.keep_matrix = true, .terms = kMaxTerms, .param = FactorParam::Gshd});
-        ASSERT_EQ(f.term_count(), kMaxTerms) << l.name;
-        ASSERT_EQ(f.terms.matrix_rms.size(), kMaxTerms) << l.name;
+        const Factorization f = factorize_cpu(l.lobe, {.keep_matrix = true, .terms = kMaxFactorTerms, .param = FactorParam::Gshd});
+        ASSERT_EQ(f.term_count(), kMaxFactorTerms) << l.name;
+        ASSERT_EQ(f.terms.matrix_rms.size(), kMaxFactorTerms) << l.name;
         EXPECT_TRUE(f.terms.forced);
         std::vector<const Decomposition*> grids;
         std::vector<double> direct;
-        for (uint32_t k = 0; k < kMaxTerms; ++k) {
-            grids.push_back(&f.grids(k));
+        for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
+            grids.push_back(&f.grids[k]);
             EXPECT_NEAR(matrix_relative_rms(*f.matrix, grids), f.terms.matrix_rms[k], 1e-12) << l.name;
             direct.push_back(direct_relative_rms(l.lobe, f, k + 1, 1u << 15).cube);
             if (k > 0) {
                 EXPECT_LT(f.terms.matrix_rms[k], f.terms.matrix_rms[k - 1]) << l.name << " K = " << k + 1;
                 EXPECT_LT(direct[k], direct[k - 1]) << l.name << " K = " << k + 1;
             }
-            EXPECT_EQ(f.g_cube(k).res, f.resolution.cube_g);
-            EXPECT_EQ(f.h_cube(k).res, f.resolution.cube_h);
+            EXPECT_EQ(f.cubes.terms[k].g.resolution, f.resolution.cube_g);
+            EXPECT_EQ(f.cubes.terms[k].h.resolution, f.resolution.cube_h);
         }
         EXPECT_LE(f.terms.matrix_rms.back(), 0.7 * f.terms.matrix_rms.front()) << l.name;
         EXPECT_LE(direct.back(), 0.8 * direct.front()) << l.name; // the grids' interpolation error stays
         // Term 1 is the thesis's: the same as a one-term factorization.
         const Factorization one = factorize_cpu(l.lobe, {.terms = 1, .param = FactorParam::Gshd});
         EXPECT_EQ(one.term_count(), 1u);
-        EXPECT_EQ(one.decomposition.g, f.decomposition.g);
-        EXPECT_EQ(one.cube_h.texels, f.cube_h.texels);
+        EXPECT_EQ(one.grids[0].g, f.grids[0].g);
+        EXPECT_EQ(one.cubes.terms[0].h.texels, f.cubes.terms[0].h.texels);
     }
 }
 
@@ -244,7 +244,7 @@ TEST(FactorizationTerms, AutomaticKMeetsTheTargetOrSaysItCannot) {
     for (const PresetLobe& l : kPresetLobes) {
         const Factorization f = factorize_cpu(l.lobe, {.param = FactorParam::Mirrored});
         const TermChoice& t = f.terms;
-        ASSERT_EQ(t.matrix_rms.size(), kMaxTerms) << l.name;
+        ASSERT_EQ(t.matrix_rms.size(), kMaxFactorTerms) << l.name;
         EXPECT_FALSE(t.forced);
         EXPECT_EQ(f.term_count(), t.count);
         const auto hit = std::find_if(t.matrix_rms.begin(), t.matrix_rms.end(), [&](double e) { return e <= t.target; });
@@ -263,9 +263,9 @@ TEST(FactorizationTerms, AutomaticKMeetsTheTargetOrSaysItCannot) {
     EXPECT_LE(wp.terms.matrix_rms[1], 0.1);
     // Forcing K = 1 is the thesis.
     const Factorization forced = factorize_cpu(kPresetLobes[0].lobe, {.terms = 1});
-    EXPECT_TRUE(forced.extra.empty());
+    EXPECT_EQ(forced.cubes.terms.size(), 1u); // no further terms
     EXPECT_NE(forced.terms.reason.find("forced K = 1"), std::string::npos) << forced.terms.reason;
-    EXPECT_THROW((void)factorize_cpu(kPresetLobes[0].lobe, {.terms = kMaxTerms + 1}), Error);
+    EXPECT_THROW((void)factorize_cpu(kPresetLobes[0].lobe, {.terms = kMaxFactorTerms + 1}), Error);
     EXPECT_THROW((void)factorize_cpu(kPresetLobes[0].lobe, {.max_terms = 0}), Error);
 }
 
@@ -298,11 +298,11 @@ TEST_F(FactorizationVulkan, SeveralTermsMatchCpuEndToEnd) {
         ASSERT_EQ(b.terms.matrix_rms.size(), 3u);
         for (std::size_t k = 0; k < 3; ++k) EXPECT_NEAR(a.terms.matrix_rms[k], b.terms.matrix_rms[k], 1e-4);
         double mx = 0.0;
-        for (const glm::vec3& t : a.cube_g.texels) mx = std::max<double>(mx, glm::length(t));
+        for (const glm::vec3& t : a.cubes.terms[0].g.texels) mx = std::max<double>(mx, glm::length(t));
         for (uint32_t k = 1; k < 3; ++k)
             for (const bool g : {true, false}) {
-                const Cubemap& ca = g ? a.g_cube(k) : a.h_cube(k);
-                const Cubemap& cb = g ? b.g_cube(k) : b.h_cube(k);
+                const CubeMap& ca = g ? a.cubes.terms[k].g : a.cubes.terms[k].h;
+                const CubeMap& cb = g ? b.cubes.terms[k].g : b.cubes.terms[k].h;
                 ASSERT_EQ(ca.texels.size(), cb.texels.size());
                 double scale = 0.0, worst = 0.0;
                 for (std::size_t i = 0; i < ca.texels.size(); ++i)
@@ -387,7 +387,7 @@ TEST(MirroredGshd, PhongLobeIsRankOneMirroredNotPlain) {
             if (hi > 1e-6) spread = std::max(spread, (hi - lo) / hi);
         }
         const double rank1 = best_rank1_rms(m, 30);
-        const Factorization f = factorize_cpu(phong, {.grid_h = 16, .grid_d = 16, .terms = kMaxTerms, .param = param});
+        const Factorization f = factorize_cpu(phong, {.grid_h = 16, .grid_d = 16, .terms = kMaxFactorTerms, .param = param});
         std::printf("%s: column spread %.3g, best rank-1 relative RMS %.3g, factorization K = 1..4: %.3f %.3f %.3f %.3f\n",
                     to_string(param), spread, rank1, f.terms.matrix_rms[0], f.terms.matrix_rms[1], f.terms.matrix_rms[2],
                     f.terms.matrix_rms[3]);
@@ -414,8 +414,8 @@ TEST(MirroredGshd, ImprovesTheCanLobe) {
     const LafortuneRgb can = kPresetLobes[0].lobe;
     const Factorization plain = factorize_cpu(can, {.param = FactorParam::Gshd});
     const Factorization mirrored = factorize_cpu(can, {.param = FactorParam::Mirrored});
-    EXPECT_EQ(plain.param, FactorParam::Gshd);
-    EXPECT_EQ(mirrored.param, FactorParam::Mirrored);
+    EXPECT_EQ(plain.cubes.param, FactorParam::Gshd);
+    EXPECT_EQ(mirrored.cubes.param, FactorParam::Mirrored);
     EXPECT_TRUE(mirrored.param_choice.forced);
     EXPECT_FALSE(mirrored.param_choice.of(FactorParam::Gshd).computed);
     const ParamCandidate& a = plain.param_choice.of(FactorParam::Gshd);
@@ -427,7 +427,7 @@ TEST(MirroredGshd, ImprovesTheCanLobe) {
     EXPECT_NEAR(direct_relative_rms(can, mirrored, 0, kParamChoicePairs).cube, b.direct_rms, 1e-12);
     // The automatic choice keeps the warped one (tests below).
     const Factorization chosen = factorize_cpu(can, {});
-    EXPECT_EQ(chosen.param, FactorParam::Warped) << chosen.param_choice.reason;
+    EXPECT_EQ(chosen.cubes.param, FactorParam::Warped) << chosen.param_choice.reason;
     EXPECT_FALSE(chosen.param_choice.forced);
 }
 
@@ -480,10 +480,10 @@ TEST(WarpedGshd, RadialFactorTimesNormalizedLobeIsTheLobe) {
                                   gray(0.5f, -1.0f, 3.0f)}) {
         for (int i = 0; i < 2000; ++i) {
             const glm::dvec3 u = random_hemisphere(rng), v = random_hemisphere(rng);
-            const double f = lafortune_eval_f64(l.cx.x, l.cz.x, l.n.x, u, v);
-            const double g = lafortune_radial_f64(l.cx.x, l.cz.x, l.n.x, u) * lafortune_normalized_f64(l.cx.x, l.cz.x, l.n.x, u, v);
+            const double f = shared::f64::lafortune_eval(l.cx.x, l.cz.x, l.n.x, u, v);
+            const double g = shared::f64::lafortune_radial(l.cx.x, l.cz.x, l.n.x, u) * shared::f64::lafortune_normalized(l.cx.x, l.cz.x, l.n.x, u, v);
             EXPECT_NEAR(g, f, 1e-12 * (1.0 + f));
-            EXPECT_LE(lafortune_normalized_f64(l.cx.x, l.cz.x, l.n.x, u, v), 1.0);
+            EXPECT_LE(shared::f64::lafortune_normalized(l.cx.x, l.cz.x, l.n.x, u, v), 1.0);
         }
     }
 }
@@ -519,8 +519,8 @@ TEST(WarpedGshd, EveryLafortuneLobeIsRankOnePerChannel) {
         const Factorization f = factorize_cpu(l.lobe, {.grid_h = 12, .grid_d = 16, .keep_matrix = true,
                                                       .param = FactorParam::Warped});
         std::printf("%s: warp (%g, %g, %g, %g); K = 1 matrix RMS %.4f normalized decomposition alone, %.2g with ALS\n",
-                    l.name, f.warp.x, f.warp.y, f.warp.z, f.warp.w, plain_term.terms.matrix_rms[0], f.terms.matrix_rms[0]);
-        EXPECT_EQ(f.warp, *warp);
+                    l.name, f.cubes.warp.x, f.cubes.warp.y, f.cubes.warp.z, f.cubes.warp.w, plain_term.terms.matrix_rms[0], f.terms.matrix_rms[0]);
+        EXPECT_EQ(f.cubes.warp, *warp);
         EXPECT_EQ(f.term_count(), 1u) << f.terms.reason;
         EXPECT_GT(plain_term.terms.matrix_rms[0], 0.1);
         const bool horizon_peak = l.lobe.cz.x < 0.0f;
@@ -529,7 +529,7 @@ TEST(WarpedGshd, EveryLafortuneLobeIsRankOnePerChannel) {
         if (horizon_peak) continue;
         for (uint32_t c = 0; c < 3; ++c) {
             float lo = 1e30f, hi = 0.0f;
-            for (const glm::vec3& g : f.decomposition.g) lo = std::min(lo, g[c]), hi = std::max(hi, g[c]);
+            for (const glm::vec3& g : f.grids[0].g) lo = std::min(lo, g[c]), hi = std::max(hi, g[c]);
             EXPECT_LT(hi - lo, 1e-4f * hi) << l.name << ": G is flat";
         }
     }
@@ -544,7 +544,7 @@ TEST(WarpedGshd, EveryLafortuneLobeIsRankOnePerChannel) {
 TEST(WarpedGshd, AutomaticChoiceKeepsWarpedForThePresets) {
     for (const PresetLobe& l : kPresetLobes) {
         const Factorization f = factorize_cpu(l.lobe, {});
-        EXPECT_EQ(f.param, FactorParam::Warped) << l.name << ": " << f.param_choice.reason;
+        EXPECT_EQ(f.cubes.param, FactorParam::Warped) << l.name << ": " << f.param_choice.reason;
         const double e = f.param_choice.of(FactorParam::Warped).direct_rms;
         const bool good = e <= kWarpedGoodEnough;
         std::printf("%s: %s\n", l.name, f.param_choice.reason.c_str());
@@ -558,13 +558,13 @@ TEST(WarpedGshd, AutomaticChoiceKeepsWarpedForThePresets) {
         if (good) {
             EXPECT_NE(f.param_choice.reason.find("left out"), std::string::npos) << f.param_choice.reason;
         }
-        EXPECT_EQ(f.decomposition.param, f.param);
-        EXPECT_EQ(f.decomposition.warp, f.warp);
+        EXPECT_EQ(f.grids[0].param, f.cubes.param);
+        EXPECT_EQ(f.grids[0].warp, f.cubes.warp);
         EXPECT_EQ(f.term_count(), 1u);
         EXPECT_LT(e, l.lobe.n.x < 100.0f ? 0.01 : 0.08) << l.name;
     }
     const Factorization flat = factorize_cpu(gray(0.0f, 1.0f, 8.0f), {.grid_h = 8, .grid_d = 8});
-    EXPECT_EQ(flat.param, FactorParam::Gshd) << flat.param_choice.reason;
+    EXPECT_EQ(flat.cubes.param, FactorParam::Gshd) << flat.param_choice.reason;
     EXPECT_FALSE(flat.param_choice.of(FactorParam::Warped).computed);
     EXPECT_NE(flat.param_choice.reason.find("warped not offered"), std::string::npos) << flat.param_choice.reason;
     EXPECT_THROW((void)factorize_cpu(gray(0.0f, 1.0f, 8.0f), {.grid_h = 8, .grid_d = 8, .param = FactorParam::Warped}), Error);
@@ -596,8 +596,8 @@ TEST(MirroredGshd, DefaultResolutionSwapsTheAxes) {
     const LafortuneRgb mirror = gray(-1.0f, 1.0f, 1000.0f);
     const Factorization f = factorize_cpu(mirror, {.max_terms = 2});
     std::printf("mirror N = 1000: %s\n", f.param_choice.reason.c_str());
-    EXPECT_NE(f.param, FactorParam::Gshd) << f.param_choice.reason;
-    EXPECT_EQ(f.resolution.grid_d, default_resolution(mirror, f.param).grid_d);
+    EXPECT_NE(f.cubes.param, FactorParam::Gshd) << f.param_choice.reason;
+    EXPECT_EQ(f.resolution.grid_d, default_resolution(mirror, f.cubes.param).grid_d);
 }
 
 } // namespace

@@ -1,6 +1,7 @@
-// The patchwork atlas (engine/geometry/atlas.h): bilinear filtering never
-// crosses patches, shared edges agree, patch sizes follow the footprint and
-// the budget clips as documented.
+// The patchwork atlas (engine/geometry/atlas.h, AtlasMode::Patchwork, the thesis's
+// reference): bilinear filtering never crosses patches, shared edges agree, patch sizes
+// follow the footprint and the budget clips as documented. (The chart atlas, the default:
+// chart_atlas_test.cpp.)
 #include "geometry/atlas.h"
 #include "geometry/particles.h"
 
@@ -27,6 +28,12 @@ std::vector<Camera> ring_of_cameras(int count, double distance, int size = 256) 
         cams.push_back(make_camera({distance * std::cos(a), 0.7 * distance * std::sin(3.0 * a), distance * std::sin(a)}, {0, 0, 0}, size));
     }
     return cams;
+}
+
+/// The patchwork, with the budget and other options of `o`.
+AtlasOptions patchwork(AtlasOptions o = {}) {
+    o.mode = AtlasMode::Patchwork;
+    return o;
 }
 
 /// Texel coordinates of patch point (s, t) of a triangle.
@@ -71,7 +78,7 @@ TEST(Atlas, BilinearInsideAPatchReadsOnlyItsOwnTexels) {
     // Patch legs from 1 texel up, both halves of a block, blocks of different sizes side by side.
     const Mesh mesh = test::sphere(1.0f, 8, 12);
     for (const int size : {64, 256, 1024}) {
-        const Atlas atlas = build_atlas(mesh, ring_of_cameras(3, 4.0, size));
+        const Atlas atlas = build_atlas(mesh, ring_of_cameras(3, 4.0, size), patchwork());
         SCOPED_TRACE("image size " + std::to_string(size) + ": " + describe(atlas.summary));
         expect_no_bleeding(atlas, 0.0);
         // The footprints keep 0.25 texel from every foreign texel: survive GPU sub-texel rounding.
@@ -84,7 +91,7 @@ TEST(Atlas, SmallestPatchesDoNotBleedEither) {
     for (std::uint32_t leg : {1u, 2u, 3u}) {
         AtlasOptions o;
         o.min_patch = o.max_patch = leg;
-        const Atlas atlas = build_atlas(mesh, {}, o);
+        const Atlas atlas = build_atlas(mesh, {}, patchwork(o));
         for (const PatchPlacement& p : atlas.patches) EXPECT_EQ(p.size, leg);
         expect_no_bleeding(atlas, 0.2);
     }
@@ -94,7 +101,7 @@ TEST(Atlas, BlocksHoldTwoHalvesSeparatedAcrossTheDiagonal) {
     const Mesh mesh = test::box({0, 0, 0}, {1, 1, 1});
     AtlasOptions o;
     o.min_patch = o.max_patch = 6;
-    const Atlas atlas = build_atlas(mesh, {}, o);
+    const Atlas atlas = build_atlas(mesh, {}, patchwork(o));
     ASSERT_EQ(atlas.summary.blocks, 6u);
     std::map<std::pair<std::uint32_t, std::uint32_t>, int> halves;
     for (const PatchPlacement& p : atlas.patches) halves[{p.block_x, p.block_y}] += 1 << p.half;
@@ -110,7 +117,7 @@ TEST(Atlas, BlocksHoldTwoHalvesSeparatedAcrossTheDiagonal) {
 
 TEST(Atlas, CornerUvsAreNormalizedCornerTexels) {
     const Mesh mesh = test::sphere(1.0f, 6, 8);
-    const Atlas atlas = build_atlas(mesh, ring_of_cameras(2, 3.0));
+    const Atlas atlas = build_atlas(mesh, ring_of_cameras(2, 3.0), patchwork());
     ASSERT_EQ(atlas.corner_uv.size(), 3 * mesh.triangles.size());
     for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t)
         for (int k = 0; k < 3; ++k) {
@@ -135,7 +142,7 @@ TEST(Atlas, CornerUvsAreNormalizedCornerTexels) {
 
 TEST(Atlas, SharedEdgesMapToTheSamePointsFromBothSides) {
     const Mesh mesh = test::sphere(1.0f, 10, 14); // shared vertex indices
-    const Atlas atlas = build_atlas(mesh, ring_of_cameras(4, 3.0));
+    const Atlas atlas = build_atlas(mesh, ring_of_cameras(4, 3.0), patchwork());
     std::map<std::pair<unsigned, unsigned>, std::vector<std::pair<std::uint32_t, int>>> edges; // -> (triangle, local edge)
     for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t)
         for (int k = 0; k < 3; ++k) {
@@ -180,7 +187,7 @@ TEST(Atlas, PatchSizeFollowsThePixelFootprint) {
     EXPECT_NEAR(pixels[0], 0.5 * 32.0 * 32.0, 0.5 * 32.0 * 32.0 * 0.02);
     EXPECT_NEAR(pixels[0] / pixels[2], 4.0, 0.05);
 
-    const Atlas atlas = build_atlas(mesh, cams);
+    const Atlas atlas = build_atlas(mesh, cams, patchwork());
     EXPECT_EQ(atlas.summary.size_source, "cameras");
     EXPECT_FALSE(atlas.summary.budget_clipped);
     // n^2 / 2 texels = pixels (texels_per_pixel 1): leg = sqrt(2 * pixels).
@@ -192,12 +199,12 @@ TEST(Atlas, PatchSizeFollowsThePixelFootprint) {
     // A texel per 4 pixels halves the legs.
     AtlasOptions coarse;
     coarse.texels_per_pixel = 0.25;
-    const Atlas half = build_atlas(mesh, cams, coarse);
+    const Atlas half = build_atlas(mesh, cams, patchwork(coarse));
     EXPECT_NEAR(double(half.patches[0].size), atlas.patches[0].size / 2.0, 1.0);
 
     // A triangle no camera sees gets the minimum patch and is counted.
     const std::vector<Camera> behind = {make_camera({0, 0, -5}, {0, 0, 0}, 512, 400.0)};
-    const Atlas unseen = build_atlas(mesh, behind);
+    const Atlas unseen = build_atlas(mesh, behind, patchwork());
     EXPECT_EQ(unseen.summary.triangles_seen_by_no_camera, 4u);
     for (const PatchPlacement& p : unseen.patches) EXPECT_EQ(p.size, 1u);
 }
@@ -205,7 +212,7 @@ TEST(Atlas, PatchSizeFollowsThePixelFootprint) {
 TEST(Atlas, BudgetScalesAllPatchesDownAndSaysSo) {
     const Mesh mesh = four_triangles(0.4f, 0.2f);
     const std::vector<Camera> cams = {make_camera({0, 0, 5}, {0, 0, 0}, 512, 400.0)};
-    const Atlas free = build_atlas(mesh, cams);
+    const Atlas free = build_atlas(mesh, cams, patchwork());
     ASSERT_FALSE(free.summary.budget_clipped);
     EXPECT_EQ(free.summary.budget_scale, 1.0);
     EXPECT_TRUE(free.summary.notes.empty());
@@ -213,7 +220,7 @@ TEST(Atlas, BudgetScalesAllPatchesDownAndSaysSo) {
     AtlasOptions tight;
     tight.max_width = 40;
     tight.max_height = 40;
-    const Atlas clipped = build_atlas(mesh, cams, tight);
+    const Atlas clipped = build_atlas(mesh, cams, patchwork(tight));
     EXPECT_TRUE(clipped.summary.budget_clipped);
     EXPECT_LT(clipped.summary.budget_scale, 1.0);
     EXPECT_LE(clipped.width, 40u);
@@ -229,14 +236,14 @@ TEST(Atlas, BudgetScalesAllPatchesDownAndSaysSo) {
 
     AtlasOptions impossible;
     impossible.max_width = impossible.max_height = 8;
-    EXPECT_THROW((void)build_atlas(test::sphere(1.0f, 20, 20), cams, impossible), Error);
+    EXPECT_THROW((void)build_atlas(test::sphere(1.0f, 20, 20), cams, patchwork(impossible)), Error);
 }
 
 TEST(Atlas, WithoutCamerasPatchAreaFollowsSurfaceArea) {
     const Mesh mesh = four_triangles(0.4f, 0.2f);
     AtlasOptions o;
     o.max_width = o.max_height = 256;
-    const Atlas atlas = build_atlas(mesh, {}, o);
+    const Atlas atlas = build_atlas(mesh, {}, patchwork(o));
     EXPECT_EQ(atlas.summary.size_source, "surface area");
     EXPECT_FALSE(atlas.summary.budget_clipped);
     EXPECT_LE(atlas.width, 256u);
@@ -248,7 +255,7 @@ TEST(Atlas, WithoutCamerasPatchAreaFollowsSurfaceArea) {
 
 TEST(Atlas, SummaryCountsTexels) {
     const Mesh mesh = test::sphere(1.0f, 8, 12);
-    const Atlas atlas = build_atlas(mesh, ring_of_cameras(3, 4.0));
+    const Atlas atlas = build_atlas(mesh, ring_of_cameras(3, 4.0), patchwork());
     const AtlasSummary& s = atlas.summary;
     std::size_t owned = 0;
     for (std::uint32_t o : atlas.owner) owned += o != Atlas::kEmpty;

@@ -1,5 +1,6 @@
 // Surface particles (engine/geometry/particles.h): eq. 3.2 / 3.3, one per
-// owned texel, gutters on the triangle's boundary, the appendix-B frame.
+// owned texel, gutters on the triangle's boundary, the appendix-B frame; on the
+// patchwork atlas (the chart atlas's particles: chart_atlas_test.cpp).
 #include "geometry/particles.h"
 
 #include "test_meshes.h"
@@ -22,7 +23,7 @@ TEST(Particles, PositionsAndNormalsFollowEq32And33) {
     Mesh mesh = test::sphere(1.0f, 8, 10);
     for (std::size_t i = 0; i < mesh.normals.size(); ++i)
         mesh.normals[i] = glm::normalize(mesh.normals[i] + 0.2f * glm::vec3(std::sin(float(i)), std::cos(3.0f * float(i)), 0.0f));
-    const Atlas atlas = build_atlas(mesh, two_cameras());
+    const Atlas atlas = build_atlas(mesh, two_cameras(), {.mode = AtlasMode::Patchwork});
     const ParticleSet set = build_particles(mesh, atlas);
     ASSERT_FALSE(set.particles.empty());
     for (const Particle& p : set.particles) {
@@ -47,7 +48,7 @@ TEST(Particles, PositionsAndNormalsFollowEq32And33) {
 
 TEST(Particles, OneParticlePerOwnedTexel) {
     const Mesh mesh = test::sphere(1.0f, 8, 10);
-    const Atlas atlas = build_atlas(mesh, two_cameras());
+    const Atlas atlas = build_atlas(mesh, two_cameras(), {.mode = AtlasMode::Patchwork});
     const ParticleSet set = build_particles(mesh, atlas);
     EXPECT_EQ(set.particles.size(), atlas.summary.interior_texels + atlas.summary.gutter_texels);
     EXPECT_EQ(set.interior, atlas.summary.interior_texels);
@@ -66,7 +67,7 @@ TEST(Particles, OneParticlePerOwnedTexel) {
 
 TEST(Particles, GutterParticlesLieOnTheTriangleBoundary) {
     const Mesh mesh = test::sphere(1.0f, 8, 10);
-    const ParticleSet set = build_particles(mesh, build_atlas(mesh, two_cameras()));
+    const ParticleSet set = build_particles(mesh, build_atlas(mesh, two_cameras(), {.mode = AtlasMode::Patchwork}));
     std::size_t gutters = 0;
     for (const Particle& p : set.particles) {
         if (!p.is_gutter()) continue;
@@ -95,7 +96,7 @@ TEST(Particles, FallsBackToTheFaceNormalWhenTheBlendVanishes) {
 
 TEST(Particles, TangentFrameHasTheNormalAsZ) {
     const Mesh mesh = test::sphere(1.0f, 6, 8);
-    const ParticleSet set = build_particles(mesh, build_atlas(mesh, two_cameras()));
+    const ParticleSet set = build_particles(mesh, build_atlas(mesh, two_cameras(), {.mode = AtlasMode::Patchwork}));
     for (const Particle& p : set.particles) {
         const glm::vec3 z = p.to_local(p.n());
         EXPECT_NEAR(z.z, 1.0f, 1e-5f);

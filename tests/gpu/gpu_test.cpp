@@ -7,6 +7,7 @@
 #include "vulkan_env.h"
 
 #include "test/dispatch_probe.comp.h"
+#include "test/dispatch_probe.h"
 
 #include <gtest/gtest.h>
 
@@ -20,11 +21,7 @@ namespace {
 
 using test::VulkanTest;
 
-struct ProbePush {
-    DispatchHeader dispatch;
-    uint32_t tag = 0;
-    uint32_t pad = 0;
-};
+using shared::ProbePush; // shaders/test/dispatch_probe.h
 
 uint32_t probe_value(uint32_t e, uint32_t tag) { return e * 2654435761u + tag; }
 

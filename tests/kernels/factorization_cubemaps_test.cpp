@@ -62,8 +62,8 @@ TEST_F(CubemapsConformance, VulkanMatchesReference) {
         for (int kind = 0; kind < 2; ++kind) {
             const auto grid = kind == 0 ? random_grid(s.grid, s.cube) : linear_grid(s.grid);
             const CubemapInputs in{.grid = grid, .grid_res = s.grid, .cube_res = s.cube};
-            const Cubemap ref = cubemaps_cpu(in);
-            const Cubemap vk = kernel.run(in);
+            const CubeMap ref = cubemaps_cpu(in);
+            const CubeMap vk = kernel.run(in);
             ASSERT_EQ(vk.texels.size(), ref.texels.size());
             double max_abs = 0.0;
             for (const auto& v : grid) max_abs = std::max<double>(max_abs, glm::max(v.x, glm::max(v.y, v.z)));
@@ -108,13 +108,13 @@ TEST(Cubemaps, LookupAlongGridDirectionsReproducesGrid) {
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(v[c], grid[i][c], 1e-6 * grid[i][c] + 1e-7) << "cell " << i;
     }
     const auto lin = linear_grid(res);
-    const Cubemap cube = cubemaps_cpu({.grid = lin, .grid_res = res, .cube_res = 24});
+    const CubeMap cube = cubemaps_cpu({.grid = lin, .grid_res = res, .cube_res = 24});
     const double inner = 1.0 - 1.0 / res; // outside this the lookup clamps to the edge cells
     std::size_t checked = 0;
     for (uint32_t f = 0; f < 6; ++f)
-        for (uint32_t r = 0; r < cube.res; ++r)
-            for (uint32_t c = 0; c < cube.res; ++c) {
-                const glm::dvec3 dir = shared::f64::cube_texel_dir(f, c, r, cube.res);
+        for (uint32_t r = 0; r < cube.resolution; ++r)
+            for (uint32_t c = 0; c < cube.resolution; ++c) {
+                const glm::dvec3 dir = shared::f64::cube_texel_dir(f, c, r, cube.resolution);
                 if (dir.z <= 0.0) continue;
                 const glm::dvec2 e = shared::f64::hemi_oct_encode(dir);
                 if (std::abs(e.x) > inner || std::abs(e.y) > inner) continue;

@@ -90,7 +90,7 @@ TEST_F(ResidualTermKernel, MatchesReferenceOnPresetLobes) {
                                                                        glm::vec3(1.1162f, 1.11f, 1.105f),
                                                                        glm::vec3(18.09f, 18.5f, 18.9f)}}}) {
         const BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = 16, .res_d = 12});
-        check(ctx(), m, kMaxTerms, name);
+        check(ctx(), m, kMaxFactorTerms, name);
     }
 }
 
@@ -141,7 +141,7 @@ TEST_F(ResidualTermKernel, ValidatesItsInputs) {
     const BrdfMatrix m = brdf_matrix_cpu({.lobe = gray(-1.0f, 1.0f, 5.0f), .res_h = 4, .res_d = 4});
     const Decomposition first = normalized_decomposition_cpu({.matrix = &m});
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = &first, .terms = 1}), Error);
-    EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = &first, .terms = kMaxTerms + 1}), Error);
+    EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = &first, .terms = kMaxFactorTerms + 1}), Error);
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = nullptr, .terms = 2}), Error);
     const BrdfMatrix other = brdf_matrix_cpu({.lobe = gray(-1.0f, 1.0f, 5.0f), .res_h = 5, .res_d = 4});
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &other, .first = &first, .terms = 2}), Error);

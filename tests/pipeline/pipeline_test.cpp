@@ -48,7 +48,7 @@ TEST(Reconstruct, ConvexSphereSkipsOcclusionRaysAndSaysWhy) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "sphere");
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     const ReconstructResult r = reconstruct(c);
     EXPECT_TRUE(left_out_mentions(r.report, "occlusion rays"));
     EXPECT_TRUE(r.report["visibility"]["convex"].get<bool>());
@@ -61,7 +61,7 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "can");
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     const ReconstructResult r = reconstruct(c);
     ASSERT_TRUE(fs::exists(c.out_dir / "albedo.exr"));
     ASSERT_TRUE(fs::exists(c.out_dir / "albedo.png"));
@@ -113,13 +113,13 @@ TEST(Reconstruct, VulkanAndCpuBackendsAgree) {
     ReconstructConfig c;
     c.capture = capture;
     c.out_dir = dir / "cpu";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     // One pass: the joint rounds subtract each backend's own fitted lobe, and a fit moves with
     // float-level changes of its samples, so later rounds compare two lobes, not two solvers.
     c.joint_rounds = 0;
     (void)reconstruct(c);
     c.out_dir = dir / "vk";
-    c.backend = LambertBackend::Vulkan;
+    c.backend = Backend::Vulkan;
     const ReconstructResult vk = reconstruct(c);
     EXPECT_EQ(vk.report["device"]["validation_messages"].get<std::size_t>(), 0u);
     const Image a = read_image(dir / "cpu" / "albedo.exr", ColorSpace::Linear);
@@ -146,7 +146,7 @@ TEST(Reconstruct, SpecularStageReportsLobeInGroundTruthShape) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "can");
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.specular = SpecularMode::On;
     c.max_fit_samples = 20000;
     const ReconstructResult r = reconstruct(c);
@@ -172,7 +172,7 @@ TEST(Reconstruct, SpecularOffIsLeftOutAndSaysWhy) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "sphere", /*lambertian=*/true);
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.specular = SpecularMode::Off;
     const ReconstructResult r = reconstruct(c);
     EXPECT_TRUE(r.report["specular"].is_null());
@@ -184,7 +184,7 @@ TEST(Reconstruct, LambertianSkipsTheSpecularFitWithAutoAndSaysWhy) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "sphere", /*lambertian=*/true);
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     const ReconstructResult r = reconstruct(c);
     const nlohmann::json& s = r.report["specular"];
     EXPECT_FALSE(s["energy"]["has_specular"].get<bool>());
@@ -220,7 +220,7 @@ double mean_abs_difference(const fs::path& a_path, const fs::path& b_path) {
 // small. The sphere's checker has sharp albedo edges; the solve reads each particle
 // bilinearly from its best view and the renderer reads the atlas bilinearly again, so the
 // edges come back as ramps that the held-out views see at another phase. The albedo
-// refinement (pipeline/albedo_refine.h) corrects them with every view's sampling.
+// refinement (refine/albedo_refine.h) corrects them with every view's sampling.
 // 128 px, 12 views x 4 lights, 2 test views x 2 lights, png16. Measured (lavapipe): test
 // masked PSNR 41.75 dB, Q1 99.18 without the refinement (the pipeline before it), 43.60 dB,
 // Q1 99.34 with the planner's 2 rounds. The thresholds lie between the two.
@@ -237,7 +237,7 @@ TEST(Reconstruct, AlbedoRefinementSharpensEdgesForHeldOutViews) {
     (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("sphere")), dir / "sphere", o);
     ReconstructConfig c;
     c.capture = dir / "sphere";
-    c.backend = LambertBackend::Cpu; // on lavapipe the reference is the faster solve
+    c.backend = Backend::Cpu; // on lavapipe the reference is the faster solve
     c.evaluate_train = false;
     c.write_sheets = false;
     c.write_html = false;
@@ -269,7 +269,7 @@ TEST(Planner, ConvexSphereSkipsRaysAndForcingThemChangesNothing) {
     const fs::path capture = make_capture(dir, "sphere");
     ReconstructConfig c;
     c.capture = capture;
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.out_dir = dir / "auto";
     const ReconstructResult a = reconstruct(c);
     c.out_dir = dir / "forced";
@@ -315,7 +315,7 @@ TEST(Planner, LambertianLeavesSpecularOutAndForcingItChangesLittle) {
     const fs::path capture = make_capture(dir, "sphere", /*lambertian=*/true);
     ReconstructConfig c;
     c.capture = capture;
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.out_dir = dir / "auto";
     const ReconstructResult a = reconstruct(c);
     c.out_dir = dir / "forced";
@@ -365,7 +365,7 @@ TEST(Planner, NearMirrorLobeGetsAFinerFactorizationGrid) {
     ReconstructConfig c;
     c.capture = dir / "mirror";
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.specular = SpecularMode::On;
     c.evaluate = false;
     const ReconstructResult r = reconstruct(c);
@@ -401,7 +401,7 @@ TEST(Planner, EveryDecisionIsInTheReport) {
     ReconstructConfig c;
     c.capture = make_capture(dir, "can");
     c.out_dir = dir / "out";
-    c.backend = LambertBackend::Cpu;
+    c.backend = Backend::Cpu;
     c.evaluate = false;
     const ReconstructResult r = reconstruct(c);
     for (const char* name : {"occlusion_rays", "diffuse_mode", "atlas", "specular_stages", "factorization_grid"}) {

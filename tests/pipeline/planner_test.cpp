@@ -98,6 +98,36 @@ TEST(Planner, DiffuseModeNeedsNonCoplanarLights) {
     EXPECT_NE(forced.reason.find("would choose albedo"), std::string::npos) << forced.reason;
 }
 
+TEST(Planner, AtlasDecisionNamesTheModeAndCountsPatchworkAsForced) {
+    AtlasSummary charts;
+    charts.mode = "charts";
+    charts.size_source = "cameras";
+    charts.width = 454;
+    charts.height = 355;
+    charts.charts = 49;
+    charts.seam_edges = 1125;
+    charts.mesh_vertices = 14744;
+    charts.atlas_vertices = 15915;
+    const PlanDecision automatic = decide_atlas(charts, AtlasOptions{}, 125889, 10.0);
+    EXPECT_FALSE(automatic.forced);
+    EXPECT_EQ(automatic.value.rfind("charts 454x355 (49 charts, 1125 seam edges)", 0), 0u) << automatic.value;
+    EXPECT_EQ(automatic.detail["mode"], "charts");
+    EXPECT_EQ(automatic.detail["charts"].get<int>(), 49);
+    EXPECT_EQ(automatic.detail["vertices"]["atlas"].get<int>(), 15915);
+    EXPECT_NE(automatic.reason.find("15915 in the bundle"), std::string::npos) << automatic.reason;
+    EXPECT_TRUE(automatic.avoided_seconds.has_value());
+
+    AtlasSummary patchwork = charts;
+    patchwork.mode = "patchwork";
+    patchwork.charts = patchwork.seam_edges = 0;
+    patchwork.atlas_vertices = 86400;
+    const PlanDecision forced = decide_atlas(patchwork, AtlasOptions{.mode = AtlasMode::Patchwork}, 485824, 20.0);
+    EXPECT_TRUE(forced.forced);
+    EXPECT_EQ(forced.value.rfind("patchwork 454x355, 1 texel(s) per pixel", 0), 0u) << forced.value;
+    EXPECT_NE(forced.reason.find("--atlas patchwork"), std::string::npos) << forced.reason;
+    EXPECT_EQ(forced.measured_seconds, 20.0);
+}
+
 TEST(Planner, PlanJsonSaysAutoOrForced) {
     Plan plan;
     plan.add(decide_specular(ResidualEnergy{}, Toggle::Off));

@@ -50,8 +50,6 @@ Camera make_camera(int w, int h, double fl_x, double fl_y, double cx, double cy,
     return Camera(Intrinsics{w, h, fl_x, fl_y, cx, cy}, look_at_camera_to_world(eye, target, glm::dvec3(0, 1, 0)));
 }
 
-Lobe to_lobe(const synth::LafortuneRgb& l) { return Lobe{l.cx, l.cz, l.n}; }
-
 /// A smooth albedo texture (periodic in u, like the sphere's longitude). The preset's
 /// checker is discontinuous: any resampling into an atlas (which a reconstruction must
 /// do) blurs its edges differently from the synth renderer's own bilinear lookup, which
@@ -229,8 +227,8 @@ struct SceneData {
     Mesh mesh;
     std::vector<glm::vec2> corner_uv;
     Image albedo;
-    [[nodiscard]] Scene scene(const Lobe& lobe = {}) const {
-        return Scene{.mesh = &mesh, .corner_uv = corner_uv, .albedo = &albedo, .lobe = lobe};
+    [[nodiscard]] Scene scene(const std::optional<SpecularModel>& specular = std::nullopt) const {
+        return Scene{.mesh = &mesh, .corner_uv = corner_uv, .albedo = &albedo, .material = {.specular = specular}};
     }
 };
 
@@ -323,9 +321,9 @@ TEST_F(RenderTest, BackFaceCullingKeepsAConvexObject) {
     const Camera cam = make_camera(64, 64, 80.0, 80.0, 32.0, 32.0, {0.3, 0.4, 2.0}, {0, 0, 0});
     const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
     EXPECT_TRUE(is_closed_outward(sphere.mesh)); // welded across the texture seam and the poles
-    Renderer all(ctx(), data.scene(to_lobe(sphere.material.lobe)), {.culling = Culling::Never});
-    Renderer culled(ctx(), data.scene(to_lobe(sphere.material.lobe)), {.culling = Culling::Always});
-    Renderer automatic(ctx(), data.scene(to_lobe(sphere.material.lobe)));
+    Renderer all(ctx(), data.scene(sphere.material.lobe), {.culling = Culling::Never});
+    Renderer culled(ctx(), data.scene(sphere.material.lobe), {.culling = Culling::Always});
+    Renderer automatic(ctx(), data.scene(sphere.material.lobe));
     EXPECT_FALSE(all.culls_back_faces());
     EXPECT_TRUE(culled.culls_back_faces());
     EXPECT_TRUE(automatic.culls_back_faces());
@@ -343,8 +341,8 @@ TEST_F(RenderTest, SphereAnalyticMatchesSynthWithAtlasFromTruth) {
     const PointLight light{{1.0, 1.5, 2.2}, {5.0, 4.5, 4.0}};
     const TruthAtlas atlas = atlas_from_truth(preset.mesh, preset.material, std::span<const Camera>(&cam, 1));
     Renderer r(ctx(), {.mesh = &preset.mesh, .corner_uv = atlas.atlas.corner_uv, .albedo = &atlas.image,
-                       .lobe = to_lobe(preset.material.lobe)});
-    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
+                       .material = {.specular = preset.material.lobe}});
+    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic});
     EXPECT_TRUE(f.info.diffuse_pass);
     EXPECT_TRUE(f.info.specular_pass);
     const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
@@ -361,8 +359,8 @@ TEST_F(RenderTest, CanAnalyticMatchesSynthWithConstantAlbedo) {
     const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
     const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, {0.9, 0.9, 2.3}, {0.0, 0.55, 0.0});
     const PointLight light{{1.6, 1.4, 1.8}, {6.0, 6.0, 6.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
-    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    const Frame f = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic});
     const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
     const Comparison c = compare(f, ref, "can_analytic", 40.0);
     report("can analytic vs synth", c);
@@ -384,12 +382,12 @@ TEST_F(RenderTest, ShadowMapReproducesTheKnotsSelfShadowing) {
     const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
     const Camera cam = make_camera(160, 160, 170.0, 170.0, 80.0, 80.0, {0.4, 1.2, 4.2}, {0.0, 0.0, 0.0});
     const PointLight light{{2.2, 3.0, 2.0}, {30.0, 30.0, 30.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    Renderer r(ctx(), data.scene(preset.material.lobe));
     const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
     ASSERT_GT(ref.shadowed_pixels, 500u) << "the scene must show a cast shadow";
 
-    const Frame on = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
-    const Frame off = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic, .shadows = false});
+    const Frame on = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic});
+    const Frame off = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic, .shadows = false});
     EXPECT_TRUE(on.info.shadow_pass);
     EXPECT_TRUE(on.info.shadow_note.empty()) << on.info.shadow_note;
     EXPECT_FALSE(off.info.shadow_pass);
@@ -407,7 +405,7 @@ TEST_F(RenderTest, ShadowMapReproducesTheKnotsSelfShadowing) {
 
     // The fused pass applies the same visibility as the two separate passes.
     const Frame fused =
-        r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic, .passes = Passes::Fused});
+        r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic, .passes = Passes::Fused});
     double max_diff = 0.0;
     for (std::size_t i = 0; i < fused.color.pixels.size(); ++i)
         max_diff = std::max(max_diff, static_cast<double>(std::abs(fused.color.pixels[i] - on.color.pixels[i])));
@@ -470,7 +468,7 @@ TEST_F(RenderTest, PassesAddUpAndAZeroLobeLeavesTheSpecularPassOut) {
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.4f, 0.5f, 0.6f));
     const Camera cam = make_camera(64, 64, 80.0, 80.0, 32.0, 32.0, {0.3, 0.4, 2.0}, {0, 0, 0});
     const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    Renderer r(ctx(), data.scene(preset.material.lobe));
     const Frame both = r.render(cam, light, {.mode = Mode::Both});
     const Frame diffuse = r.render(cam, light, {.mode = Mode::Diffuse});
     const Frame specular = r.render(cam, light, {.mode = Mode::Specular});
@@ -489,7 +487,7 @@ TEST_F(RenderTest, PassesAddUpAndAZeroLobeLeavesTheSpecularPassOut) {
     ASSERT_TRUE(both.info.specular_gpu_ms.has_value());
     EXPECT_GT(both.info.wall_ms, 0.0);
 
-    r.set_lobe({});
+    r.set_specular(LafortuneRgb{});
     const Frame zero = r.render(cam, light, {.mode = Mode::Both});
     EXPECT_FALSE(zero.info.specular_pass);
     EXPECT_NE(zero.info.specular_note.find("no lobe"), std::string::npos);
@@ -503,20 +501,18 @@ TEST_F(RenderTest, FactorizedModeLooksUpBothCubeMaps) {
     const synth::Preset preset = synth::make_preset("sphere");
     const glm::vec3 a(0.3f, 0.5f, 0.7f), b(0.9f, 0.4f, 0.2f);
     const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
-        CubeMapRgb cube{res, {}};
-        for (std::size_t i = 0; i < std::size_t{6} * res * res; ++i) cube.rgb.insert(cube.rgb.end(), {v.x, v.y, v.z});
-        return cube;
+        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
     };
     const SceneData spec_data = constant_albedo(preset.mesh, glm::vec3(0.0f));
     const SceneData diff_data = constant_albedo(preset.mesh, glm::pi<float>() * a * b);
     const Camera cam = make_camera(64, 64, 80.0, 80.0, 30.0, 33.0, {0.3, 0.4, 2.0}, {0, 0, 0});
     const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
-    Renderer spec(ctx(), spec_data.scene(to_lobe(preset.material.lobe)));
+    Renderer spec(ctx(), spec_data.scene(preset.material.lobe));
     EXPECT_FALSE(spec.has_factorization());
-    EXPECT_THROW((void)spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularModel::Factorized}), Error);
-    spec.set_factorization(constant_cube(8, a), constant_cube(16, b));
+    EXPECT_THROW((void)spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularPath::Factorized}), Error);
+    spec.set_factorization(FactorizedSpecular{.terms = {{constant_cube(8, a), constant_cube(16, b)}}});
     EXPECT_TRUE(spec.has_factorization());
-    const Frame fs = spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularModel::Factorized});
+    const Frame fs = spec.render(cam, light, {.mode = Mode::Specular, .specular = SpecularPath::Factorized});
     Renderer diff(ctx(), diff_data.scene());
     const Frame fd = diff.render(cam, light, {.mode = Mode::Diffuse});
     EXPECT_EQ(fs.mask, fd.mask);
@@ -534,11 +530,9 @@ TEST_F(RenderTest, FactorizedModeSumsTheTermsAndClampsAtZero) {
     // (0 after the clamp). Tolerance 1e-5 relative (float rounding).
     const synth::Preset preset = synth::make_preset("sphere");
     const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
-        CubeMapRgb cube{res, {}};
-        for (std::size_t i = 0; i < std::size_t{6} * res * res; ++i) cube.rgb.insert(cube.rgb.end(), {v.x, v.y, v.z});
-        return cube;
+        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
     };
-    const std::vector<FactorTermCubes> terms = {
+    const std::vector<FactorTerm> terms = {
         {constant_cube(8, {0.3f, 0.5f, 0.7f}), constant_cube(16, {0.9f, 0.4f, 0.2f})},
         {constant_cube(8, {0.2f, -0.1f, 0.1f}), constant_cube(8, {0.5f, 0.5f, 0.5f})},
         {constant_cube(4, {0.1f, 0.1f, -1.0f}), constant_cube(16, {0.3f, 0.2f, 0.5f})},
@@ -547,42 +541,35 @@ TEST_F(RenderTest, FactorizedModeSumsTheTermsAndClampsAtZero) {
     const Camera cam = make_camera(64, 64, 80.0, 80.0, 30.0, 33.0, {0.3, 0.4, 2.0}, {0, 0, 0});
     const PointLight light{{1.0, 1.5, 2.0}, {4.0, 4.0, 4.0}};
     const SceneData spec_data = constant_albedo(preset.mesh, glm::vec3(0.0f));
-    Renderer spec(ctx(), spec_data.scene(to_lobe(preset.material.lobe)));
+    Renderer spec(ctx(), spec_data.scene(preset.material.lobe));
     for (std::size_t k = 1; k <= terms.size(); ++k) {
-        spec.set_factorization(std::span<const FactorTermCubes>(terms.data(), k));
+        spec.set_factorization(FactorizedSpecular{.terms = {terms.begin(), terms.begin() + static_cast<std::ptrdiff_t>(k)}});
         EXPECT_EQ(spec.factorization_terms(), k);
         glm::vec3 sum(0.0f);
         for (std::size_t j = 0; j < k; ++j)
-            for (int c = 0; c < 3; ++c) sum[c] += terms[j].g.rgb[static_cast<std::size_t>(c)] * terms[j].h.rgb[static_cast<std::size_t>(c)];
+            for (int c = 0; c < 3; ++c) sum[c] += terms[j].g.texels[0][c] * terms[j].h.texels[0][c];
         const SceneData diff_data = constant_albedo(preset.mesh, glm::pi<float>() * glm::max(sum, glm::vec3(0.0f)));
         Renderer diff(ctx(), diff_data.scene());
         const Frame fd = diff.render(cam, light, {.mode = Mode::Diffuse});
         for (const Passes passes : {Passes::Separate, Passes::Fused}) {
             // Fused: diffuse (0 albedo) + specular in one pass.
             const Frame fs = spec.render(cam, light, {.mode = passes == Passes::Fused ? Mode::Both : Mode::Specular,
-                                                      .specular = SpecularModel::Factorized, .passes = passes});
+                                                      .specular = SpecularPath::Factorized, .passes = passes});
             EXPECT_EQ(fs.mask, fd.mask);
             for (std::size_t i = 0; i < fs.color.pixels.size(); ++i)
                 ASSERT_NEAR(fs.color.pixels[i], fd.color.pixels[i], 1e-5f * std::max(1e-3f, fd.color.pixels[i]))
                     << "K = " << k << " pixel value " << i;
         }
     }
-    const std::vector<FactorTermCubes> five(5, terms[0]);
-    EXPECT_THROW(spec.set_factorization(std::span<const FactorTermCubes>(five)), Error);
-    EXPECT_THROW(spec.set_factorization(std::span<const FactorTermCubes>()), Error);
+    EXPECT_THROW(spec.set_factorization(FactorizedSpecular{.terms = std::vector<FactorTerm>(5, terms[0])}), Error);
+    EXPECT_THROW(spec.set_factorization(FactorizedSpecular{}), Error);
     EXPECT_EQ(spec.factorization_terms(), 4u); // a refused call changes nothing
 }
 
-CubeMapRgb to_render_cube(const factorization::Cubemap& c) {
-    CubeMapRgb out{c.res, {}};
-    for (const glm::vec3& t : c.texels) out.rgb.insert(out.rgb.end(), {t.x, t.y, t.z});
-    return out;
-}
-
-std::vector<FactorTermCubes> render_terms(const factorization::Factorization& f, uint32_t k) {
-    std::vector<FactorTermCubes> out;
-    for (uint32_t j = 0; j < k; ++j) out.push_back({to_render_cube(f.g_cube(j)), to_render_cube(f.h_cube(j))});
-    return out;
+/// The first k terms of f's cube-maps, looked up in `param` with `warp` (not necessarily f's own).
+FactorizedSpecular first_terms(const factorization::Factorization& f, uint32_t k, FactorParam param,
+                               glm::vec4 warp = glm::vec4(1.0f)) {
+    return {.param = param, .warp = warp, .terms = {f.cubes.terms.begin(), f.cubes.terms.begin() + k}};
 }
 
 /// Masked PSNR of `a` against `ref` over pixels both cover, peak = ref's largest value there.
@@ -624,17 +611,19 @@ double masked_psnr(const Frame& a, const Frame& ref) {
 // than plain K = 1.
 TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     const synth::Preset preset = synth::make_preset("can");
-    const factorization::LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
+    const LafortuneRgb lobe{preset.material.lobe.cx, preset.material.lobe.cz, preset.material.lobe.n};
     const factorization::Factorization f = factorization::factorize_cpu(lobe, {.param = FactorParam::Gshd});
     const factorization::Factorization fm = factorization::factorize_cpu(lobe, {.param = FactorParam::Mirrored});
     const factorization::Factorization fw = factorization::factorize_cpu(lobe, {});
-    ASSERT_EQ(fw.param, FactorParam::Warped) << fw.param_choice.reason;
+    ASSERT_EQ(fw.cubes.param, FactorParam::Warped) << fw.param_choice.reason;
     const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
-    const std::vector<FactorTermCubes> all = render_terms(f, f.term_count());
-    const std::vector<FactorTermCubes> one = render_terms(f, 1);
-    const std::vector<FactorTermCubes> mirrored = render_terms(fm, fm.term_count());
-    const std::vector<FactorTermCubes> warped = render_terms(fw, fw.term_count());
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    const FactorizedSpecular all = first_terms(f, f.term_count(), FactorParam::Gshd);
+    const FactorizedSpecular one = first_terms(f, 1, FactorParam::Gshd);
+    const FactorizedSpecular mirrored = first_terms(fm, fm.term_count(), fm.cubes.param);
+    const FactorizedSpecular mirrored_as_plain = first_terms(fm, fm.term_count(), FactorParam::Gshd);
+    const FactorizedSpecular warped = first_terms(fw, fw.term_count(), fw.cubes.param, fw.cubes.warp);
+    const FactorizedSpecular warped_as_mirrored = first_terms(fw, fw.term_count(), FactorParam::Mirrored);
     double worst_one = 999.0, worst_all = 999.0, worst_mirrored = 999.0, worst_wrong = 999.0;
     double worst_warped = 999.0, worst_warped_wrong = 999.0;
     for (int view = 0; view < 5; ++view) {
@@ -643,19 +632,19 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
         const glm::dvec3 light_pos(2.0 * std::cos(a + 0.5 + 0.3 * view), 1.6, 2.0 * std::sin(a + 0.5 + 0.3 * view));
         const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, eye, {0.0, 0.55, 0.0});
         const PointLight light{light_pos, {6.0, 6.0, 6.0}};
-        const Settings factorized{.mode = Mode::Both, .specular = SpecularModel::Factorized};
-        const Frame analytic = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularModel::Analytic});
-        r.set_factorization(std::span<const FactorTermCubes>(one));
+        const Settings factorized{.mode = Mode::Both, .specular = SpecularPath::Factorized};
+        const Frame analytic = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic});
+        r.set_factorization(one);
         const double p1 = masked_psnr(r.render(cam, light, factorized), analytic);
-        r.set_factorization(std::span<const FactorTermCubes>(all));
+        r.set_factorization(all);
         const double pk = masked_psnr(r.render(cam, light, factorized), analytic);
-        r.set_factorization(std::span<const FactorTermCubes>(mirrored), fm.param);
+        r.set_factorization(mirrored);
         const double pm = masked_psnr(r.render(cam, light, factorized), analytic);
-        r.set_factorization(std::span<const FactorTermCubes>(mirrored), FactorParam::Gshd); // looked up as if plain
+        r.set_factorization(mirrored_as_plain); // looked up as if plain
         const double pw = masked_psnr(r.render(cam, light, factorized), analytic);
-        r.set_factorization(std::span<const FactorTermCubes>(warped), fw.param, fw.warp);
+        r.set_factorization(warped);
         const double pwa = masked_psnr(r.render(cam, light, factorized), analytic);
-        r.set_factorization(std::span<const FactorTermCubes>(warped), FactorParam::Mirrored); // no warp, no radial factor
+        r.set_factorization(warped_as_mirrored); // no warp, no radial factor
         const double pww = masked_psnr(r.render(cam, light, factorized), analytic);
         std::printf("view %d: factorized vs analytic masked PSNR: gshd K = 1 %.2f dB, K = %u %.2f dB; mirrored K = %u "
                     "%.2f dB (looked up as gshd: %.2f dB); warped K = %u %.2f dB (looked up as mirrored: %.2f dB)\n",
@@ -682,6 +671,14 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     EXPECT_LT(worst_warped_wrong, worst_one);
 }
 
+/// An 8 x 8 cube-map whose float i (texel i / 3, channel i % 3) is base + scale ((i mult) mod m) / m.
+CubeMap varied_cube(std::size_t mult, std::size_t m, float base, float scale) {
+    CubeMap c{8, std::vector<glm::vec3>(6 * 8 * 8)};
+    for (std::size_t i = 0; i < 3 * c.texels.size(); ++i)
+        c.texels[i / 3][static_cast<int>(i % 3)] = base + scale * static_cast<float>((i * mult) % m) / static_cast<float>(m);
+    return c;
+}
+
 /// Passes::Fused sums the same two terms (render/terms.glsl) in one fragment shader that
 /// the separate passes add in the blend unit: the same coverage, and colours equal up to
 /// float rounding (the two shaders are compiled separately, so the compiler may contract
@@ -691,15 +688,11 @@ TEST_F(RenderTest, FusedPassMatchesTheTwoPasses) {
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.4f, 0.5f, 0.6f));
     const Camera cam = make_camera(96, 96, 100.0, 100.0, 48.0, 48.0, {0.5, 1.0, 4.5}, {0, 0, 0});
     const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
-    CubeMapRgb g{8, std::vector<float>(6 * 8 * 8 * 3)}, h{8, std::vector<float>(6 * 8 * 8 * 3)};
-    for (std::size_t i = 0; i < g.rgb.size(); ++i) {
-        g.rgb[i] = 0.2f + 0.6f * static_cast<float>((i * 7919) % 97) / 97.0f; // varied texels: lookups must agree
-        h.rgb[i] = 0.1f + 0.8f * static_cast<float>((i * 104729) % 89) / 89.0f;
-    }
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    const CubeMap g = varied_cube(7919, 97, 0.2f, 0.6f), h = varied_cube(104729, 89, 0.1f, 0.8f); // lookups must agree
     for (const FactorParam param : {FactorParam::Gshd, FactorParam::Mirrored})
-    for (const SpecularModel model : {SpecularModel::Analytic, SpecularModel::Factorized}) {
-        r.set_factorization(g, h, param); // varied texels: the parametrization changes the lookups
+    for (const SpecularPath model : {SpecularPath::Analytic, SpecularPath::Factorized}) {
+        r.set_factorization({.param = param, .terms = {{g, h}}}); // varied texels: the parametrization changes the lookups
         EXPECT_EQ(r.factorization_param(), param);
         const Frame two = r.render(cam, light, {.mode = Mode::Both, .specular = model});
         const Frame one = r.render(cam, light, {.mode = Mode::Both, .specular = model, .passes = Passes::Fused});
@@ -713,7 +706,7 @@ TEST_F(RenderTest, FusedPassMatchesTheTwoPasses) {
         for (std::size_t i = 0; i < one.color.pixels.size(); ++i)
             max_rel = std::max(max_rel, std::abs(one.color.pixels[i] - two.color.pixels[i]) /
                                             std::max(1e-3f, std::abs(two.color.pixels[i])));
-        EXPECT_LE(max_rel, 1e-5f) << specular_model_name(model) << " " << to_string(param);
+        EXPECT_LE(max_rel, 1e-5f) << specular_path_name(model) << " " << to_string(param);
     }
     // Fused changes nothing outside Mode::Both.
     const Frame d1 = r.render(cam, light, {.mode = Mode::Diffuse, .passes = Passes::Fused});
@@ -738,23 +731,19 @@ TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
                                       0.03f + 0.94f * static_cast<float>((k * 53) % 67) / 67.0f);
     const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
     const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
-    CubeMapRgb g{8, std::vector<float>(6 * 8 * 8 * 3)}, h{8, std::vector<float>(6 * 8 * 8 * 3)};
-    for (std::size_t i = 0; i < g.rgb.size(); ++i) {
-        g.rgb[i] = 0.2f + 0.6f * static_cast<float>((i * 7919) % 97) / 97.0f;
-        h.rgb[i] = 0.1f + 0.8f * static_cast<float>((i * 104729) % 89) / 89.0f;
-    }
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    const CubeMap g = varied_cube(7919, 97, 0.2f, 0.6f), h = varied_cube(104729, 89, 0.1f, 0.8f);
     for (const FactorParam param : {FactorParam::Mirrored, FactorParam::Gshd})
     for (const Mode mode : {Mode::Both, Mode::Diffuse, Mode::Specular})
-        for (const SpecularModel model : {SpecularModel::Analytic, SpecularModel::Factorized}) {
-            if (param == FactorParam::Mirrored && model == SpecularModel::Analytic) continue;
-            r.set_factorization(g, h, param); // the last one (Gshd) stays for the checks below
+        for (const SpecularPath model : {SpecularPath::Analytic, SpecularPath::Factorized}) {
+            if (param == FactorParam::Mirrored && model == SpecularPath::Analytic) continue;
+            r.set_factorization({.param = param, .terms = {{g, h}}}); // the last one (Gshd) stays for the checks below
             const Settings forward{.mode = mode, .specular = model};
             Settings deferred = forward;
             deferred.passes = Passes::Deferred;
             const Frame a = r.render(cam, light, forward);
             const Frame b = r.render(cam, light, deferred);
-            const std::string what = std::string(mode_name(mode)) + "/" + specular_model_name(model) + "/" + to_string(param);
+            const std::string what = std::string(mode_name(mode)) + "/" + specular_path_name(model) + "/" + to_string(param);
             EXPECT_TRUE(b.info.deferred) << what;
             EXPECT_FALSE(a.info.deferred) << what;
             EXPECT_TRUE(b.info.shadow_pass) << what;
@@ -794,10 +783,10 @@ TEST_F(RenderTest, TwoRendersAreIdentical) {
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
     const Camera cam = make_camera(96, 96, 100.0, 100.0, 48.0, 48.0, {0.5, 1.0, 4.5}, {0, 0, 0});
     const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
-    Renderer r(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    Renderer r(ctx(), data.scene(preset.material.lobe));
     const Frame a = r.render(cam, light);
     const Frame b = r.render(cam, light);
-    Renderer r2(ctx(), data.scene(to_lobe(preset.material.lobe)));
+    Renderer r2(ctx(), data.scene(preset.material.lobe));
     const Frame c = r2.render(cam, light);
     EXPECT_GT(a.info.covered_pixels, 500u);
     EXPECT_EQ(0, std::memcmp(a.color.pixels.data(), b.color.pixels.data(), a.color.pixels.size() * sizeof(float)));

@@ -5,6 +5,7 @@
 #include "capture/capture.h"
 #include "core/error.h"
 #include "core/image.h"
+#include "shared/prelude.h"
 #include "synth/noise.h"
 #include "synth/presets.h"
 #include "synth/render.h"
@@ -24,7 +25,6 @@ namespace specula::synth {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kPi = 3.14159265358979323846;
 
 Camera make_camera(int w, int h, double fov_deg, const glm::dvec3& eye, const glm::dvec3& target) {
     const double f = 0.5 * w / std::tan(0.5 * fov_deg * kPi / 180.0);

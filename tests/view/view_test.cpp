@@ -125,7 +125,7 @@ Bundle bundle_from_truth(const synth::Preset& p) {
     if (b.albedo.empty()) b.albedo = Image(1, 1, 3);
     if (p.material.albedo_texture.empty())
         for (int c = 0; c < 3; ++c) b.albedo.at(0, 0, c) = p.material.albedo_value[c];
-    b.lobe = p.material.lobe;
+    b.material.specular = p.material.lobe;
     return b;
 }
 

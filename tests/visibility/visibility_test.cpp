@@ -21,8 +21,12 @@ struct Scene {
     Atlas atlas;
     ParticleSet particles;
     RayScene rays;
+    // The thesis's patchwork atlas: these checks were sized on its particles (the shadow-edge
+    // test's nearest-shadowed-particle proxy among them); visibility itself does not depend
+    // on the layout.
     Scene(Mesh m, const std::vector<Camera>& cams)
-        : mesh(std::move(m)), atlas(build_atlas(mesh, cams)), particles(build_particles(mesh, atlas)), rays(mesh) {}
+        : mesh(std::move(m)), atlas(build_atlas(mesh, cams, {.mode = AtlasMode::Patchwork})), particles(build_particles(mesh, atlas)),
+          rays(mesh) {}
 };
 
 std::vector<VisibilityView> views_of(const std::vector<Camera>& cams) {

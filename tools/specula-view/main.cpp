@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "specula/version.h"
 
 #include <CLI/CLI.hpp>
 
@@ -12,6 +13,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <string>
 
 int main(int argc, char** argv) {
     // lavapipe bins every frame's triangles into freshly allocated scene memory (tens of MB
@@ -28,7 +30,7 @@ int main(int argc, char** argv) {
                  "The title shows mode and frame time.\n"
                  "Draws only when something changes (unless --continuous). Without a display, --frames and --bench\n"
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
-    app.set_version_flag("--version", "specula-view 0.1.0");
+    app.set_version_flag("--version", std::string("specula-view ") + specula::kVersion);
     app.footer("Exit status: 0 success; 1 failure (bad input file, no usable device or display, validation messages\n"
                "when SPECULA_VALIDATION=1); 2 usage error.");
     bool quiet = false;

@@ -59,7 +59,7 @@ render::Settings settings_of(const ViewerConfig& c) {
     if (c.passes != "fused" && c.passes != "separate" && c.passes != "deferred")
         throw UsageError("--passes: '" + c.passes + "' is not deferred, fused or separate");
     return {.mode = c.mode == "diffuse" ? render::Mode::Diffuse : c.mode == "specular" ? render::Mode::Specular : render::Mode::Both,
-            .specular = c.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic,
+            .specular = c.specular == "factorized" ? render::SpecularPath::Factorized : render::SpecularPath::Analytic,
             .passes = c.passes == "separate" ? render::Passes::Separate
                       : c.passes == "fused"  ? render::Passes::Fused
                                              : render::Passes::Deferred,
@@ -67,7 +67,7 @@ render::Settings settings_of(const ViewerConfig& c) {
 }
 
 std::string settings_name(const render::Settings& s) {
-    std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_model_name(s.specular);
+    std::string name = std::string(render::mode_name(s.mode)) + "/" + render::specular_path_name(s.specular);
     if (s.passes == render::Passes::Deferred) name += ", deferred";
     else if (s.mode == render::Mode::Both) name += s.passes == render::Passes::Fused ? ", 1 pass" : ", 2 passes";
     if (s.shadows) name += ", shadows"; // off by default in the viewer (ViewerConfig::shadows)
@@ -252,8 +252,8 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
             std::fprintf(stderr, "the bundle has no factorization cube-maps: the specular model stays analytic\n");
             return;
         }
-        in.settings->specular = in.settings->specular == render::SpecularModel::Analytic ? render::SpecularModel::Factorized
-                                                                                        : render::SpecularModel::Analytic;
+        in.settings->specular = in.settings->specular == render::SpecularPath::Analytic ? render::SpecularPath::Factorized
+                                                                                        : render::SpecularPath::Analytic;
         break;
     case GLFW_KEY_P:
         in.settings->passes = in.settings->passes == render::Passes::Deferred ? render::Passes::Fused

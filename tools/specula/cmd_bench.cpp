@@ -65,7 +65,7 @@ void run_sweep_command(const BenchSweepArgs& a) {
         o.knobs.factorization_grid.push_back(static_cast<std::uint32_t>(v));
     }
     o.knobs.backends.clear();
-    for (const std::string& b : a.backends) o.knobs.backends.push_back(b == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan);
+    for (const std::string& b : a.backends) o.knobs.backends.push_back(b == "cpu" ? Backend::Cpu : Backend::Vulkan);
     const SweepResult r = run_sweep(o);
     std::printf("%-44s %10s %12s %9s %s\n", "point", "seconds", "test RMS %", "test Q1", "");
     for (const SweepPoint& p : r.points) {

@@ -42,9 +42,9 @@ struct EvaluateArgs {
 void run_evaluate(const EvaluateArgs& a) {
     evaluate::EvaluateOptions o;
     o.render.mode = a.mode == "diffuse" ? render::Mode::Diffuse : a.mode == "specular" ? render::Mode::Specular : render::Mode::Both;
-    o.render.specular = a.specular == "factorized" ? render::SpecularModel::Factorized : render::SpecularModel::Analytic;
+    o.render.specular = a.specular == "factorized" ? render::SpecularPath::Factorized : render::SpecularPath::Analytic;
     o.render.shadows = !a.no_shadows;
-    o.metrics_backend = a.metrics == "cpu" ? evaluate::MetricsBackend::Cpu : evaluate::MetricsBackend::Vulkan;
+    o.metrics_backend = a.metrics == "cpu" ? Backend::Cpu : Backend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
     if (!a.sheets.empty()) o.sheet_dir = a.sheets;
@@ -54,10 +54,11 @@ void run_evaluate(const EvaluateArgs& a) {
     Bundle bundle = read_bundle(a.bundle);
     evaluate::require_specular_model(bundle, o.render.specular, a.bundle);
     if (a.factor_terms != 0) { // the first K terms of the bundle's factorization
-        if (a.factor_terms > 1 + bundle.extra_terms.size())
+        const std::size_t held = bundle.material.factorized ? bundle.material.factorized->terms.size() : 0;
+        if (a.factor_terms > held)
             throw UsageError("--factor-terms " + std::to_string(a.factor_terms) + ": " + a.bundle + " holds " +
-                             std::to_string(1 + bundle.extra_terms.size()) + " factorization term(s)");
-        bundle.extra_terms.resize(a.factor_terms - 1);
+                             std::to_string(held) + " factorization term(s)");
+        bundle.material.factorized->terms.resize(a.factor_terms);
     }
     const Capture capture = load_capture(a.capture, {.load_mesh = false, .load_images = true, .threads = a.threads});
     for (const std::string& w : capture.warnings) log::warn(w);

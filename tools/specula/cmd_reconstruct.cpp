@@ -24,13 +24,14 @@ struct ReconstructArgs {
     std::vector<std::uint32_t> grid;
     std::string views = "best";
     std::uint32_t texture_size = 4096;
+    std::string atlas = "charts";
     std::string specular = "auto";
     std::string factor_param = "auto";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
     ReconstructConfig& c = args.config;
-    c.backend = args.backend == "cpu" ? LambertBackend::Cpu : LambertBackend::Vulkan;
+    c.backend = args.backend == "cpu" ? Backend::Cpu : Backend::Vulkan;
     c.diffuse_mode = args.mode == "photometric" ? DiffuseModeChoice::Photometric
                      : args.mode == "albedo"    ? DiffuseModeChoice::Albedo
                                                 : DiffuseModeChoice::Auto;
@@ -54,6 +55,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
+    c.atlas.mode = atlas_mode_from_string(args.atlas).value_or(AtlasMode::Charts); // CLI11 checked the name
     const ReconstructResult result = reconstruct(c);
     log::info("wrote " + c.out_dir.string() + ": object.glb, albedo.exr, albedo.png, report.json" +
               (c.write_html ? ", report.html" : "") +
@@ -78,7 +80,7 @@ void add_reconstruct_command(CLI::App& app) {
         "re-rendered and compared), OUT/report.html (one self-contained page) and OUT/report.json (the planner's\n"
         "decisions, stage times, GPU dispatch times, counts, quality figures, the lobe, and what was left out\n"
         "for this scene and why). Every planner decision can be forced: --occlusion-rays, --mode, --specular,\n"
-        "--texels-per-pixel/--texture-size, --factorization-grid, --factor-param; the report then gives the cost of the\n"
+        "--atlas, --texels-per-pixel/--texture-size, --factorization-grid, --factor-param; the report then gives the cost of the\n"
         "forced work.");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
     cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
@@ -97,6 +99,12 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--views", args->views,
                     "best: the thesis's choice, the seeing view closest to the normal; robust: combine all views")
         ->check(CLI::IsMember({"best", "robust"}))
+        ->capture_default_str();
+    cmd->add_option("--atlas", args->atlas,
+                    "Texture atlas. charts: connected charts flattened by least-squares conformal maps, seams only\n"
+                    "where needed, vertices shared within a chart (what other tools can edit and filter); patchwork:\n"
+                    "the thesis's reference, every triangle its own patch")
+        ->check(CLI::IsMember({"charts", "patchwork"}))
         ->capture_default_str();
     cmd->add_option("--texture-size", args->texture_size, "Largest albedo texture side (texels)")
         ->check(CLI::Range(16u, 32767u))

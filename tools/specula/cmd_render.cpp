@@ -32,8 +32,8 @@ render::Mode parse_mode(const std::string& m) {
 
 void run_render(const RenderArgs& a) {
     const render::Settings settings{.mode = parse_mode(a.mode),
-                                    .specular = a.specular == "factorized" ? render::SpecularModel::Factorized
-                                                                           : render::SpecularModel::Analytic,
+                                    .specular = a.specular == "factorized" ? render::SpecularPath::Factorized
+                                                                           : render::SpecularPath::Analytic,
                                     .shadows = !a.no_shadows};
     const evaluate::Pose pose = evaluate::resolve_pose(a.pose); // before the bundle: usage errors first
     const Bundle bundle = read_bundle(a.bundle);
@@ -47,7 +47,7 @@ void run_render(const RenderArgs& a) {
     if (settings.shadows && !frame.info.shadow_pass) log::warn("rendered without shadows: " + frame.info.shadow_note);
     log::info("wrote " + a.out + ": " + pose.what + ", " + std::to_string(frame.color.width) + "x" +
               std::to_string(frame.color.height) + ", " + render::mode_name(settings.mode) + "/" +
-              render::specular_model_name(settings.specular) + note + ", " + std::to_string(frame.info.wall_ms) + " ms");
+              render::specular_path_name(settings.specular) + note + ", " + std::to_string(frame.info.wall_ms) + " ms");
 }
 
 } // namespace

@@ -4,6 +4,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/memory.h"
+#include "specula/version.h"
 
 #include <cstdio>
 #include <exception>
@@ -13,7 +14,7 @@
 int main(int argc, char** argv) {
     CLI::App app{"Specula: capture how a real object's surface looks (diffuse albedo + a specular lobe)\n"
                  "from calibrated photographs lit by known point lights."};
-    app.set_version_flag("--version", "specula 0.1.0");
+    app.set_version_flag("--version", std::string("specula ") + specula::kVersion);
     app.require_subcommand(1);
     bool quiet = false;
     bool verbose = false;

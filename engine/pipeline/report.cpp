@@ -1,0 +1,296 @@
+#include "pipeline/report.h"
+
+#include "core/file_util.h"
+#include "report/report_html.h"
+#include "specula/version.h"
+
+#include <cmath>
+#include <filesystem>
+
+namespace specula {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json atlas_json(const AtlasSummary& s, const AtlasOptions& o) {
+    return {{"mode", s.mode},
+            {"charts", s.charts},
+            {"seam_edges", s.seam_edges},
+            {"vertices", {{"mesh", s.mesh_vertices}, {"atlas", s.atlas_vertices}}},
+            {"width", s.width},
+            {"height", s.height},
+            {"size_source", s.size_source},
+            {"texels_per_pixel", o.texels_per_pixel},
+            {"budget", {o.max_width, o.max_height}},
+            {"budget_clipped", s.budget_clipped},
+            {"budget_scale", s.budget_scale},
+            {"patch_leg", {{"min", s.patch_min}, {"median", s.patch_median}, {"mean", s.patch_mean}, {"max", s.patch_max}}},
+            {"interior_texels", s.interior_texels},
+            {"gutter_texels", s.gutter_texels},
+            {"fill_ratio", s.fill_ratio},
+            {"triangles_seen_by_no_camera", s.triangles_seen_by_no_camera},
+            {"notes", s.notes}};
+}
+
+json visibility_json(const VisibilityStats& s) {
+    return {{"particles", s.particles},
+            {"views", s.views},
+            {"frames", s.frames},
+            {"seen_by_no_view", s.seen_by_no_view},
+            {"lit_by_no_frame", s.lit_by_no_frame},
+            {"rays_cast", s.rays_cast},
+            {"rays_occluded", s.rays_occluded},
+            {"rays_avoided", s.rays_avoided},
+            {"depth_rays", s.depth_rays},
+            {"surface_maps", s.surface_maps},
+            {"footprint_rejected_pairs", s.footprint_rejected},
+            {"shadow_map_rays", s.shadow_map_rays},
+            {"shadow_edge_rejected_pairs", s.shadow_edge_rejected},
+            {"convex", s.convexity.convex},
+            {"convexity_reason", s.convexity.reason},
+            {"occlusion_rays_skipped", s.skipped},
+            {"seconds", s.seconds}};
+}
+
+json lambert_json(const LambertOutputs& out, const LambertOptions& o, Backend backend) {
+    const LambertSummary& s = out.summary;
+    json j = {{"backend", to_string(backend)},
+              {"mode", to_string(o.mode)},
+              {"view_choice", o.choice == ViewChoice::BestView ? "best_view" : "robust"},
+              {"tap_irradiance", s.tap_irradiance},
+              {"particles", s.particles},
+              {"pairs", s.pairs},
+              {"ok", s.ok},
+              {"fallback_to_albedo_mode", s.fallback},
+              {"no_valid_sample", s.no_sample},
+              {"not_seen", s.not_seen},
+              {"particles_with_outlier_views", s.views_rejected},
+              {"samples",
+               {{"used", s.used},
+                {"rejected_shadow", s.rejected_shadow},
+                {"rejected_clipped", s.rejected_clipped},
+                {"rejected_missing", s.rejected_missing},
+                {"rejected_grazing", s.rejected_grazing},
+                {"rejected_highlight", s.rejected_highlight},
+                {"rejected_outlier_view", s.rejected_view}}},
+              {"thresholds",
+               {{"min_light_cos", o.min_light_cos},
+                {"highlight_tau", o.highlight_tau},
+                {"highlight_k_sigma", o.highlight_k},
+                {"noise_sigma", o.noise_sigma},
+                {"min_rcond", o.min_rcond},
+                {"view_tau", o.view_tau},
+                {"view_abs", o.view_abs}}},
+              {"view_batches", s.view_batches},
+              {"seconds", s.seconds}};
+    if (o.mode == LambertMode::Photometric) j["mean_normal_angle_deg"] = s.mean_normal_angle_deg;
+    if (s.gpu_ms) {
+        j["gpu_ms"] = *s.gpu_ms;
+        json d = json::array();
+        for (const auto& [label, ms] : s.gpu_dispatch_ms) d.push_back({{"label", label}, {"ms", ms}});
+        j["gpu_dispatches"] = d;
+    }
+    return j;
+}
+
+json rgb(const double (&v)[3]) { return json::array({v[0], v[1], v[2]}); }
+
+json specular_json(const SpecularStage& s, double joint_tolerance) {
+    if (!s.residuals_ran) return nullptr;
+    const ResidualSamples& rs = s.residuals;
+    const ResidualCounts& c = rs.counts;
+    const ResidualEnergy& energy = s.energy;
+    json j = {{"decision", s.decision},
+              {"backend", to_string(s.backend)},
+              {"samples",
+               {{"candidates", c.candidates},
+                {"used", c.used},
+                {"dropped",
+                 {{"shadow", c.dropped_shadow},
+                  {"grazing", c.dropped_grazing},
+                  {"missing", c.dropped_missing},
+                  {"clipped", c.dropped_clipped},
+                  {"no_diffuse_solution", c.dropped_no_diffuse}}},
+                {"weight", "Ebar^2 (image-space residual; shared/residuals.h)"}}},
+              {"energy",
+               {{"mean_square_residual", energy.mean_square},
+                {"mean_residual", energy.mean},
+                {"noise_sigma", energy.noise_sigma},
+                {"ratio_to_noise_variance", energy.ratio},
+                {"threshold", energy.threshold},
+                {"has_specular", energy.has_specular}}},
+              {"view_batches", rs.view_batches},
+              {"dispatches", rs.chunks}};
+    json seconds = {{"residuals", rs.seconds}};
+    if (rs.gpu_ms) seconds["residuals_gpu_ms"] = *rs.gpu_ms;
+    if (!s.fit) {
+        j["lobe"] = nullptr;
+        j["seconds"] = seconds;
+        return j;
+    }
+    seconds["fit"] = s.fit_seconds;
+    double cx[3], cz[3], n[3], ecx[3], ecz[3], en[3], cond[3], cost[3], rms[3];
+    json status = json::array(), reason = json::array(), iterations = json::array();
+    for (int k = 0; k < 3; ++k) {
+        const LafortuneChannelFit& f = s.fit->channel[k];
+        cx[k] = f.cx, cz[k] = f.cz, n[k] = f.n;
+        ecx[k] = f.std_error_cx, ecz[k] = f.std_error_cz, en[k] = f.std_error_n;
+        cond[k] = f.condition, cost[k] = f.cost, rms[k] = f.rms;
+        status.push_back(to_string(f.status));
+        reason.push_back(f.reason);
+        iterations.push_back(f.iterations);
+    }
+    j["lobe"] = {{"cx", rgb(cx)}, {"cz", rgb(cz)}, {"n", rgb(n)}, {"status", status}};
+    j["reason"] = reason;
+    j["standard_errors"] = {{"cx", rgb(ecx)}, {"cz", rgb(ecz)}, {"n", rgb(en)}};
+    j["condition"] = rgb(cond);
+    j["cost"] = rgb(cost);
+    j["rms"] = rgb(rms);
+    j["iterations"] = iterations;
+    j["seconds"] = seconds;
+    j["samples"]["fitted"] = s.fit_samples; // stride subsample (max_fit_samples)
+    json rounds = json::array();
+    for (const JointRound& r : s.joint.rounds)
+        rounds.push_back({{"round", r.round}, {"max_relative_change", r.max_relative_change}, {"residual_samples", r.residual_samples}});
+    j["joint"] = {{"rounds", rounds}, {"stop", s.joint.stop}, {"tolerance", joint_tolerance}, {"seconds", s.seconds}}; // fits and joint rounds
+    return j;
+}
+
+json refinement_json(const PipelineRun& run, const RefineStage& r) {
+    if (!r.refined) return nullptr;
+    json rounds = json::array();
+    for (std::size_t i = 0; i < r.refined->rounds.size(); ++i) {
+        const AlbedoRefineRound& round = r.refined->rounds[i];
+        rounds.push_back({{"round", i + 1},
+                          {"mean_abs_change", round.mean_abs_change},
+                          {"corrected_particles", round.corrected},
+                          {"render_seconds", round.render_seconds},
+                          {"solve_seconds", round.solve_seconds}});
+    }
+    return {{"rounds", rounds},
+            {"method", "A <- A + s [w (S(captured) - S(render(A))) - lambda (A - A_0)]: S the diffuse solve's robust "
+                       "combination over views, render without cast shadows with the solve's lobe, w the best view's n.v "
+                       "ramp, lambda a prior toward the solve's albedo A_0, s the step (pipeline/albedo_refine.h)"},
+            {"seconds", run.seconds("albedo refinement")}};
+}
+
+/// Every parametrization's factorization as the choice saw it (only the forced one when forced).
+json param_candidates_json(const factorization::ParamChoice& c) {
+    json out = json::object();
+    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
+        const factorization::ParamCandidate& k = c.of(p);
+        if (!k.computed) continue;
+        out[to_string(p)] = {{"grid_h", k.resolution.grid_h},
+                             {"grid_d", k.resolution.grid_d},
+                             {"terms", k.terms.count},
+                             {"matrix_relative_rms", k.terms.matrix_rms},
+                             {"relative_rms_vs_lobe_cubemaps", k.direct_rms}};
+    }
+    return out;
+}
+
+json factorization_json(const PipelineRun& run, const FactorizationStage& f) {
+    if (!f.cubes) return nullptr;
+    const factorization::Factorization& cubes = *f.cubes;
+    json per_term = json::array();
+    for (std::size_t i = 0; i < f.per_term.size(); ++i) {
+        json t = {{"terms", i + 1}, {"relative_rms_vs_lobe_grid", f.per_term[i].grid}, {"relative_rms_vs_lobe_cubemaps", f.per_term[i].cube}};
+        if (i < cubes.terms.matrix_rms.size()) t["matrix_relative_rms"] = cubes.terms.matrix_rms[i];
+        per_term.push_back(std::move(t));
+    }
+    const factorization::DirectError& err = f.per_term.back();
+    json j = {{"grid_h", cubes.resolution.grid_h},
+              {"grid_d", cubes.resolution.grid_d},
+              {"cube_g", cubes.resolution.cube_g},
+              {"cube_h", cubes.resolution.cube_h},
+              {"resolution_reason", run.result.plan.find("factorization_grid")->reason},
+              {"relative_rms_vs_lobe_grid", err.grid},
+              {"relative_rms_vs_lobe_cubemaps", err.cube},
+              {"terms", cubes.term_count()},
+              {"terms_reason", cubes.terms.reason},
+              {"terms_target", cubes.terms.target},
+              {"per_term", std::move(per_term)},
+              {"parametrization", to_string(cubes.cubes.param)},
+              {"parametrization_forced", cubes.param_choice.forced},
+              {"parametrization_reason", cubes.param_choice.reason},
+              {"parametrization_candidates", param_candidates_json(cubes.param_choice)},
+              {"seconds", cubes.timings.total_s}};
+    if (cubes.cubes.param == FactorParam::Warped) j["warp"] = {cubes.cubes.warp.x, cubes.cubes.warp.y, cubes.cubes.warp.z, cubes.cubes.warp.w};
+    if (const auto ns = cubes.timings.gpu_total_ns()) j["gpu_ms"] = *ns * 1e-6;
+    return j;
+}
+
+json evaluation_json(const PipelineRun& run, const std::optional<evaluate::EvaluationResult>& ev) {
+    if (!ev) return nullptr;
+    json j = evaluate::to_json(*ev);
+    j.erase("frames"); // per frame: evaluation.json
+    j["file"] = "evaluation.json";
+    // Sheets as paths relative to the output folder (the report may move with it).
+    json sheets = json::array();
+    for (const fs::path& sp : ev->sheets) sheets.push_back(fs::relative(sp, run.config.out_dir).generic_string());
+    j["sheets"] = sheets;
+    return j;
+}
+
+} // namespace
+
+json report_json(PipelineRun& run, const ReportInputs& in) {
+    const ReconstructResult& result = run.result;
+    json stages = json::array();
+    for (const StageRecord& s : result.stages) stages.push_back({{"name", s.name}, {"seconds", s.seconds}});
+    json left_out = json::array();
+    for (const LeftOut& l : result.left_out) left_out.push_back({{"what", l.what}, {"why", l.why}});
+    const AlbedoTextureStats& ts = in.texture.stats;
+    return {{"specula_version", kVersion},
+            {"capture",
+             {{"path", fs::absolute(in.capture.desc.dir).string()},
+              {"views", in.capture.views.size()},
+              {"train_frames", in.capture.frame_count(Split::Train)},
+              {"test_frames", in.capture.frame_count(Split::Test)},
+              {"mesh_triangles", in.capture.mesh.triangle_count()},
+              {"load_seconds", in.capture.load_seconds},
+              {"preloaded", in.preloaded}}},
+            {"device", run.device_json()},
+            {"planner", result.plan.to_json()},
+            {"stages", stages},
+            {"total_seconds", result.total_seconds},
+            {"gpu_dispatches", run.gpu_dispatches()},
+            {"atlas", atlas_json(in.geometry.atlas.summary, run.config.atlas)},
+            {"particles",
+             {{"count", in.geometry.particles.particles.size()},
+              {"interior", in.geometry.particles.interior},
+              {"gutter", in.geometry.particles.gutter}}},
+            {"visibility", visibility_json(in.visibility.visibility.stats)},
+            {"diffuse", lambert_json(in.diffuse.solve, in.diffuse.options, run.particle_backend())},
+            {"albedo_refinement", refinement_json(run, in.refine)},
+            {"specular", specular_json(in.specular, run.config.joint_tolerance)},
+            {"factorization", factorization_json(run, in.factorization)},
+            {"bundle",
+             {{"file", "object.glb"},
+              {"has_lobe", in.bundle.material.specular.has_value()},
+              {"has_cubemaps", in.bundle.material.factorized.has_value()}}},
+            {"evaluation", evaluation_json(run, in.evaluation)},
+            {"albedo_texture",
+             {{"files", {"albedo.exr", "albedo.png"}},
+              {"width", in.texture.image.width},
+              {"height", in.texture.image.height},
+              {"texels", ts.texels},
+              {"solved", ts.solved},
+              {"filled_same_patch", ts.filled_same_patch},
+              {"filled_across_patches", ts.filled_across},
+              {"filled_global_mean", ts.filled_global},
+              {"filled_gutter_dilation", ts.filled_dilation},
+              {"filled_pull_push", ts.filled_pull_push}}},
+            {"left_out", left_out},
+            {"warnings", result.warnings}};
+}
+
+void write_reports(const PipelineRun& run, const json& report) {
+    if (run.config.write_html)
+        write_text_file(run.config.out_dir / "report.html", report::report_html(report, {.out_dir = run.config.out_dir}));
+    write_text_file(run.config.out_dir / "report.json", report.dump(2) + "\n");
+}
+
+} // namespace specula

@@ -1,0 +1,453 @@
+#include "pipeline/stages.h"
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/log.h"
+#include "core/timer.h"
+#include "gpu/context.h"
+#include "pipeline/planner.h"
+#include "specula/version.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace specula {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Seconds per occlusion ray, timed on up to `max_rays` (particle, view) rays of the pairs the
+// views see (a deterministic stride over the particles): the planner's cheap measurement of
+// what the rays a convex mesh makes unnecessary would have cost.
+std::optional<double> probe_ray_seconds(const RayScene& scene, std::span<const Particle> particles, const Visibility& vis,
+                                        std::span<const VisibilityView> views, std::size_t max_rays) {
+    std::vector<Ray> rays;
+    const std::size_t per_particle = std::max<std::size_t>(1, views.size() / 4);
+    const std::size_t stride = std::max<std::size_t>(1, particles.size() * per_particle / std::max<std::size_t>(1, max_rays));
+    for (std::size_t p = 0; p < particles.size() && rays.size() < max_rays; p += stride)
+        for (std::size_t v = 0; v < views.size() && rays.size() < max_rays; ++v)
+            if (vis.sees(p, v))
+                rays.push_back(scene.ray_toward(particles[p].p(), particles[p].n(), glm::vec3(views[v].camera.center())));
+    if (rays.size() < 16) return std::nullopt;
+    std::vector<std::uint8_t> hit(rays.size());
+    const Stopwatch watch;
+    scene.occluded(rays, hit);
+    return watch.seconds() / static_cast<double>(rays.size());
+}
+
+// At most max_samples of `all`, by a deterministic stride (0: all).
+std::vector<LafortuneSample> stride_subsample(std::vector<LafortuneSample> all, std::size_t max_samples) {
+    if (max_samples != 0 && all.size() > max_samples) {
+        const std::size_t stride = (all.size() + max_samples - 1) / max_samples;
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < all.size(); i += stride) all[k++] = all[i];
+        all.resize(k);
+    }
+    return all;
+}
+
+// The occlusion-ray decision's detail and cost, once visibility has run.
+void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, const VisibilityStage& vis, bool cast_rays) {
+    const VisibilityStats& stats = vis.visibility.stats;
+    PlanDecision& d = *run.plan().find("occlusion_rays");
+    d.detail["rays_cast"] = stats.rays_cast;
+    d.detail["rays_avoided"] = stats.rays_avoided;
+    if (cast_rays) {
+        d.measured_seconds = run.seconds("visibility");
+        d.cost_basis = "measured: the visibility stage with " + std::to_string(stats.rays_cast) + " occlusion rays, " +
+                       std::to_string(stats.depth_rays) + " depth-map rays and " + std::to_string(stats.shadow_map_rays) +
+                       " shadow-map rays";
+        return;
+    }
+    run.leave_out("occlusion rays (visibility and shadows)", d.reason);
+    if (!run.config.cost_probes || stats.rays_avoided == 0) return;
+    const auto per_ray = run.stage("probe: occlusion rays", [&] {
+        return probe_ray_seconds(*vis.scene, geometry.particles.particles, vis.visibility, vis.inputs.views, 20000);
+    });
+    if (!per_ray) return;
+    PlanDecision& again = *run.plan().find("occlusion_rays"); // the probe added no decision, but stay safe
+    again.avoided_seconds = *per_ray * static_cast<double>(stats.rays_avoided);
+    again.cost_basis = "estimate: " + std::to_string(stats.rays_avoided) + " rays avoided x " + std::to_string(*per_ray * 1e9) +
+                       " ns per ray (timed on up to 20000 particle-to-camera rays); the footprint test's depth and shadow "
+                       "maps, skipped too, are not included";
+}
+
+// The residual samples of `solve` on the run's per-particle backend, timed as `name`.
+ResidualSamples run_residuals(PipelineRun& run, const DiffuseStage& diffuse, const LambertOutputs& solve, const std::string& name) {
+    const ResidualOptions options{.min_light_cos = diffuse.options.min_light_cos,
+                                  .tap_irradiance = diffuse.options.tap_irradiance,
+                                  .max_binding_bytes = 0,
+                                  .max_albedo_spread = 0.02f};
+    ResidualSamples rs = run.stage(name, [&] {
+        return run.on_particle_backend("residual samples", [&](Backend b) {
+            return residual_samples(diffuse.inputs, solve, options, b, run.compute_context());
+        });
+    });
+    if (rs.gpu_ms) run.add_gpu_dispatch(name, "residuals (" + std::to_string(rs.chunks) + " dispatches)", *rs.gpu_ms);
+    return rs;
+}
+
+// The diffuse solve with `options` on the run's per-particle backend, timed as `name`.
+LambertOutputs run_solve(PipelineRun& run, const LambertInputs& inputs, const LambertOptions& options, const std::string& name) {
+    LambertOutputs solve = run.stage(name, [&] {
+        return run.on_particle_backend("diffuse solve",
+                                       [&](Backend b) { return lambert_solve(inputs, options, b, run.compute_context()); });
+    });
+    for (const auto& [label, ms] : solve.summary.gpu_dispatch_ms) run.add_gpu_dispatch(name, label, ms);
+    return solve;
+}
+
+// The auto decision left the fit out: time it on a small subsample so the report can say what it would have cost.
+void probe_fit_cost(PipelineRun& run, const std::vector<LafortuneSample>& all, const LafortuneFitOptions& fo, std::size_t would_fit) {
+    if (!run.config.cost_probes || all.size() < 100) return;
+    constexpr std::size_t kProbe = 4000;
+    std::optional<double> probe;
+    std::size_t probe_n = 0;
+    run.stage("probe: lafortune fit", [&] {
+        const std::vector<LafortuneSample> sub = stride_subsample(all, kProbe);
+        probe_n = sub.size();
+        const Stopwatch w;
+        (void)fit_lafortune(sub, fo);
+        probe = w.seconds();
+    });
+    set_specular_cost(*run.plan().find("specular_stages"), probe, probe_n, would_fit, std::nullopt);
+}
+
+} // namespace
+
+const Capture& load_stage(PipelineRun& run, const Capture* preloaded, std::optional<Capture>& storage) {
+    if (preloaded == nullptr)
+        storage = run.stage("load", [&] {
+            return load_capture(run.config.capture, CaptureLoadOptions{.threads = static_cast<int>(run.config.threads)});
+        });
+    const Capture& capture = preloaded != nullptr ? *preloaded : *storage;
+    if (capture.images.empty()) throw Error("reconstruct: the capture was loaded without its images");
+    for (const std::string& w : capture.warnings) run.warn(w);
+    if (capture.frame_count(Split::Train) == 0)
+        throw InputError(capture_json_path(run.config.capture), "frames", "no train frames: nothing to reconstruct from");
+    return capture;
+}
+
+LambertOptions plan_stage(PipelineRun& run, const Capture& capture) {
+    LambertOptions lambert = run.config.lambert;
+    Plan& plan = run.plan();
+    run.stage("plan", [&] {
+        plan.add(decide_occlusion_rays(analyze_convexity(capture.mesh), run.config.occlusion_rays));
+        const PlanDecision& mode = plan.add(decide_diffuse_mode(light_conditioning(capture, static_cast<double>(lambert.min_rcond)),
+                                                                run.config.diffuse_mode, run.config.specular != SpecularMode::Off));
+        lambert.mode = decided_photometric(mode) ? LambertMode::Photometric : LambertMode::Albedo;
+        plan.add(PlanDecision{.name = "atlas"}); // filled once the particle stages are timed
+    });
+    for (const PlanDecision& d : plan.decisions)
+        if (!d.value.empty()) log::info("plan: " + d.name + " = " + d.value + " (" + (d.forced ? "forced" : "auto") + ")");
+    const PlanDecision& mode = *plan.find("diffuse_mode");
+    if (mode.value == "albedo" && !mode.forced) run.leave_out("photometric solve (refined normals)", mode.reason);
+    return lambert;
+}
+
+GeometryStage geometry_stage(PipelineRun& run, const Capture& capture) {
+    // Cameras of the views that have train frames size the atlas (test views must not).
+    std::vector<Camera> train_cameras;
+    for (const View& view : capture.views)
+        for (std::size_t f : view.frames)
+            if (capture.desc.frames[f].split == Split::Train) {
+                train_cameras.push_back(view.camera);
+                break;
+            }
+    GeometryStage g{.atlas = run.stage("atlas", [&] { return build_atlas(capture.mesh, train_cameras, run.config.atlas); }),
+                    .particles = {}};
+    log::info(describe(g.atlas.summary));
+    g.particles = run.stage("particles", [&] { return build_particles(capture.mesh, g.atlas); });
+    return g;
+}
+
+VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry) {
+    const bool cast_rays = run.plan().find("occlusion_rays")->value == "cast";
+    VisibilityStage v{.inputs = visibility_inputs(capture), .scene = std::nullopt, .visibility = {}};
+    v.visibility = run.stage("visibility", [&] {
+        v.scene.emplace(capture.mesh);
+        return compute_visibility(geometry.particles.particles, capture.mesh, *v.scene, v.inputs.views, v.inputs.lights,
+                                  VisibilityOptions{.threads = run.config.threads,
+                                                    .force_rays = cast_rays,
+                                                    .skip_rays = !cast_rays,
+                                                    .frame_view = v.inputs.frame_view,
+                                                    .surface_maps = run.config.lambert.tap_irradiance});
+    });
+    // Legal but useless input (issue 21 cases 15, 17): most of the surface unseen or unlit is
+    // warned; nothing seen, or nothing lit by a train frame of a view that sees it, is refused
+    // here, naming the capture, rather than solved into an all-inpainted texture.
+    for (const std::string& w : visibility_warnings(v.visibility.stats)) run.warn(w);
+    std::vector<std::size_t> train_frames;
+    for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
+        if (capture.desc.frames[f].split == Split::Train) train_frames.push_back(f);
+    require_usable_visibility(v.visibility, v.inputs.frame_view, capture_json_path(run.config.capture), train_frames);
+    if (!run.config.lambert.tap_irradiance)
+        run.leave_out("per-tap irradiance (surface maps)",
+                      "--tap-irradiance off: each sample mixes its 4 pixels as they are (the thesis's sampling), "
+                      "biased where the normal turns within a pixel");
+    record_occlusion_cost(run, geometry, v, cast_rays);
+    return v;
+}
+
+DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                           const VisibilityStage& visibility, const LambertOptions& options) {
+    (void)run.compute_context(); // "vulkan init", timed on its own before the first solve
+    DiffuseStage d{.inputs = lambert_inputs(capture, geometry.particles.particles, visibility.visibility),
+                   .options = options,
+                   .solve = {}};
+    d.solve = run_solve(run, d.inputs, d.options, "diffuse solve");
+    log::info(describe(d.solve.summary, d.options.mode));
+    PlanDecision& mode = *run.plan().find("diffuse_mode");
+    if (mode.forced) {
+        mode.measured_seconds = run.seconds("diffuse solve");
+        mode.cost_basis = std::string("measured: the diffuse solve in ") + to_string(d.options.mode) + " mode";
+    } else {
+        mode.cost_basis = "no estimate: both modes read the same samples; photometric solves a 3x3 system where albedo "
+                          "mode divides two sums (force a mode to measure it)";
+    }
+    if (d.solve.summary.fallback > 0)
+        run.leave_out("photometric solve for " + std::to_string(d.solve.summary.fallback) + " particles",
+                      "fewer than three usable, non-coplanar light directions in their best view: "
+                      "albedo mode (known normals) used instead");
+    return d;
+}
+
+SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
+    const ReconstructConfig& config = run.config;
+    SpecularStage s;
+    if (config.specular == SpecularMode::Off) {
+        PlanDecision d = decide_specular(ResidualEnergy{}, Toggle::Off);
+        d.detail = nullptr;
+        run.plan().add(std::move(d));
+        run.leave_out("specular fit, factorization and specular pass (residual samples too)", "--specular off");
+        return s;
+    }
+    s.residuals_ran = true;
+    ResidualSamples rs = run_residuals(run, diffuse, diffuse.solve, "residual samples");
+    s.energy = residual_energy(rs.samples, static_cast<double>(diffuse.options.noise_sigma), config.specular_energy_threshold);
+    const Toggle toggle = config.specular == SpecularMode::On ? Toggle::On : Toggle::Auto;
+    const PlanDecision& decision = run.plan().add(decide_specular(s.energy, toggle));
+    log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + decision.reason);
+    LafortuneFitOptions fo = config.lafortune;
+    fo.noise_sigma = static_cast<double>(diffuse.options.noise_sigma);
+    std::vector<LafortuneSample> all = to_lafortune_samples(rs.samples);
+    if (decision.skipped) {
+        run.leave_out("specular fit, factorization and specular pass", decision.reason);
+        s.decision = "skipped: no specular energy (--specular auto)";
+        const std::size_t would_fit =
+            config.max_fit_samples != 0 ? std::min<std::size_t>(all.size(), config.max_fit_samples) : all.size();
+        probe_fit_cost(run, all, fo, would_fit);
+        s.backend = run.particle_backend();
+        rs.samples = {};
+        s.residuals = std::move(rs);
+        return s;
+    }
+
+    const Stopwatch watch;
+    const auto fit = [&](std::vector<LafortuneSample> samples, const std::string& tag) {
+        return run.stage("lafortune fit" + tag, [&] {
+            const std::vector<LafortuneSample> sub = stride_subsample(std::move(samples), config.max_fit_samples);
+            s.fit_samples = sub.size();
+            const Stopwatch w;
+            LafortuneFitRgb f = fit_lafortune(sub, fo);
+            s.fit_seconds += w.seconds();
+            return f;
+        });
+    };
+    JointState state{.solve_options = diffuse.options, .solve = std::move(diffuse.solve), .residuals = std::move(rs), .fit = {}};
+    state.fit = fit(std::move(all), "");
+    const JointSteps steps{
+        .solve = [&](const LambertOptions& o, const std::string& tag) { return run_solve(run, diffuse.inputs, o, "diffuse solve" + tag); },
+        .residuals = [&](const LambertOutputs& solve, const std::string& tag) {
+            return run_residuals(run, diffuse, solve, "residual samples" + tag);
+        },
+        .fit = fit};
+    s.joint = joint_estimate(state, JointOptions{.rounds = config.joint_rounds, .tolerance = config.joint_tolerance}, steps);
+    if (config.joint_rounds == 0) run.leave_out("joint albedo and lobe estimate", "--joint-rounds 0: the thesis's one-pass estimate");
+    s.seconds = watch.seconds();
+    diffuse.solve = std::move(state.solve);
+    diffuse.options = state.solve_options;
+    for (int k = 0; k < 3; ++k) {
+        const LafortuneChannelFit& c = state.fit.channel[k];
+        log::info(std::string("lafortune ") + "rgb"[k] + ": Cx " + std::to_string(c.cx) + " Cz " + std::to_string(c.cz) + " N " +
+                  std::to_string(c.n) + " (" + to_string(c.status) + ")");
+    }
+    s.fit = state.fit;
+    s.decision = config.specular == SpecularMode::On ? "fitted (--specular on)" : "fitted: residuals above the noise (--specular auto)";
+    s.backend = run.particle_backend();
+    state.residuals.samples = {};
+    s.residuals = std::move(state.residuals);
+    return s;
+}
+
+void atlas_decision(PipelineRun& run, const GeometryStage& geometry) {
+    const double particle_seconds = run.seconds("visibility") + run.seconds("diffuse solve") + run.seconds("residual samples");
+    run.plan().add(decide_atlas(geometry.atlas.summary, run.config.atlas, geometry.particles.particles.size(), particle_seconds));
+}
+
+RefineStage refine_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const DiffuseStage& diffuse) {
+    RefineStage r;
+    PlanDecision& decision = run.plan().add(decide_albedo_refinement(run.config.refine_rounds, run.seconds("diffuse solve")));
+    r.rounds = decided_refine_rounds(decision);
+    if (r.rounds == 0) {
+        run.leave_out("albedo refinement", decision.reason);
+        return r;
+    }
+    gpu::Context* rc = run.render_context();
+    if (rc == nullptr) {
+        run.leave_out("albedo refinement", "rendering needs a Vulkan device and none could be had: " + run.no_device());
+        return r;
+    }
+    r.refined = run.stage("albedo refinement", [&] {
+        return refine_albedo(*rc, capture, geometry.atlas, geometry.particles.particles, diffuse.inputs, diffuse.solve,
+                             diffuse.options.lobe, r.rounds, [&](const LambertInputs& in) {
+                                 return run.on_particle_backend("diffuse solve", [&](Backend b) {
+                                     return lambert_solve(in, diffuse.options, b, run.compute_context());
+                                 });
+                             });
+    });
+    for (std::size_t i = 0; i < r.refined->rounds.size(); ++i)
+        log::info("albedo refinement round " + std::to_string(i + 1) + ": mean |change| " +
+                  std::to_string(r.refined->rounds[i].mean_abs_change) + " over " + std::to_string(r.refined->rounds[i].corrected) +
+                  " particles");
+    set_refinement_cost(*run.plan().find("albedo_refinement"), run.seconds("albedo refinement"));
+    return r;
+}
+
+AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse, const RefineStage& refine) {
+    return run.stage("albedo texture", [&] {
+        AlbedoTexture t = refine.refined ? make_albedo_texture(geometry.atlas, geometry.particles.particles, refine.refined->albedo,
+                                                               refine.refined->valid)
+                                         : make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve);
+        write_albedo_texture(t, run.config.out_dir / "albedo");
+        return t;
+    });
+}
+
+FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& specular) {
+    const ReconstructConfig& config = run.config;
+    FactorizationStage f;
+    // Channels whose fit did not converge carry no lobe (they render diffuse only, and say so).
+    if (specular.fit) {
+        for (const LafortuneChannelFit& c : specular.fit->channel) f.lobe_status.push_back(to_string(c.status));
+        const LafortuneRgb l = specular.fit->converged_lobe();
+        if (!l.is_zero()) f.lobe = l;
+        else run.leave_out("specular lobe in the bundle", "no channel's fit converged: the bundle is diffuse only");
+    }
+    if (!f.lobe) {
+        run.plan().add(PlanDecision{.name = "factorization_grid",
+                                    .value = "none",
+                                    .forced = false,
+                                    .skipped = true,
+                                    .reason = specular.fit ? "no channel's fit converged: no lobe to factorize"
+                                                           : "no lobe: the specular stages were left out"});
+        return f;
+    }
+    const LafortuneRgb& lobe = *f.lobe;
+    run.plan().add(decide_factorization_grid(lobe, config.factorization_grid_h, config.factorization_grid_d));
+    const factorization::FactorizationResolution res = decided_grid(lobe, config.factorization_grid_h, config.factorization_grid_d);
+    f.cubes = run.stage("factorization", [&] {
+        factorization::FactorizationOptions fo;
+        // The planner's grid is the plain GSHD's; the mirrored and warped ones put the peak
+        // along d (factorization/resolution.h), so unforced axes are left to each parametrization.
+        fo.grid_h = config.factorization_grid_h;
+        fo.grid_d = config.factorization_grid_d;
+        fo.param = config.factor_param;
+        return factorization::factorize(lobe, fo, config.backend, run.compute_context());
+    });
+    const factorization::Factorization& cubes = *f.cubes;
+    PlanDecision& grid = *run.plan().find("factorization_grid");
+    if (cubes.resolution.grid_h != res.grid_h || cubes.resolution.grid_d != res.grid_d) {
+        grid.value = "h " + std::to_string(cubes.resolution.grid_h) + " x d " + std::to_string(cubes.resolution.grid_d) +
+                     " (cube faces " + std::to_string(cubes.resolution.cube_g) + ", " + std::to_string(cubes.resolution.cube_h) + ")";
+        grid.detail["grid_h"] = cubes.resolution.grid_h;
+        grid.detail["grid_d"] = cubes.resolution.grid_d;
+        grid.detail["cube_g"] = cubes.resolution.cube_g;
+        grid.detail["cube_h"] = cubes.resolution.cube_h;
+        grid.reason = cubes.resolution.reason;
+    }
+    // The CPU path times each step; the Vulkan path records the three kernels in one submission
+    // (no per-step wall time), so its dispatches' GPU time stands in.
+    const factorization::FactorizationTimings& t = cubes.timings;
+    double seconds = t.matrix_s + t.decomposition_s;
+    std::string what = "matrix and decomposition wall time";
+    if (!(seconds > 0.0)) {
+        if (t.matrix_gpu_ns && t.decomposition_g_gpu_ns && t.decomposition_h_gpu_ns) {
+            seconds = (*t.matrix_gpu_ns + *t.decomposition_g_gpu_ns + *t.decomposition_h_gpu_ns) * 1e-9;
+            what = "GPU time of the matrix and decomposition dispatches";
+        } else {
+            seconds = t.total_s;
+            what = "factorization wall time";
+        }
+    }
+    set_factorization_cost(grid, seconds, what);
+    // Error of the first k terms for k = 1..K (the last one is what the bundle renders).
+    for (uint32_t k = 1; k <= cubes.term_count(); ++k) f.per_term.push_back(factorization::direct_relative_rms(lobe, cubes, k, 1u << 16));
+    grid.detail["relative_rms_vs_lobe_cubemaps"] =
+        std::isfinite(f.per_term.back().cube) ? nlohmann::json(f.per_term.back().cube) : nlohmann::json(nullptr);
+    grid.detail["terms"] = cubes.term_count();
+    const auto add_gpu = [&](const char* label, const std::optional<double>& ns) {
+        if (ns) run.add_gpu_dispatch("factorization", label, *ns * 1e-6);
+    };
+    add_gpu("brdf_matrix", t.matrix_gpu_ns);
+    add_gpu("decomposition G", t.decomposition_g_gpu_ns);
+    add_gpu("decomposition H", t.decomposition_h_gpu_ns);
+    add_gpu("cube-map G", t.cube_g_gpu_ns);
+    add_gpu("cube-map H", t.cube_h_gpu_ns);
+    add_gpu("residual terms", t.residual_gpu_ns);
+    return f;
+}
+
+void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const FactorizationStage& factorization) {
+    PlanDecision* spec = run.plan().find("specular_stages");
+    if (spec == nullptr || spec->skipped || !spec->forced) return;
+    set_specular_cost(*spec, std::nullopt, 0, specular.fit_samples,
+                      specular.seconds + (factorization.cubes ? run.seconds("factorization") : 0.0));
+}
+
+Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const AlbedoTexture& texture,
+                    const FactorizationStage& factorization) {
+    return run.stage("bundle", [&] {
+        Material material;
+        if (factorization.lobe) material.specular = *factorization.lobe;
+        material.status = factorization.lobe_status;
+        if (factorization.cubes) material.factorized = factorization.cubes->cubes;
+        Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
+        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        write_bundle(run.config.out_dir / "object.glb", b);
+        return b;
+    });
+}
+
+std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle) {
+    const ReconstructConfig& config = run.config;
+    if (!config.evaluate) {
+        run.leave_out("evaluation", "--no-evaluate");
+        return std::nullopt;
+    }
+    gpu::Context* ctx = run.render_context();
+    if (ctx == nullptr) {
+        run.leave_out("evaluation", "rendering needs a Vulkan device and none could be had: " + run.no_device());
+        return std::nullopt;
+    }
+    evaluate::EvaluationResult ev = run.stage("evaluation", [&] {
+        evaluate::EvaluateOptions eo;
+        // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
+        eo.metrics_backend = ctx->info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
+        eo.max_frames_per_split = config.evaluate_max_frames;
+        eo.include_train = config.evaluate_train;
+        if (config.evaluate_factorized && bundle.material.factorized) eo.render.specular = render::SpecularPath::Factorized;
+        if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
+        eo.bundle_name = "object.glb";
+        eo.progress = true;
+        return evaluate::evaluate(*ctx, bundle, capture, eo);
+    });
+    log::info(evaluate::format_summary(ev));
+    write_text_file(config.out_dir / "evaluation.json", evaluate::to_json(ev).dump(2) + "\n");
+    if (!config.evaluate_train) run.leave_out("evaluation of the train frames", "test frames only (evaluate_train off)");
+    return ev;
+}
+
+} // namespace specula

@@ -1,0 +1,116 @@
+#pragma once
+// The stages of `specula reconstruct`, one function each, in pipeline order (docs/pipeline.md).
+// Each takes the run (pipeline/run.h: configuration, timing, plan, devices, what was left out)
+// and the typed outputs of earlier stages, and returns its own output; reconstruct() calls them
+// in order and pipeline/report.h turns their outputs into report.json. A stage asks the planner
+// (pipeline/planner.h) what the scene needs and records the decision with its cost.
+#include "capture/capture.h"
+#include "diffuse/albedo_texture.h"
+#include "diffuse/lambert_solve.h"
+#include "evaluate/evaluate.h"
+#include "export/bundle.h"
+#include "factorization/factorization.h"
+#include "geometry/atlas.h"
+#include "geometry/particles.h"
+#include "geometry/ray_scene.h"
+#include "pipeline/joint.h"
+#include "pipeline/run.h"
+#include "refine/albedo_refine.h"
+#include "specular/lafortune_fit.h"
+#include "specular/residuals.h"
+#include "visibility/visibility.h"
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace specula {
+
+/// 1. The capture (its mesh and images), or the preloaded one (the sweep loads once).
+const Capture& load_stage(PipelineRun& run, const Capture* preloaded, std::optional<Capture>& storage);
+
+/// 2. The plan from the capture alone: can the mesh occlude itself (occlusion rays), do the
+///    lights allow the photometric solve. Returns the diffuse solve's options with the mode set.
+[[nodiscard]] LambertOptions plan_stage(PipelineRun& run, const Capture& capture);
+
+/// 3. The atlas (sized by the train views) and its texel centres, the surface particles.
+struct GeometryStage {
+    Atlas atlas;
+    ParticleSet particles;
+};
+[[nodiscard]] GeometryStage geometry_stage(PipelineRun& run, const Capture& capture);
+
+/// 4. Which views see and which frames light each particle (Embree; occlusion rays only where
+///    the plan casts them), the per-view surface maps, and the probe of what skipped rays cost.
+struct VisibilityStage {
+    VisibilityInputs inputs;
+    std::optional<RayScene> scene; ///< built inside the stage (its BVH is part of its cost)
+    Visibility visibility;
+};
+[[nodiscard]] VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry);
+
+/// 5. The diffuse solve. `solve` and `options` are the last solve's: the specular stage's joint
+///    rounds replace them (their options then carry the lobe that solve subtracted).
+struct DiffuseStage {
+    LambertInputs inputs;
+    LambertOptions options;
+    LambertOutputs solve;
+};
+[[nodiscard]] DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                         const VisibilityStage& visibility, const LambertOptions& options);
+
+/// 6. Residual samples and their energy, then (when the residuals hold specular energy, or
+///    forced) the Lafortune fit and the joint estimate, which updates `diffuse`.
+struct SpecularStage {
+    bool residuals_ran = false;           ///< false: --specular off
+    ResidualSamples residuals;            ///< the last residual samples' counts and timings (samples dropped)
+    ResidualEnergy energy;
+    std::optional<LafortuneFitRgb> fit;   ///< the last fit, when the fit ran
+    std::string decision;                 ///< report.json specular.decision
+    double fit_seconds = 0.0;             ///< the fits alone
+    std::size_t fit_samples = 0;          ///< samples of the last fit (stride subsample)
+    JointResult joint;
+    double seconds = 0.0;                 ///< the fits and the joint rounds
+    Backend backend = Backend::Cpu;       ///< where the per-particle passes ran
+};
+[[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse);
+
+/// The atlas decision, once the stages whose cost grows with the particle count have run.
+void atlas_decision(PipelineRun& run, const GeometryStage& geometry);
+
+/// 7. Albedo refinement by back-projection through renders of the train frames (refine/).
+struct RefineStage {
+    std::optional<AlbedoRefineResult> refined; ///< absent: left out (0 rounds, or no device)
+    std::uint32_t rounds = 0;
+};
+[[nodiscard]] RefineStage refine_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                       const DiffuseStage& diffuse);
+
+/// 8. The albedo texture (inpainting what no view saw), written as albedo.exr and albedo.png.
+[[nodiscard]] AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse,
+                                          const RefineStage& refine);
+
+/// 9. The lobe of the converged channels, and its Kautz-McCool factorization on the grid the
+///    planner chose from its width, in the parametrization of least error.
+struct FactorizationStage {
+    std::optional<LafortuneRgb> lobe;          ///< absent: no lobe (specular left out, or no channel converged)
+    std::vector<std::string> lobe_status;      ///< per channel, when fitted
+    std::optional<factorization::Factorization> cubes;
+    std::vector<factorization::DirectError> per_term; ///< error of the first k terms, k = 1..K
+};
+[[nodiscard]] FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& specular);
+
+/// The cost of specular stages that a flag forced on: the fits, the joint rounds and the factorization.
+void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const FactorizationStage& factorization);
+
+/// 10. The bundle object.glb: mesh with atlas coordinates, albedo, lobe, cube-maps.
+[[nodiscard]] Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                  const AlbedoTexture& texture, const FactorizationStage& factorization);
+
+/// 11. Self-evaluation: every frame re-rendered from the bundle and scored (writes evaluation.json
+///     and sheets/). Absent when left out (--no-evaluate, or no device).
+[[nodiscard]] std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture,
+                                                                         const Bundle& bundle);
+
+} // namespace specula
