@@ -11,7 +11,9 @@ $SUDO apt-get install -y -qq --no-install-recommends \
   glslang-tools glslang-dev spirv-tools \
   libglm-dev libeigen3-dev libembree-dev libopenimageio-dev openimageio-tools \
   libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev \
-  libglfw3-dev xvfb xauth xdotool >/dev/null
+  libglfw3-dev xvfb xauth xdotool \
+  clang-14 libclang-rt-14-dev >/dev/null
+# (clang-14 and its compiler-rt: libFuzzer and the sanitizer runtimes for tools/fuzz.sh.)
 # Node.js for the glTF validator: Debian's packages, unless a Node.js with npm is already
 # there (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm package).
 if ! command -v npm >/dev/null 2>&1; then

@@ -5,6 +5,8 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/json_guard.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "core/timer.h"
 
@@ -17,6 +19,7 @@
 #include <new>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace specula {
 
@@ -27,8 +30,6 @@ namespace {
 
 constexpr const char* kFormatName = "specula-capture";
 constexpr int kFormatVersion = 1;
-// Deepest JSON nesting accepted (nlohmann's parser recurses; this keeps a hostile file from exhausting the stack).
-constexpr int kMaxJsonDepth = 256;
 // Intrinsics of frames of one view must agree to this relative tolerance.
 constexpr double kIntrinsicsTolerance = 1e-6;
 
@@ -58,6 +59,18 @@ const char* type_name(const json& v) {
     case json::value_t::discarded: return "nothing";
     default: return "a number";
     }
+}
+
+// A number for messages: "1e+15", "0.001", "5e-324" (shortest form that reads back alike).
+std::string short_number(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
+}
+
+std::string out_of_range(double v, const std::string& range, const std::string& why) {
+    return short_number(v) + " is out of range (" + range + ": " + why + ", docs/capture-format.md \"Ranges\")";
 }
 
 /// Typed access to capture.json with errors naming the file and the field.
@@ -91,6 +104,32 @@ public:
     glm::dvec3 vec3(const json& v, const std::string& field) const {
         if (!v.is_array() || v.size() != 3) fail(field, "expected an array of 3 numbers");
         return {number(v[0], field + "[0]"), number(v[1], field + "[1]"), number(v[2], field + "[2]")};
+    }
+
+    /// A point of the scene: every coordinate within +-kMaxWorldCoordinate.
+    glm::dvec3 point(const json& v, const std::string& field) const {
+        const glm::dvec3 p = vec3(v, field);
+        for (int c = 0; c < 3; ++c)
+            if (std::abs(p[c]) > kMaxWorldCoordinate)
+                fail(field + "[" + std::to_string(c) + "]", out_of_range(p[c], "|coordinate| <= " + short_number(kMaxWorldCoordinate),
+                                                                     "coordinates are squared in float"));
+        return p;
+    }
+
+    /// A relative path inside the capture's folder: not empty, no NUL (which would cut the
+    /// path short where the C library opens it), not absolute, and no ".." that leaves the folder.
+    fs::path relative_path(const json& v, const std::string& field) const {
+        const std::string text = string(v, field);
+        if (text.empty()) fail(field, "empty path");
+        if (text.find('\0') != std::string::npos)
+            fail(field, "the path contains a NUL character (it would be cut short there)");
+        const fs::path path(text);
+        if (path.has_root_path())
+            fail(field, "\"" + text + "\" is an absolute path: every file of a capture is named relative to the folder of capture.json");
+        const fs::path normal = path.lexically_normal();
+        if (normal.empty() || *normal.begin() == "..")
+            fail(field, "\"" + text + "\" leaves the capture's folder (every file of a capture must be inside it)");
+        return path;
     }
 
     const json& require(const json& obj, const std::string& key, const std::string& prefix) const {
@@ -139,6 +178,12 @@ glm::dmat4 parse_transform(const JsonReader& r, const json& v, const std::string
         msg << "not a valid rotation: determinant " << det << " (must be +1; a reflection or scale is not allowed)";
         r.fail(field, msg.str());
     }
+    // The camera centre: a point of the scene like any other.
+    for (int row = 0; row < 3; ++row)
+        if (std::abs(m[3][row]) > kMaxWorldCoordinate)
+            r.fail(field + "[" + std::to_string(row) + "][3]",
+                   out_of_range(m[3][row], "|translation| <= " + short_number(kMaxWorldCoordinate),
+                                "camera centres are points of the scene, whose coordinates are squared in float"));
     return m;
 }
 
@@ -154,6 +199,9 @@ IntrinsicsSource parse_intrinsics(const JsonReader& r, const json& obj, const st
         if (it == obj.end()) return std::nullopt;
         const int v = r.integer(*it, prefix + key);
         if (v <= 0) r.fail(prefix + key, "image size must be positive, got " + std::to_string(v));
+        if (v > kMaxImageDimension)
+            r.fail(prefix + key, "image size " + std::to_string(v) + " is above the largest accepted (" +
+                                     std::to_string(kMaxImageDimension) + ", what the renderer's devices hold)");
         return v;
     };
     auto get_focal = [&](const char* key) -> std::optional<double> {
@@ -192,24 +240,6 @@ bool intrinsics_agree(const Intrinsics& a, const Intrinsics& b) {
 }
 
 std::string frame_prefix(std::size_t i) { return "frames[" + std::to_string(i) + "]"; }
-
-// Maximum bracket nesting of a JSON text, outside strings.
-int json_depth(const std::string& text) {
-    int depth = 0, max_depth = 0;
-    bool in_string = false, escaped = false;
-    for (const char ch : text) {
-        if (in_string) {
-            if (escaped) escaped = false;
-            else if (ch == '\\') escaped = true;
-            else if (ch == '"') in_string = false;
-            continue;
-        }
-        if (ch == '"') in_string = true;
-        else if (ch == '[' || ch == '{') max_depth = std::max(max_depth, ++depth);
-        else if (ch == ']' || ch == '}') --depth;
-    }
-    return max_depth;
-}
 
 std::string line_column(const std::string& text, std::size_t byte) {
     byte = std::min(byte, text.size());
@@ -313,6 +343,12 @@ RgbPixels read_rgb(const fs::path& path, ColorSpace encoding, int max_channels, 
         if (!px.info.is_float && encoding == ColorSpace::Srgb)
             for (float& v : px.values) v = srgb_to_linear(v);
     }
+    // OpenImageIO records an error when the decoder ran out of data or met corrupt data and
+    // made up what it could not read (libjpeg fills the missing rows of a truncated JPEG
+    // with grey): those pixels were never measured, so the file is refused.
+    if (in->has_error())
+        throw InputError(path, field, "the image decoded only in part (" + in->geterror() +
+                                          "): the file is truncated or corrupt");
     in->close();
     return px;
 }
@@ -355,6 +391,7 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
 
     CaptureDesc desc;
     desc.dir = json_path.has_parent_path() ? json_path.parent_path() : fs::path(".");
+    desc.json_file = json_path;
 
     const std::string format = r.string(r.require(j, "format", ""), "format");
     if (format != kFormatName) r.fail("format", "expected \"" + std::string(kFormatName) + "\", got \"" + format + "\"");
@@ -363,8 +400,7 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
         r.fail("version", "unsupported version " + version.dump() + " (this reader knows version " +
                               std::to_string(kFormatVersion) + ")");
 
-    desc.mesh_path = r.string(r.require(j, "mesh_path", ""), "mesh_path");
-    if (desc.mesh_path.empty()) r.fail("mesh_path", "empty path");
+    desc.mesh_path = r.relative_path(r.require(j, "mesh_path", ""), "mesh_path");
 
     if (const auto it = j.find("color_space"); it != j.end()) {
         const std::string cs = r.string(*it, "color_space");
@@ -375,6 +411,9 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
     if (const auto it = j.find("saturation"); it != j.end()) {
         const double s = r.number(*it, "saturation");
         if (!(s > 0.0)) r.fail("saturation", "must be positive");
+        if (s < kMinSaturation || s > kMaxSaturation)
+            r.fail("saturation", out_of_range(s, "[" + short_number(kMinSaturation) + ", " + short_number(kMaxSaturation) + "]",
+                                              "it is compared with pixel values as a float"));
         desc.saturation = s;
     }
     const IntrinsicsSource top = parse_intrinsics(r, j, "");
@@ -394,8 +433,7 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
         const std::string p = frame_prefix(i);
         if (!f.is_object()) r.fail(p, std::string("expected an object, got ") + type_name(f));
         FrameDesc fd;
-        fd.file_path = r.string(r.require(f, "file_path", p + "."), p + ".file_path");
-        if (fd.file_path.empty()) r.fail(p + ".file_path", "empty path");
+        fd.file_path = r.relative_path(r.require(f, "file_path", p + "."), p + ".file_path");
         fd.view_index = r.integer(r.require(f, "view_index", p + "."), p + ".view_index");
         fd.transform = parse_transform(r, r.require(f, "transform_matrix", p + "."), p + ".transform_matrix");
 
@@ -404,17 +442,19 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
         if (!light.is_object()) r.fail(lp, std::string("expected an object, got ") + type_name(light));
         const std::string type = r.string(r.require(light, "type", lp + "."), lp + ".type");
         if (type != "point") r.fail(lp + ".type", "expected \"point\", got \"" + type + "\"");
-        fd.light.position = r.vec3(r.require(light, "position", lp + "."), lp + ".position");
+        fd.light.position = r.point(r.require(light, "position", lp + "."), lp + ".position");
         fd.light.intensity = r.vec3(r.require(light, "intensity", lp + "."), lp + ".intensity");
-        for (int c = 0; c < 3; ++c)
+        for (int c = 0; c < 3; ++c) {
             if (fd.light.intensity[c] < 0.0) r.fail(lp + ".intensity", "intensity must not be negative");
+            if (fd.light.intensity[c] > kMaxLightIntensity)
+                r.fail(lp + ".intensity[" + std::to_string(c) + "]",
+                       out_of_range(fd.light.intensity[c], "<= " + short_number(kMaxLightIntensity),
+                                    "the engine computes with intensities as floats"));
+        }
         for (const auto& [key, value] : light.items())
             if (!light_keys().count(key)) fd.light_extra[key] = value;
 
-        if (const auto it = f.find("mask_path"); it != f.end()) {
-            fd.mask_path = fs::path(r.string(*it, p + ".mask_path"));
-            if (fd.mask_path->empty()) r.fail(p + ".mask_path", "empty path");
-        }
+        if (const auto it = f.find("mask_path"); it != f.end()) fd.mask_path = r.relative_path(*it, p + ".mask_path");
         if (const auto it = f.find("split"); it != f.end()) {
             const std::string split = r.string(*it, p + ".split");
             if (split == "train") fd.split = Split::Train;
@@ -435,6 +475,28 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
         fd.intrinsics.fl_y = resolve(own.fl_y, top.fl_y, "fl_y");
         fd.intrinsics.cx = resolve(own.cx, top.cx, "cx");
         fd.intrinsics.cy = resolve(own.cy, top.cy, "cy");
+        // Ranges that depend on the image size: named where the value was given.
+        const double size = std::max(fd.intrinsics.w, fd.intrinsics.h);
+        auto check_focal = [&](double v, bool own_value, const char* key) {
+            const std::string field = own_value ? p + "." + key : std::string(key);
+            if (v < kMinFocalRelative * size)
+                r.fail(field, out_of_range(v, ">= " + short_number(kMinFocalRelative) + " x max(w, h) = " +
+                                                  short_number(kMinFocalRelative * size) + " pixels",
+                                           "a field of view below 180 degrees"));
+            if (v > kMaxFocalLength)
+                r.fail(field, out_of_range(v, "<= " + short_number(kMaxFocalLength) + " pixels",
+                                           "float positions must project to well under a pixel"));
+        };
+        auto check_center = [&](double v, bool own_value, const char* key) {
+            if (std::abs(v) > kMaxPrincipalPointRelative * size)
+                r.fail(own_value ? p + "." + key : std::string(key),
+                       out_of_range(v, "|value| <= " + short_number(kMaxPrincipalPointRelative) + " x max(w, h)",
+                                    "a principal point that far off the image is an error"));
+        };
+        check_focal(fd.intrinsics.fl_x, own.fl_x.has_value(), "fl_x");
+        check_focal(fd.intrinsics.fl_y, own.fl_y.has_value(), "fl_y");
+        check_center(fd.intrinsics.cx, own.cx.has_value(), "cx");
+        check_center(fd.intrinsics.cy, own.cy.has_value(), "cy");
 
         for (const auto& [key, value] : f.items())
             if (!frame_keys().count(key)) fd.extra[key] = value;
@@ -526,38 +588,287 @@ void write_capture_json(const CaptureDesc& desc) {
     write_text_file(desc.dir / "capture.json", capture_desc_to_json(desc).dump(2) + "\n");
 }
 
-Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& options) {
-    const Stopwatch clock;
-    const fs::path json_path = capture_json_path(dir_or_file);
-    std::error_code ec;
-    if (fs::exists(json_path, ec) && !fs::is_regular_file(json_path, ec))
-        throw InputError(json_path, "", "not a regular file");
-    const std::string text = read_text_file(json_path);
-    if (json_depth(text) > kMaxJsonDepth)
-        throw InputError(json_path, "", "malformed JSON: nesting deeper than " + std::to_string(kMaxJsonDepth));
+CaptureDesc parse_capture_text(std::string_view text, const fs::path& json_path) {
+    const std::string_view view = text;
+    // Checked on the text, before a parser builds the document (core/json_guard.h): nesting
+    // (the parser recurses) and duplicate keys (readers disagree on which value counts).
+    if (const std::optional<std::string> deep = json_too_deep(view, kMaxCaptureJsonDepth))
+        throw InputError(json_path, *deep, "JSON nested deeper than " + std::to_string(kMaxCaptureJsonDepth) +
+                                               " levels (refused before parsing)");
+    const std::string copy(text); // line_column and the parser's messages index the text
+    const JsonKeyReport keys = check_json_keys(view);
+    if (!keys.duplicate_field.empty())
+        throw InputError(json_path, keys.duplicate_field,
+                         "duplicate JSON key (readers disagree on which value counts: this one would keep the last)");
+    if (!keys.error.empty())
+        throw InputError(json_path, "", "malformed JSON at " + line_column(copy, keys.error_byte) + ": " + keys.error);
     json j;
     try {
-        j = json::parse(text);
-    } catch (const json::parse_error& e) {
-        throw InputError(json_path, "", "malformed JSON at " + line_column(text, e.byte) + ": " + e.what());
-    } catch (const json::exception& e) {
-        // e.g. out_of_range 406 "number overflow parsing '1e999'": locate the quoted token when possible.
-        std::string where;
-        const std::string what = e.what();
-        const auto open = what.find('\''), close = what.rfind('\'');
-        if (open != std::string::npos && close > open + 1) {
-            const auto at = text.find(what.substr(open + 1, close - open - 1));
-            if (at != std::string::npos) where = " at " + line_column(text, at + 1);
-        }
-        throw InputError(json_path, "", "malformed JSON" + where + ": " + what);
+        j = json::parse(copy);
+    } catch (const json::exception& e) { // defensive: the SAX pass above accepted the same text
+        throw InputError(json_path, "", std::string("malformed JSON: ") + e.what());
     }
-
-    Capture capture;
     try {
-        capture.desc = parse_capture_desc(j, json_path);
-    } catch (const json::exception& e) { // defensive: every access above is type-checked
+        return parse_capture_desc(j, json_path);
+    } catch (const json::exception& e) { // defensive: every access is type-checked
         throw InputError(json_path, "", std::string("invalid capture description: ") + e.what());
     }
+}
+
+std::uint64_t decoded_image_bytes(const CaptureDesc& desc, int threads) {
+    std::uint64_t total = 0, largest = 0;
+    std::set<fs::path> images, masks;
+    for (const FrameDesc& f : desc.frames) {
+        const std::uint64_t pixels = static_cast<std::uint64_t>(f.intrinsics.w) * static_cast<std::uint64_t>(f.intrinsics.h);
+        total += pixels * (3 * sizeof(float) + 1); // FrameImage: linear RGB and one flag byte a pixel
+        largest = std::max(largest, pixels);
+        images.insert(desc.resolve(f.file_path).lexically_normal());
+        if (f.mask_path && masks.insert(desc.resolve(*f.mask_path).lexically_normal()).second) total += pixels;
+    }
+    // Files decoded at the same time: each holds its float values and its raw 8/16-bit codes
+    // (3 channels: 12 + 6 bytes a pixel) until its frames are filled.
+    const std::uint64_t concurrent = std::min<std::uint64_t>(static_cast<std::uint64_t>(std::max(1, threads)), images.size());
+    return total + concurrent * largest * 18;
+}
+
+namespace {
+
+// Whether canonical path `child` lies inside canonical folder `parent`.
+bool inside_folder(const fs::path& child, const fs::path& parent) {
+    auto c = child.begin();
+    for (auto p = parent.begin(); p != parent.end(); ++p, ++c)
+        if (c == child.end() || *c != *p) return false;
+    return c != child.end();
+}
+
+// A file of the capture must resolve inside its folder: the paths were checked to stay
+// inside it (JsonReader::relative_path), and a symbolic link may not lead out either (as
+// glTF URIs, capture/gltf_io.h). A path that does not resolve is left to the reader, which
+// says "file not found".
+void check_inside_capture(const fs::path& root, const fs::path& file, const std::string& field) {
+    std::error_code ec;
+    const fs::path resolved = fs::canonical(file, ec);
+    if (ec) return;
+    if (!inside_folder(resolved, root))
+        throw InputError(file, field, "a symbolic link that leads outside the capture's folder (to " + resolved.string() + ")");
+}
+
+// The point of triangle abc closest to p: the Voronoi-region walk of Ericson, "Real-Time
+// Collision Detection" (2005), section 5.1.5 (vertex regions, then edge regions, then the face).
+glm::dvec3 closest_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    const glm::dvec3 ab = b - a, ac = c - a;
+    const glm::dvec3 ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) return a;
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) return b;
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return a + ab * (d1 / (d1 - d3));
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) return c;
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return a + ac * (d2 / (d2 - d6));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    const double inv = 1.0 / (va + vb + vc);
+    return a + ab * (vb * inv) + ac * (vc * inv);
+}
+
+double distance_to_mesh(const glm::dvec3& p, const Mesh& mesh) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const glm::uvec3& t : mesh.triangles) {
+        const glm::dvec3 q = closest_on_triangle(p, glm::dvec3(mesh.positions[t.x]), glm::dvec3(mesh.positions[t.y]),
+                                                 glm::dvec3(mesh.positions[t.z]));
+        best = std::min(best, glm::length(p - q));
+    }
+    return best;
+}
+
+double distance_to_box(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
+    const glm::dvec3 outside = glm::max(glm::max(lo - p, p - hi), glm::dvec3(0.0));
+    return glm::length(outside);
+}
+
+double farthest_box_corner(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
+    return glm::length(glm::max(glm::abs(p - lo), glm::abs(p - hi)));
+}
+
+// Whether view `camera` can see any of the box: false when every corner is behind the
+// camera, or all are in front and their projections miss the image. (A box that straddles
+// the camera plane may be seen.)
+bool box_may_be_seen(const Camera& camera, const glm::dvec3& lo, const glm::dvec3& hi) {
+    glm::dvec2 pmin(std::numeric_limits<double>::infinity()), pmax(-std::numeric_limits<double>::infinity());
+    int in_front = 0;
+    for (int k = 0; k < 8; ++k) {
+        const glm::dvec3 corner((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+        const std::optional<glm::dvec2> q = camera.project(corner);
+        if (!q) continue;
+        ++in_front;
+        pmin = glm::min(pmin, *q);
+        pmax = glm::max(pmax, *q);
+    }
+    if (in_front == 0) return false;
+    if (in_front < 8) return true;
+    const Intrinsics& k = camera.intrinsics;
+    return pmax.x >= 0.0 && pmax.y >= 0.0 && pmin.x <= k.w && pmin.y <= k.h;
+}
+
+std::string list_first(const std::vector<std::string>& items, std::size_t n) {
+    std::string s;
+    for (std::size_t i = 0; i < items.size() && i < n; ++i) s += (i ? ", " : "") + items[i];
+    if (items.size() > n) s += ", ...";
+    return s;
+}
+
+} // namespace
+
+std::vector<std::string> check_capture_scene(const CaptureDesc& desc, const std::vector<View>& views, const Mesh& mesh,
+                                             const fs::path& mesh_file) {
+    std::vector<std::string> warnings;
+    const fs::path& json_file = desc.json_file.empty() ? desc.dir / "capture.json" : desc.json_file;
+    const Bounds bounds = mesh_bounds(mesh);
+    const glm::dvec3 lo(bounds.min), hi(bounds.max);
+    for (int c = 0; c < 3; ++c) {
+        const double extreme = std::max(std::abs(lo[c]), std::abs(hi[c]));
+        if (extreme > kMaxWorldCoordinate)
+            throw InputError(mesh_file, "mesh_path",
+                             "a vertex coordinate of " + short_number(std::abs(lo[c]) > std::abs(hi[c]) ? lo[c] : hi[c]) +
+                                 " is out of range (|coordinate| <= " + short_number(kMaxWorldCoordinate) +
+                                 ": coordinates are squared in float, docs/capture-format.md \"Ranges\")");
+    }
+    const double size = glm::length(hi - lo); // D, the object's size
+    if (size < kMinMeshDiagonal)
+        throw InputError(mesh_file, "mesh_path",
+                         "the mesh's bounding box diagonal is " + short_number(size) + ", below " + short_number(kMinMeshDiagonal) +
+                             " (distances a 10,000th of it are squared in float, docs/capture-format.md \"Ranges\")");
+    const glm::dvec3 centre = 0.5 * (lo + hi);
+    // Float coordinates are spaced |x| 2^-23 apart; rays leave the surface 1e-4 D away from it
+    // (RayScene::kRayOffsetRelative), so beyond 100 D from the origin the spacing is an eighth of that.
+    if (glm::length(centre) > 100.0 * size)
+        warnings.push_back("the mesh lies " + short_number(glm::length(centre) / size) +
+                           " times its size from the origin: its float coordinates are spaced " +
+                           short_number(glm::length(centre) * std::ldexp(1.0, -23) / size) +
+                           " of its size apart there; move the scene (mesh, cameras, lights) near the origin");
+
+    const double far = kMaxDistanceToObject * size;
+    auto far_message = [&](const char* what, double distance) {
+        return std::string(what) + " is " + short_number(distance) + " from the mesh's centre, " +
+               short_number(distance / size) + " times the mesh's size (" + short_number(size) + "), beyond " +
+               short_number(kMaxDistanceToObject) + " times (docs/capture-format.md \"Ranges\")";
+    };
+    std::vector<std::string> blind, blind_train;
+    for (const View& v : views) {
+        if (v.frames.empty()) continue;
+        const std::string field = "frames[" + std::to_string(v.frames.front()) + "].transform_matrix";
+        const double distance = glm::length(v.camera.center() - centre);
+        if (distance > far)
+            throw InputError(json_file, field,
+                             far_message("the camera centre", distance) +
+                                 ": the whole mesh would fit in one pixel (are the mesh and the poses in the same unit?)");
+        if (!box_may_be_seen(v.camera, lo, hi)) {
+            const std::string name = "view_index " + std::to_string(v.view_index) + " (frames[" + std::to_string(v.frames.front()) + "])";
+            blind.push_back(name);
+            if (std::any_of(v.frames.begin(), v.frames.end(), [&](std::size_t f) { return desc.frames[f].split == Split::Train; }))
+                blind_train.push_back(name);
+        }
+    }
+    const std::size_t train_views = static_cast<std::size_t>(std::count_if(views.begin(), views.end(), [&](const View& v) {
+        return std::any_of(v.frames.begin(), v.frames.end(), [&](std::size_t f) { return desc.frames[f].split == Split::Train; });
+    }));
+    if (!blind.empty()) {
+        std::string w = std::to_string(blind.size()) + " of " + std::to_string(views.size()) +
+                        " views cannot see the mesh (it is behind the camera or outside the image): " + list_first(blind, 5);
+        if (train_views > 0 && blind_train.size() == train_views)
+            w += "; no train view sees it, so nothing can be reconstructed (do the poses and the mesh share one "
+                 "coordinate frame and unit?)";
+        warnings.push_back(w);
+    }
+
+    // Lights: within reach, off the surface, irradiance within range.
+    struct Reach {
+        double nearest = 0.0, farthest = 0.0;
+    };
+    std::map<std::tuple<double, double, double>, Reach> reach; // per distinct position
+    std::size_t dark_frames = 0;
+    std::optional<std::size_t> first_dark;
+    glm::bvec3 channel_lit(false);
+    for (std::size_t i = 0; i < desc.frames.size(); ++i) {
+        const FrameDesc& f = desc.frames[i];
+        const std::string lp = "frames[" + std::to_string(i) + "].light";
+        const glm::dvec3 p = f.light.position;
+        const double distance = glm::length(p - centre);
+        if (distance > far)
+            throw InputError(json_file, lp + ".position",
+                             far_message("the light", distance) + ": move it to 1e5 times the size in the same direction, "
+                                                                  "with its intensity scaled by the squared ratio of the distances");
+        auto [it, added] = reach.try_emplace({p.x, p.y, p.z});
+        if (added) {
+            const double box = distance_to_box(p, lo, hi);
+            // The box's distance bounds the surface's from below; near or inside the box, measure the surface.
+            it->second.nearest = box >= kMinLightDistanceRelative * size ? box : distance_to_mesh(p, mesh);
+            it->second.farthest = farthest_box_corner(p, lo, hi);
+        }
+        const Reach& r = it->second;
+        if (r.nearest < kMinLightDistanceRelative * size)
+            throw InputError(json_file, lp + ".position",
+                             "the light is " + short_number(r.nearest) + " from the mesh's surface, below " +
+                                 short_number(kMinLightDistanceRelative) + " times the mesh's size: the irradiance I / d^2 "
+                                                                           "has no bound there (docs/capture-format.md \"Ranges\")");
+        const glm::dvec3 I = f.light.intensity;
+        const double peak = std::max({I.x, I.y, I.z}) / (r.nearest * r.nearest);
+        if (peak > kMaxIrradiance)
+            throw InputError(json_file, lp + ".intensity",
+                             "gives the mesh an irradiance I / d^2 of up to " + short_number(peak) + " (d = " +
+                                 short_number(r.nearest) + " at the nearest point), above " + short_number(kMaxIrradiance) +
+                                 " (full scale 1; the diffuse solve squares irradiances in float, docs/capture-format.md "
+                                 "\"Ranges\")");
+        for (int c = 0; c < 3; ++c) {
+            if (I[c] <= 0.0) continue;
+            channel_lit[c] = channel_lit[c] || f.split == Split::Train;
+            const double low = I[c] / (r.farthest * r.farthest);
+            if (low < kMinIrradiance)
+                throw InputError(json_file, lp + ".intensity[" + std::to_string(c) + "]",
+                                 "gives the mesh an irradiance I / d^2 as low as " + short_number(low) + " (d = " +
+                                     short_number(r.farthest) + " at the farthest point), below " +
+                                     short_number(kMinIrradiance) +
+                                     " (full scale 1; the diffuse solve squares irradiances in float, "
+                                     "docs/capture-format.md \"Ranges\")");
+        }
+        if (I.x <= 0.0 && I.y <= 0.0 && I.z <= 0.0) {
+            ++dark_frames;
+            if (!first_dark) first_dark = i;
+        }
+    }
+    if (dark_frames > 0)
+        warnings.push_back(std::to_string(dark_frames) + " frame(s) have a light of intensity 0 in every channel (first: frames[" +
+                           std::to_string(*first_dark) + "].light.intensity): they light nothing and carry no information");
+    const bool any_train = std::any_of(desc.frames.begin(), desc.frames.end(), [](const FrameDesc& f) { return f.split == Split::Train; });
+    static const char* const kChannel[3] = {"red", "green", "blue"};
+    for (int c = 0; c < 3; ++c)
+        if (any_train && !channel_lit[c])
+            warnings.push_back(std::string("no train frame lights the ") + kChannel[c] + " channel (light.intensity[" +
+                               std::to_string(c) + "] is 0 in every one): its albedo cannot be recovered");
+    return warnings;
+}
+
+namespace {
+
+Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptions& options) {
+    const Stopwatch clock;
+    std::error_code ec;
+    if (fs::exists(json_path, ec)) {
+        if (!fs::is_regular_file(json_path, ec)) throw InputError(json_path, "", "not a regular file");
+        const std::uintmax_t bytes = fs::file_size(json_path, ec);
+        if (!ec && bytes > kMaxCaptureJsonBytes)
+            throw InputError(json_path, "", "the file holds " + format_bytes(bytes) + ", above the " +
+                                                format_bytes(kMaxCaptureJsonBytes) + " a capture description may take");
+    }
+    const std::string text = read_text_file(json_path);
+
+    Capture capture;
+    capture.desc = parse_capture_text(text, json_path);
     const CaptureDesc& desc = capture.desc;
 
     // Views, sorted by view_index, frames in file order.
@@ -575,10 +886,17 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
         v.frames.push_back(i);
     }
 
+    // Every file the capture names resolves inside its folder.
+    const fs::path root = fs::weakly_canonical(fs::absolute(desc.dir, ec), ec);
+    check_inside_capture(root, desc.resolve(desc.mesh_path), "mesh_path");
+
     if (options.load_mesh) {
-        MeshLoadResult m = load_mesh(desc.resolve(desc.mesh_path), "mesh_path");
+        const fs::path mesh_file = desc.resolve(desc.mesh_path);
+        MeshLoadResult m = load_mesh(mesh_file, "mesh_path");
         capture.mesh = std::move(m.mesh);
         capture.warnings.insert(capture.warnings.end(), m.warnings.begin(), m.warnings.end());
+        const std::vector<std::string> scene = check_capture_scene(desc, capture.views, capture.mesh, mesh_file);
+        capture.warnings.insert(capture.warnings.end(), scene.begin(), scene.end());
         const Bounds bounds = mesh_bounds(capture.mesh);
         std::vector<std::size_t> inside;
         for (std::size_t i = 0; i < desc.frames.size(); ++i)
@@ -588,22 +906,33 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
                                        "bounding box (first: " + frame_prefix(inside.front()) + ".light.position)");
     }
 
-    // Masks: each distinct file decoded once (a view's frames usually share one).
-    std::vector<fs::path> mask_files;
-    std::map<fs::path, std::size_t> mask_slot;
-    std::vector<std::size_t> mask_first_frame;
-    for (std::size_t i = 0; i < desc.frames.size(); ++i) {
-        if (!desc.frames[i].mask_path) continue;
-        const fs::path p = desc.resolve(*desc.frames[i].mask_path);
-        if (mask_slot.emplace(p, mask_files.size()).second) {
-            mask_files.push_back(p);
-            mask_first_frame.push_back(i);
-        }
-    }
-    auto mask_of = [&](std::size_t frame) -> std::optional<std::size_t> {
-        if (!desc.frames[frame].mask_path) return std::nullopt;
-        return mask_slot.at(desc.resolve(*desc.frames[frame].mask_path));
+    // Image files and masks: each distinct file decoded once, whatever frames name it (a
+    // view's frames usually share one mask; a converter may name one image many times).
+    struct SharedFile {
+        fs::path path;
+        std::vector<std::size_t> frames; // that name it, in file order
     };
+    std::vector<SharedFile> image_files, mask_files;
+    std::map<fs::path, std::size_t> image_slot, mask_slot;
+    std::vector<std::optional<std::size_t>> mask_of(desc.frames.size());
+    for (std::size_t i = 0; i < desc.frames.size(); ++i) {
+        const fs::path p = desc.resolve(desc.frames[i].file_path).lexically_normal();
+        const auto [it, added] = image_slot.emplace(p, image_files.size());
+        if (added) {
+            check_inside_capture(root, p, frame_prefix(i) + ".file_path");
+            image_files.push_back({p, {}});
+        }
+        image_files[it->second].frames.push_back(i);
+        if (!desc.frames[i].mask_path) continue;
+        const fs::path m = desc.resolve(*desc.frames[i].mask_path).lexically_normal();
+        const auto [mt, madded] = mask_slot.emplace(m, mask_files.size());
+        if (madded) {
+            check_inside_capture(root, m, frame_prefix(i) + ".mask_path");
+            mask_files.push_back({m, {}});
+        }
+        mask_files[mt->second].frames.push_back(i);
+        mask_of[i] = mt->second;
+    }
     auto check_size = [&](std::size_t frame, int width, int height, const fs::path& file, const std::string& field,
                           const char* what) {
         const Intrinsics& k = desc.frames[frame].intrinsics;
@@ -618,37 +947,58 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
     const unsigned threads = static_cast<unsigned>(std::max(1, options.threads));
     if (!options.load_images) {
         parallel_for(mask_files.size(), threads, [&](std::size_t m) {
-            const ImageFileInfo info = read_image_info(mask_files[m], frame_prefix(mask_first_frame[m]) + ".mask_path");
-            (void)info;
-        });
-        parallel_for(desc.frames.size(), threads, [&](std::size_t i) {
-            const std::string field = frame_prefix(i) + ".file_path";
-            const fs::path file = desc.resolve(desc.frames[i].file_path);
-            const ImageFileInfo info = read_image_info(file, field);
-            check_size(i, info.width, info.height, file, field, "image");
-            if (const auto m = mask_of(i)) {
-                const ImageFileInfo mi = read_image_info(mask_files[*m], frame_prefix(i) + ".mask_path");
-                check_size(i, mi.width, mi.height, mask_files[*m], frame_prefix(i) + ".mask_path", "mask");
+            for (const std::size_t i : mask_files[m].frames) {
+                const std::string field = frame_prefix(i) + ".mask_path";
+                const ImageFileInfo info = read_image_info(mask_files[m].path, field);
+                check_size(i, info.width, info.height, mask_files[m].path, field, "mask");
             }
         });
-    } else {
-        std::vector<DecodedMask> masks(mask_files.size());
-        parallel_for(mask_files.size(), threads, [&](std::size_t m) {
-            const std::size_t first = mask_first_frame[m];
-            masks[m] = decode_mask(mask_files[m], frame_prefix(first) + ".mask_path", desc.frames[first].intrinsics);
-        });
-        capture.images.resize(desc.frames.size());
-        parallel_for(desc.frames.size(), threads, [&](std::size_t i) {
-            const FrameDesc& f = desc.frames[i];
-            const std::string field = frame_prefix(i) + ".file_path";
-            const fs::path file = desc.resolve(f.file_path);
-            const RgbPixels src = read_rgb(file, desc.color_space, 3, field, f.intrinsics, "image");
-            const DecodedMask* mask = nullptr;
-            if (const auto m = mask_of(i)) {
-                mask = &masks[*m];
-                check_size(i, mask->width, mask->height, mask_files[*m], frame_prefix(i) + ".mask_path", "mask");
+        parallel_for(image_files.size(), threads, [&](std::size_t k) {
+            for (const std::size_t i : image_files[k].frames) {
+                const std::string field = frame_prefix(i) + ".file_path";
+                const ImageFileInfo info = read_image_info(image_files[k].path, field);
+                check_size(i, info.width, info.height, image_files[k].path, field, "image");
             }
+        });
+        capture.load_seconds = clock.seconds();
+        return capture;
+    }
 
+    // Refused before any pixel is decoded when the decoded images cannot fit.
+    const std::uint64_t need = decoded_image_bytes(desc, options.threads);
+    const MemoryAvailable have = options.memory_available ? MemoryAvailable{*options.memory_available, "the memory allowed"}
+                                                          : available_memory();
+    if (need > have.bytes) {
+        int largest_w = 0, largest_h = 0;
+        for (const FrameDesc& f : desc.frames)
+            if (std::int64_t(f.intrinsics.w) * f.intrinsics.h > std::int64_t(largest_w) * largest_h) {
+                largest_w = f.intrinsics.w;
+                largest_h = f.intrinsics.h;
+            }
+        throw InputError(json_path, "",
+                         "the decoded images need " + format_bytes(need) + " (" + std::to_string(desc.frames.size()) +
+                             " frames of up to " + std::to_string(largest_w) + " x " + std::to_string(largest_h) +
+                             " pixels, 13 bytes a pixel as linear float RGB and flags, plus decoding buffers) but " +
+                             format_bytes(have.bytes) + " is available (" + have.limit +
+                             "); use smaller images or fewer frames (`specula validate --no-images` checks the "
+                             "capture without decoding its images)");
+    }
+
+    std::vector<DecodedMask> masks(mask_files.size());
+    parallel_for(mask_files.size(), threads, [&](std::size_t m) {
+        const std::size_t first = mask_files[m].frames.front();
+        masks[m] = decode_mask(mask_files[m].path, frame_prefix(first) + ".mask_path", desc.frames[first].intrinsics);
+        for (const std::size_t i : mask_files[m].frames)
+            check_size(i, masks[m].width, masks[m].height, mask_files[m].path, frame_prefix(i) + ".mask_path", "mask");
+    });
+    capture.images.resize(desc.frames.size());
+    parallel_for(image_files.size(), threads, [&](std::size_t k) {
+        const std::size_t first = image_files[k].frames.front();
+        const RgbPixels src = read_rgb(image_files[k].path, desc.color_space, 3, frame_prefix(first) + ".file_path",
+                                       desc.frames[first].intrinsics, "image");
+        for (const std::size_t i : image_files[k].frames) {
+            check_size(i, src.width, src.height, image_files[k].path, frame_prefix(i) + ".file_path", "image");
+            const DecodedMask* mask = mask_of[i] ? &masks[*mask_of[i]] : nullptr;
             FrameImage& out = capture.images[i];
             out.saturation = effective_saturation(desc, src.info);
             out.file_info = src.info;
@@ -663,14 +1013,15 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
                 const float* in = src.values.data() + p * sc;
                 float* dst = out.color.pixels.data() + p * 3;
                 std::uint8_t flag = 0;
-                bool finite = true;
+                bool usable = true;
                 for (int c = 0; c < 3; ++c) {
                     const float v = in[map[c]];
-                    finite = finite && std::isfinite(v);
+                    // Non-finite, or beyond the range the solve multiplies by irradiances (kMaxPixelMagnitude).
+                    usable = usable && std::isfinite(v) && std::abs(v) <= kMaxPixelMagnitude;
                     dst[c] = v;
                     if (v >= sat) flag |= static_cast<std::uint8_t>(kClippedR << c);
                 }
-                if (!finite) {
+                if (!usable) {
                     dst[0] = dst[1] = dst[2] = 0.0f;
                     flag = kMissing; // a missing pixel carries no value to be clipped
                     ++out.missing_pixels;
@@ -678,16 +1029,47 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
                 if (mask && !mask->inside[p]) flag |= kOutsideMask;
                 out.flags[p] = flag;
             }
-        });
-        for (std::size_t i = 0; i < capture.images.size(); ++i)
-            if (capture.images[i].missing_pixels > 0)
-                capture.warnings.push_back(frame_prefix(i) + " (" + desc.frames[i].file_path.generic_string() +
-                                           "): " + std::to_string(capture.images[i].missing_pixels) +
-                                           " pixel(s) with non-finite values, treated as missing");
+        }
+    });
+    capture.image_files_decoded = image_files.size();
+    for (std::size_t i = 0; i < capture.images.size(); ++i)
+        if (capture.images[i].missing_pixels > 0)
+            capture.warnings.push_back(frame_prefix(i) + " (" + desc.frames[i].file_path.generic_string() +
+                                       "): " + std::to_string(capture.images[i].missing_pixels) +
+                                       " pixel(s) with non-finite values (or beyond +-" +
+                                       short_number(kMaxPixelMagnitude) + "), treated as missing");
+    // Masks that cover nothing: the frames that use them see nothing.
+    std::vector<std::string> empty_masks;
+    std::size_t frames_blind = 0;
+    for (std::size_t m = 0; m < masks.size(); ++m)
+        if (std::none_of(masks[m].inside.begin(), masks[m].inside.end(), [](std::uint8_t v) { return v != 0; })) {
+            const std::size_t first = mask_files[m].frames.front();
+            empty_masks.push_back(frame_prefix(first) + ".mask_path (" + desc.frames[first].mask_path->generic_string() + ")");
+            frames_blind += mask_files[m].frames.size();
+        }
+    if (!empty_masks.empty()) {
+        std::string w = std::to_string(empty_masks.size()) + " of " + std::to_string(masks.size()) +
+                        " mask file(s) are empty (no pixel inside the object): " + list_first(empty_masks, 3) + "; the " +
+                        std::to_string(frames_blind) + " frame(s) that use them see nothing";
+        if (frames_blind == desc.frames.size()) w += ": no frame sees the object, so nothing can be reconstructed";
+        capture.warnings.push_back(w);
     }
 
     capture.load_seconds = clock.seconds();
     return capture;
+}
+
+} // namespace
+
+Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& options) {
+    const fs::path json_path = capture_json_path(dir_or_file);
+    try {
+        return load_capture_unguarded(json_path, options);
+    } catch (const std::bad_alloc&) {
+        // The last resort: an allocation the checks above did not foresee. Never a bare std::bad_alloc.
+        throw InputError(json_path, "", "out of memory while loading the capture (" + format_bytes(available_memory().bytes) +
+                                            " available now); use smaller images or fewer frames");
+    }
 }
 
 std::string summarize(const Capture& capture) {

@@ -13,6 +13,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace specula {
@@ -40,6 +41,7 @@ struct FrameDesc {
 
 struct CaptureDesc {
     std::filesystem::path dir;              // folder holding capture.json; paths below are relative to it
+    std::filesystem::path json_file;        // the description's file (error messages name it)
     std::filesystem::path mesh_path;
     ColorSpace color_space = ColorSpace::Srgb;
     std::optional<double> saturation;       // as given; see effective_saturation()
@@ -64,7 +66,7 @@ struct FrameImage {
     Image color;                      // linear RGB, 3 channels, w x h of the frame
     std::vector<std::uint8_t> flags;  // one PixelFlag set per pixel
     float saturation = std::numeric_limits<float>::infinity(); // effective, linear
-    std::size_t missing_pixels = 0;   // non-finite pixels found
+    std::size_t missing_pixels = 0;   // non-finite (or beyond kMaxPixelMagnitude) pixels found
     std::optional<ImageFileInfo> file_info; // the header of the file decoded (absent: made in memory):
                                             // how the capture stores it (evaluation's display values)
 };
@@ -83,6 +85,7 @@ struct Capture {
     std::vector<FrameImage> images;   // parallel to desc.frames; empty when images were not loaded
     std::vector<std::string> warnings;
     double load_seconds = 0.0;        // wall-clock time load_capture took
+    std::size_t image_files_decoded = 0; // distinct image files decoded (each once, whatever frames name it)
 
     [[nodiscard]] std::size_t frame_count(Split split) const;
 };
@@ -91,6 +94,9 @@ struct CaptureLoadOptions {
     bool load_mesh = true;
     bool load_images = true; // false: only headers are read (sizes checked), pixels are not decoded
     int threads = 2;         // image decoding threads (at least 1)
+    /// Memory the decoded images may take; unset: what core/memory.h available_memory() finds.
+    /// A capture whose decoded_image_bytes() exceed it is refused before any pixel is decoded.
+    std::optional<std::uint64_t> memory_available;
 };
 
 /// Tolerances of the checks on transform_matrix (max abs entry of R^T R - I, and of the
@@ -99,12 +105,84 @@ struct CaptureLoadOptions {
 inline constexpr double kRigidTolerance = 1e-4;
 inline constexpr double kPoseAgreementTolerance = 1e-4;
 
+// Ranges of the numbers of a capture (docs/capture-format.md, "Ranges"). The file holds
+// doubles; the engine computes in float (Embree, the Vulkan kernels, the renderer) and
+// squares distances and irradiances, so each number is checked against the range it is used
+// in, with room (a factor of 1e6 or more) for the products formed from it. What the reader
+// accepts, reconstruction runs without overflow.
+// D below is the diagonal of the mesh's bounding box (the object's size).
+/// Largest image width or height: the largest image the renderer's devices hold (core/image.h).
+inline constexpr int kMaxImageDimension = kMaxDecodedImageDimension;
+/// Largest |coordinate| of a mesh vertex, camera centre or light: a difference of two points
+/// is at most 2 sqrt(3) 1e15, its square 1.2e31, below FLT_MAX / 1e6 = 3.4e32; and far below
+/// 1.8e18, the largest ray coordinate Embree accepts.
+inline constexpr double kMaxWorldCoordinate = 1e15;
+/// Smallest mesh diagonal D: the shortest distance the engine squares is the ray offset,
+/// 1e-4 D (RayScene::kRayOffsetRelative), and (1e-14)^2 = 1e-28 stays a normal float with a
+/// factor 1e9 to spare (FLT_MIN = 1.2e-38).
+inline constexpr double kMinMeshDiagonal = 1e-10;
+/// Largest distance of a camera centre or a light from the centre of the mesh's bounding box,
+/// in units of D. Beyond it a camera (focal length at most kMaxFocalLength) sees the whole
+/// object inside one pixel, and a light's direction changes by less than 1e-6 radian across
+/// it: place such a light at 1e5 D in the same direction, its intensity scaled by the squared
+/// ratio of the distances, and nothing measurable changes.
+inline constexpr double kMaxDistanceToObject = 1e6;
+/// Smallest focal length, relative to max(w, h): a field of view of 179.9 degrees (a pinhole
+/// sees less than 180).
+inline constexpr double kMinFocalRelative = 1e-3;
+/// Largest focal length, in pixels: positions are floats (relative spacing 2^-24 = 6e-8), and
+/// a camera projects that spacing to fl x 6e-8 pixels, 0.06 pixel at 1e6.
+inline constexpr double kMaxFocalLength = 1e6;
+/// Largest |cx|, |cy|, relative to max(w, h).
+inline constexpr double kMaxPrincipalPointRelative = 1e4;
+/// Largest light intensity per channel: finite as a float (3.4e38) with 1e8 to spare.
+inline constexpr double kMaxLightIntensity = 1e30;
+/// Irradiance range: a light of intensity I > 0 (per channel) gives every surface point an
+/// irradiance I / d^2 (full scale 1: a white Lambertian surface reads E / pi) within
+/// [kMinIrradiance, kMaxIrradiance], with d the distance from the light to the nearest and to
+/// the farthest point of the mesh. The diffuse solve sums E^2 over up to 16 frames in float:
+/// 16 x (1e15)^2 = 1.6e31 stays below FLT_MAX / 1e6, (1e-15)^2 = 1e-30 above FLT_MIN x 1e6.
+/// Pixels between them read 3e-16 to 3e14 of full scale: no real capture is near either end.
+inline constexpr double kMaxIrradiance = 1e15;
+inline constexpr double kMinIrradiance = 1e-15;
+/// Smallest distance from a light to the mesh's surface, in units of D (the ray offset):
+/// nearer, I / d^2 has no useful bound.
+inline constexpr double kMinLightDistanceRelative = 1e-4;
+/// Saturation range: a normal, finite float with room.
+inline constexpr double kMinSaturation = 1e-30;
+inline constexpr double kMaxSaturation = 1e30;
+/// Pixel values of float files beyond +-1e15 are missing, like non-finite ones: the solve
+/// multiplies them by irradiances up to 1e15.
+inline constexpr float kMaxPixelMagnitude = 1e15f;
+/// Largest capture.json: 256 MiB (a capture of 100,000 frames is about 50 MB).
+inline constexpr std::uint64_t kMaxCaptureJsonBytes = std::uint64_t{1} << 28;
+/// Deepest JSON nesting accepted in capture.json (checked on the text before parsing).
+inline constexpr int kMaxCaptureJsonDepth = 256;
+
 /// The capture's folder from a path to the folder or to its capture.json.
 [[nodiscard]] std::filesystem::path capture_json_path(const std::filesystem::path& dir_or_file);
 
 /// Parses and validates capture.json's content (no file access beyond it).
 /// `json_path` is used in error messages and to set desc.dir.
 [[nodiscard]] CaptureDesc parse_capture_desc(const nlohmann::json& j, const std::filesystem::path& json_path);
+
+/// The same from the text of capture.json: nesting depth and duplicate keys are checked on
+/// the text before it is parsed (core/json_guard.h), then parse_capture_desc.
+[[nodiscard]] CaptureDesc parse_capture_text(std::string_view text, const std::filesystem::path& json_path);
+
+/// The checks that need the mesh (docs/capture-format.md, "Ranges"): the mesh's size and
+/// coordinates, camera centres and lights within kMaxDistanceToObject of it, lights off its
+/// surface, irradiances within [kMinIrradiance, kMaxIrradiance]. Throws InputError naming the
+/// field; returns warnings (views that cannot see the mesh, lights that light nothing, a mesh
+/// far from the origin for its size). load_capture calls it when it loads the mesh; a caller
+/// that loads the capture without its mesh (specula evaluate) can call it with the bundle's.
+[[nodiscard]] std::vector<std::string> check_capture_scene(const CaptureDesc& desc, const std::vector<View>& views,
+                                                           const Mesh& mesh, const std::filesystem::path& mesh_file);
+
+/// Memory the decoded images of a capture take (load_capture with load_images): per frame
+/// w x h x 13 bytes (linear float RGB and one flag byte), per distinct mask file w x h bytes,
+/// and per decoding thread one file's decode buffers (w x h x 3 x 6 bytes at most).
+[[nodiscard]] std::uint64_t decoded_image_bytes(const CaptureDesc& desc, int threads);
 
 /// Loads a capture: description, mesh, images, masks. Throws InputError naming
 /// the file and the field for every refusal case of the format spec.

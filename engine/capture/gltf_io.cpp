@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/json_guard.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -18,7 +19,6 @@
 #include <optional>
 #include <set>
 #include <string_view>
-#include <unordered_set>
 
 namespace specula {
 
@@ -143,110 +143,6 @@ bool stash_image(tinygltf::Image* image, const int index, std::string*, std::str
     stash->bytes[static_cast<std::size_t>(index)].assign(data, data + size);
     return true;
 }
-
-// ---------------------------------------------------------------------------------------------
-// Checks on the JSON text, before it is parsed.
-
-// The JSON field where the nesting first exceeds `max_depth` (outside strings), or nothing.
-// The field is the path of its first six levels, e.g. "asset.extras[0][0][0][0]".
-std::optional<std::string> too_deep(std::string_view text, int max_depth) {
-    struct Level {
-        bool object;
-        std::size_t index = 0; // arrays: the element being read
-        std::string key;       // objects: the last key
-    };
-    std::vector<Level> levels;
-    std::string last_string;
-    for (std::size_t i = 0; i < text.size(); ++i) {
-        const char ch = text[i];
-        if (ch == '"') { // skip the string, keeping its start (a key's name, for the path)
-            const std::size_t start = i + 1;
-            for (++i; i < text.size() && text[i] != '"'; ++i)
-                if (text[i] == '\\') ++i;
-            last_string.assign(text.substr(start, std::min<std::size_t>(i - start, 64)));
-        } else if (ch == ':') {
-            if (!levels.empty() && levels.back().object) levels.back().key = last_string;
-        } else if (ch == ',') {
-            if (!levels.empty() && !levels.back().object) ++levels.back().index;
-        } else if (ch == '{' || ch == '[') {
-            if (levels.size() >= static_cast<std::size_t>(max_depth)) {
-                std::string path;
-                for (std::size_t k = 0; k < levels.size() && k < 6; ++k)
-                    path += levels[k].object ? (path.empty() ? "" : ".") + levels[k].key
-                                             : "[" + std::to_string(levels[k].index) + "]";
-                return path.empty() ? std::string("json") : path;
-            }
-            levels.push_back({ch == '{'});
-        } else if (ch == '}' || ch == ']') {
-            if (!levels.empty()) levels.pop_back();
-        }
-    }
-    return std::nullopt;
-}
-
-// A SAX pass that refuses the first duplicate key (RFC 8259 section 4: names within an
-// object SHOULD be unique, and where they are not, readers disagree: nlohmann and tinygltf
-// keep the last value, others the first, so a viewer and Specula would read different files).
-// It also reports malformed JSON, with the byte where the parser stopped.
-class KeyChecker : public nlohmann::json_sax<json> {
-public:
-    std::string duplicate_field; // set when a duplicate key stopped the parse
-    std::string error;           // set on malformed JSON
-
-    bool null() override { return value(); }
-    bool boolean(bool) override { return value(); }
-    bool number_integer(number_integer_t) override { return value(); }
-    bool number_unsigned(number_unsigned_t) override { return value(); }
-    bool number_float(number_float_t, const string_t&) override { return value(); }
-    bool string(string_t&) override { return value(); }
-    bool binary(binary_t&) override { return value(); }
-    bool start_object(std::size_t) override { return open(true); }
-    bool start_array(std::size_t) override { return open(false); }
-    bool end_object() override { return close(); }
-    bool end_array() override { return close(); }
-    bool key(string_t& k) override {
-        Level& top = m_levels.back();
-        top.key = k;
-        if (!top.keys.insert(k).second) {
-            duplicate_field = child_path();
-            return false;
-        }
-        return true;
-    }
-    bool parse_error(std::size_t byte, const std::string&, const nlohmann::detail::exception& e) override {
-        error = "malformed JSON at byte " + std::to_string(byte) + ": " + e.what();
-        return false;
-    }
-
-private:
-    struct Level {
-        bool object;
-        std::string path;
-        std::size_t index = 0;
-        std::string key;
-        std::unordered_set<std::string> keys;
-    };
-    std::string child_path() const {
-        if (m_levels.empty()) return {};
-        const Level& top = m_levels.back();
-        if (top.object) return top.path.empty() ? top.key : top.path + "." + top.key;
-        return top.path + "[" + std::to_string(top.index) + "]";
-    }
-    bool value() {
-        if (!m_levels.empty() && !m_levels.back().object) ++m_levels.back().index;
-        return true;
-    }
-    bool open(bool object) {
-        Level level{object, child_path()};
-        m_levels.push_back(std::move(level));
-        return true;
-    }
-    bool close() {
-        m_levels.pop_back();
-        return value();
-    }
-    std::vector<Level> m_levels;
-};
 
 // ---------------------------------------------------------------------------------------------
 // Checks on the parsed document, before tinygltf reads it (and opens its URIs).
@@ -462,14 +358,15 @@ GltfFile GltfFile::load(const fs::path& path, const std::string& field, const Gl
             if (json_length > length - 20) throw not_gltf("the JSON chunk runs past the end of the file");
             text = text.substr(20, static_cast<std::size_t>(json_length));
         }
-        if (const std::optional<std::string> deep = too_deep(text, kMaxGltfJsonDepth))
+        // Before any parser builds the document (core/json_guard.h).
+        if (const std::optional<std::string> deep = json_too_deep(text, kMaxGltfJsonDepth))
             throw InputError(path, *deep, "JSON nested deeper than " + std::to_string(kMaxGltfJsonDepth) +
                                               " levels (refused before parsing)");
-        KeyChecker keys;
-        json::sax_parse(text.begin(), text.end(), &keys);
+        const JsonKeyReport keys = check_json_keys(text);
         if (!keys.duplicate_field.empty())
             throw InputError(path, keys.duplicate_field, "duplicate JSON key (readers disagree on which value counts)");
-        if (!keys.error.empty()) throw not_gltf(keys.error);
+        if (!keys.error.empty())
+            throw not_gltf("malformed JSON at byte " + std::to_string(keys.error_byte) + ": " + keys.error);
         file.m_json = json::parse(text.begin(), text.end());
         if (!file.m_json.is_object()) throw not_gltf("the JSON is not an object");
 

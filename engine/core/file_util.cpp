@@ -3,6 +3,9 @@
 #include "core/error.h"
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <fcntl.h>
 #include <fstream>
 #include <sstream>
 #include <unistd.h>
@@ -22,30 +25,53 @@ void write_atomically(const fs::path& path, const std::function<void(const fs::p
                                    path.filename().string());
     try {
         write(tmp);
-        fs::rename(tmp, path);
+        fs::rename(tmp, path, ec);
+        if (ec) throw InputError(path, "", "cannot write file (renaming " + tmp.string() + " onto it): " + ec.message());
     } catch (...) {
         fs::remove(tmp, ec);
         throw;
     }
 }
 
+namespace {
+// What errno says, for messages.
+std::string errno_text(int error) { return std::strerror(error); }
+} // namespace
+
 void write_text_file(const fs::path& path, std::string_view text) {
     write_atomically(path, [&](const fs::path& tmp) {
-        std::ofstream out(tmp, std::ios::binary);
-        out.write(text.data(), static_cast<std::streamsize>(text.size()));
-        out.close();
-        if (!out) throw InputError(path, "", "cannot write file");
+        // POSIX calls, not a stream, so a failure says why (a full disk: "No space left on
+        // device"; a file size limit: "File too large"), from errno.
+        const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+        if (fd < 0) throw InputError(path, "", "cannot write file: " + errno_text(errno));
+        std::size_t done = 0;
+        int error = 0;
+        while (done < text.size()) {
+            const ssize_t put = ::write(fd, text.data() + done, text.size() - done);
+            if (put < 0 && errno == EINTR) continue;
+            if (put <= 0) {
+                error = put < 0 ? errno : ENOSPC;
+                break;
+            }
+            done += static_cast<std::size_t>(put);
+        }
+        // close() reports errors of a delayed write (NFS, a full disk found late).
+        if (::close(fd) != 0 && error == 0) error = errno;
+        if (error != 0) throw InputError(path, "", "cannot write file: " + errno_text(error));
     });
 }
 
 std::string read_text_file(const fs::path& path, const std::string& field) {
     std::ifstream in(path, std::ios::binary);
     if (!in) {
+        const int error = errno;
         std::error_code ec;
-        throw InputError(path, field, fs::exists(path, ec) ? "cannot read file" : "file not found");
+        if (!fs::exists(path, ec)) throw InputError(path, field, "file not found");
+        throw InputError(path, field, "cannot read file" + (error != 0 ? ": " + errno_text(error) : std::string()));
     }
     std::ostringstream ss;
     ss << in.rdbuf();
+    if (in.bad()) throw InputError(path, field, "cannot read file: " + errno_text(errno));
     return ss.str();
 }
 

@@ -28,7 +28,10 @@ namespace {
 
 std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, const std::string& field) {
     std::error_code ec;
-    if (!fs::exists(path, ec)) throw InputError(path, field, "file not found");
+    const fs::file_status status = fs::status(path, ec);
+    if (!fs::exists(status)) throw InputError(path, field, "file not found");
+    // Opening a FIFO or a device could block or never end.
+    if (!fs::is_regular_file(status)) throw InputError(path, field, "not a regular file");
     // Alpha is ignored by contract: ask for unassociated alpha so OIIO does not
     // premultiply the colour channels by it (a PNG pixel with alpha 0 would read black).
     OIIO::ImageSpec config;
@@ -52,6 +55,21 @@ ImageFileInfo info_from_spec(const OIIO::ImageSpec& spec) {
     return info;
 }
 
+// After a read_image that returned true: OpenImageIO still records an error when the decoder
+// ran out of data or met corrupt data and filled in what it could not read (libjpeg's
+// "Premature end of JPEG file": the missing rows come out grey). Such pixels are made up, not
+// measured, so the file is refused.
+void check_complete(OIIO::ImageInput& in, const fs::path& path, const std::string& field) {
+    if (!in.has_error()) return;
+    throw InputError(path, field,
+                     "the image decoded only in part (" + in.geterror() + "): the file is truncated or corrupt");
+}
+
+std::string dimension_refusal(int width, int height, int max_dimension) {
+    return "image is " + std::to_string(width) + " x " + std::to_string(height) +
+           ", above the largest accepted width or height (" + std::to_string(max_dimension) + ")";
+}
+
 } // namespace
 
 ImageFileInfo read_image_info(const fs::path& path, const std::string& field) {
@@ -61,18 +79,28 @@ ImageFileInfo read_image_info(const fs::path& path, const std::string& field) {
     return info;
 }
 
-Image read_image(const fs::path& path, ColorSpace integer_encoding, const std::string& field, ImageFileInfo* info_out) {
+Image read_image(const fs::path& path, ColorSpace integer_encoding, const std::string& field, ImageFileInfo* info_out,
+                 int max_dimension) {
     auto in = open_input(path, field);
     const OIIO::ImageSpec& spec = in->spec();
     const ImageFileInfo info = info_from_spec(spec);
-    if (info.width <= 0 || info.height <= 0 || info.channels <= 0)
+    if (info.width <= 0 || info.height <= 0 || info.channels <= 0 || spec.depth > 1)
         throw InputError(path, field, "image has no pixels");
-    Image image(info.width, info.height, info.channels);
+    // Refused from the header, before a pixel is decoded or allocated.
+    if (info.width > max_dimension || info.height > max_dimension)
+        throw InputError(path, field, dimension_refusal(info.width, info.height, max_dimension));
+    Image image;
+    try {
+        image = Image(info.width, info.height, info.channels);
+    } catch (const std::bad_alloc&) {
+        throw InputError(path, field, "image too large to decode (out of memory)");
+    }
     // read_image converts integer data to float in [0, 1] without any colour transform.
     if (!in->read_image(0, 0, 0, info.channels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
         std::string why = in->geterror();
         throw InputError(path, field, "cannot decode image" + (why.empty() ? std::string() : " (" + why + ")"));
     }
+    check_complete(*in, path, field);
     in->close();
     if (!info.is_float && integer_encoding == ColorSpace::Srgb) {
         for (float& v : image.pixels) v = srgb_to_linear(v);
@@ -225,9 +253,7 @@ Image decode_image(std::span<const std::uint8_t> bytes, ColorSpace integer_encod
         throw InputError(file, field, "image has no pixels");
     // Refused from the header, before a pixel is decoded or allocated.
     if (info.width > max_dimension || info.height > max_dimension)
-        throw InputError(file, field,
-                         "image is " + std::to_string(info.width) + " x " + std::to_string(info.height) +
-                             ", above the largest accepted width or height (" + std::to_string(max_dimension) + ")");
+        throw InputError(file, field, dimension_refusal(info.width, info.height, max_dimension));
     Image image;
     try {
         image = Image(info.width, info.height, info.channels);
@@ -238,6 +264,7 @@ Image decode_image(std::span<const std::uint8_t> bytes, ColorSpace integer_encod
         const std::string why = input.in->geterror();
         throw InputError(file, field, "cannot decode image" + (why.empty() ? std::string() : " (" + why + ")"));
     }
+    check_complete(*input.in, file, field);
     input.in->close();
     if (!info.is_float && integer_encoding == ColorSpace::Srgb)
         for (float& v : image.pixels) v = srgb_to_linear(v);

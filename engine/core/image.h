@@ -43,14 +43,25 @@ struct ImageFileInfo {
 [[nodiscard]] float srgb_to_linear(float v) noexcept;
 [[nodiscard]] float linear_to_srgb(float v) noexcept;
 
-/// Reads the header only. Throws InputError(path, field, ...) when the file is missing or unreadable.
+/// Reads the header only. Throws InputError(path, field, ...) when the file is missing, not a
+/// regular file, or unreadable.
 [[nodiscard]] ImageFileInfo read_image_info(const std::filesystem::path& path, const std::string& field = {});
+
+/// Largest width or height decode_image and read_image accept unless told otherwise: 16384, the
+/// maxImageDimension2D of the devices Specula targets (and far above any texture it writes),
+/// so a file that claims 30000 x 30000 is refused from its header instead of decoded (10 GB).
+inline constexpr int kMaxDecodedImageDimension = 16384;
 
 /// Reads an image and decodes it to linear float. Integer files are decoded
 /// with `integer_encoding`; float files are taken as linear. Non-finite values are kept
-/// (callers flag them). Throws InputError naming the file and `field`.
+/// (callers flag them). Throws InputError naming the file and `field`: a path that is not a
+/// regular file (a FIFO would block), a width or height above `max_dimension` (from the
+/// header, before anything is decoded), and a file the decoder read only in part (truncated
+/// or corrupt: OpenImageIO reports an error although it filled the pixels, e.g. a JPEG cut in
+/// half decodes with its missing half grey).
 [[nodiscard]] Image read_image(const std::filesystem::path& path, ColorSpace integer_encoding,
-                               const std::string& field = {}, ImageFileInfo* info = nullptr);
+                               const std::string& field = {}, ImageFileInfo* info = nullptr,
+                               int max_dimension = kMaxDecodedImageDimension);
 
 /// Writes an image, atomically. The format follows the extension (.png, .jpg,
 /// .exr, .hdr, .tif). For integer formats, values are clamped to [0, 1],
@@ -61,11 +72,6 @@ void write_image(const std::filesystem::path& path, const Image& image, ColorSpa
 /// The formats of the in-memory codec: what glTF embeds (PNG, JPEG: glTF 2.0 section 3.8.3)
 /// and Specula's float images (OpenEXR).
 enum class ImageCodec { Png, Jpeg, Exr };
-
-/// Largest width or height decode_image accepts unless told otherwise: 16384, the
-/// maxImageDimension2D of the devices Specula targets (and far above any texture it writes),
-/// so a file that claims 30000 x 30000 is refused from its header instead of decoded (10 GB).
-inline constexpr int kMaxDecodedImageDimension = 16384;
 
 /// Encodes an image in memory (the bytes a file of that format would hold). Integer formats
 /// (PNG 8 or 16 bits, JPEG 8 bits): values are clamped to [0, 1], encoded with
@@ -82,7 +88,8 @@ inline constexpr int kMaxDecodedImageDimension = 16384;
 /// Decodes an image held in memory to linear float, as read_image does for a file (alpha is
 /// kept unassociated: colour is never premultiplied). Its size is read from the header first:
 /// a width or height above `max_dimension` is refused before any pixel is decoded or any
-/// pixel memory allocated. Throws InputError(file, field, ...) naming the file the bytes came from.
+/// pixel memory allocated. Bytes the decoder read only in part (truncated or corrupt) are
+/// refused. Throws InputError(file, field, ...) naming the file the bytes came from.
 [[nodiscard]] Image decode_image(std::span<const std::uint8_t> bytes, ColorSpace integer_encoding,
                                  const std::filesystem::path& file, const std::string& field,
                                  int max_dimension = kMaxDecodedImageDimension);

@@ -174,6 +174,9 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
         f.fail(mat_field + ".pbrMetallicRoughness.baseColorFactor", "not 4 numbers");
     for (std::size_t i = 0; i < albedo.pixels.size(); ++i)
         albedo.pixels[i] *= static_cast<float>(pbr.baseColorFactor[i % 3]);
+    // A float image (OpenEXR) or a huge factor could give NaN or infinity: refused, as the extension's albedo.
+    if (!std::all_of(albedo.pixels.begin(), albedo.pixels.end(), [](float v) { return std::isfinite(v); }))
+        f.fail(img_field, "the base colour (times baseColorFactor) is not finite everywhere: an albedo is a finite reflectance");
     const bool other_materials = std::any_of(prims.begin(), prims.end(), [&](const tinygltf::Primitive& p) {
         return p.material >= 0 && static_cast<std::size_t>(p.material) != mat_index;
     });
@@ -502,6 +505,17 @@ Bundle read_bundle(const fs::path& path) {
         b.albedo.height = static_cast<int>(h);
         b.albedo.channels = static_cast<int>(c);
         b.albedo.pixels = read_float_view(f, get_index(f, a, "bufferView", af), w * h * c, af + ".bufferView");
+        // A NaN or infinite albedo would render as NaN (or black) without a word: refused, naming the texel.
+        const auto bad = std::find_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); });
+        if (bad != b.albedo.pixels.end()) {
+            const std::size_t i = static_cast<std::size_t>(bad - b.albedo.pixels.begin());
+            const std::size_t count = static_cast<std::size_t>(
+                std::count_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); }));
+            f.fail(af + ".bufferView", std::to_string(count) + " albedo value(s) are not finite (first: texel (" +
+                                           std::to_string(i / c % w) + ", " + std::to_string(i / c / w) + "), channel " +
+                                           std::to_string(i % c) + " = " + std::to_string(*bad) +
+                                           "): an albedo is a finite reflectance");
+        }
     }
     if (ext->contains("cubeG") != ext->contains("cubeH"))
         f.fail(ext_field + (ext->contains("cubeG") ? ".cubeH" : ".cubeG"), "missing: G and H go together");

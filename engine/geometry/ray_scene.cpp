@@ -5,6 +5,7 @@
 #include <embree3/rtcore.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <mutex>
@@ -119,6 +120,14 @@ RayScene::RayScene(const Mesh& mesh, const RaySceneOptions& options) : m_impl(st
     for (const glm::uvec3& tri : mesh.triangles)
         if (tri.x >= mesh.positions.size() || tri.y >= mesh.positions.size() || tri.z >= mesh.positions.size())
             throw Error("RayScene: a triangle index is out of range");
+    // Embree drops triangles with vertices it cannot trace (non-finite or beyond FLT_LARGE)
+    // without a word: refuse them instead, so a hole never passes for a result.
+    for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+        const glm::vec3& p = mesh.positions[i];
+        if (!(std::abs(p.x) <= kMaxRayCoordinate && std::abs(p.y) <= kMaxRayCoordinate && std::abs(p.z) <= kMaxRayCoordinate))
+            throw Error("RayScene: vertex " + std::to_string(i) + " (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
+                        ", " + std::to_string(p.z) + ") is not finite or beyond +-1e18, which the ray tracer cannot trace");
+    }
 
     const std::string config = "verbose=0" + (options.build_threads > 0 ? ",threads=" + std::to_string(options.build_threads) : std::string());
     m_impl->device = rtcNewDevice(config.c_str());
@@ -172,7 +181,27 @@ RayScene::~RayScene() = default;
 RayScene::RayScene(RayScene&&) noexcept = default;
 RayScene& RayScene::operator=(RayScene&&) noexcept = default;
 
+void RayScene::check_ray(const Ray& ray, const char* what, std::size_t index) {
+    auto coordinate_ok = [](const glm::vec3& v) {
+        return std::abs(v.x) <= kMaxRayCoordinate && std::abs(v.y) <= kMaxRayCoordinate && std::abs(v.z) <= kMaxRayCoordinate;
+    };
+    // Comparisons are false for NaN, so each test below also refuses NaN.
+    const bool ok = coordinate_ok(ray.origin) && coordinate_ok(ray.dir) &&
+                    ray.tmin >= 0.0f && std::isfinite(ray.tmin) && !std::isnan(ray.tmax);
+    if (ok) return;
+    char text[512];
+    std::snprintf(text, sizeof text,
+                  "RayScene::%s: ray %zu is outside what the ray tracer accepts: origin (%g, %g, %g), direction "
+                  "(%g, %g, %g), segment [%g, %g] (coordinates must be finite with magnitude at most %g, "
+                  "0 <= tmin finite, tmax not NaN); the camera, light or surface point it was cast "
+                  "from is out of range",
+                  what, index, double(ray.origin.x), double(ray.origin.y), double(ray.origin.z), double(ray.dir.x),
+                  double(ray.dir.y), double(ray.dir.z), double(ray.tmin), double(ray.tmax), double(kMaxRayCoordinate));
+    throw Error(text);
+}
+
 std::optional<RayHit> RayScene::intersect(const glm::vec3& origin, const glm::vec3& dir, float tmin, float tmax) const {
+    check_ray(Ray{origin, tmin, dir, tmax}, "intersect");
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
@@ -182,6 +211,7 @@ std::optional<RayHit> RayScene::intersect(const glm::vec3& origin, const glm::ve
 }
 
 bool RayScene::occluded(const glm::vec3& origin, const glm::vec3& dir, float tmin, float tmax) const {
+    check_ray(Ray{origin, tmin, dir, tmax}, "occluded");
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay r;
@@ -200,6 +230,7 @@ void RayScene::intersect(std::span<const Ray> rays, std::span<std::optional<RayH
     if (out.size() != rays.size()) throw Error("RayScene::intersect: output size differs from the ray count");
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    for (std::size_t i = 0; i < rays.size(); ++i) check_ray(rays[i], "intersect", i);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         RTCRayHit rh;
         init_ray_hit(rh, rays[i].origin, rays[i].dir, rays[i].tmin, rays[i].tmax);
@@ -212,6 +243,7 @@ void RayScene::occluded(std::span<const Ray> rays, std::span<std::uint8_t> out) 
     if (out.size() != rays.size()) throw Error("RayScene::occluded: output size differs from the ray count");
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    for (std::size_t i = 0; i < rays.size(); ++i) check_ray(rays[i], "occluded", i);
     for (std::size_t i = 0; i < rays.size(); ++i) {
         RTCRay r;
         init_ray(r, rays[i].origin, rays[i].dir, rays[i].tmin, rays[i].tmax);

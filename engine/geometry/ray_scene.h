@@ -60,6 +60,14 @@ public:
     RayScene(const RayScene&) = delete;
     RayScene& operator=(const RayScene&) = delete;
 
+    /// Largest |coordinate| of a ray origin or direction the queries accept: Embree 3 requires
+    /// |org|, |dir| <= FLT_LARGE = 1.844e18 per component, and its debug assertions (on in
+    /// Debian's build) abort the process otherwise (kernels/common/ray.h, RayK::valid).
+    static constexpr float kMaxRayCoordinate = 1e18f;
+
+    /// Every query checks its rays first (check_ray): the engine never trusts that its callers'
+    /// inputs were validated. A ray that is not finite, whose coordinates exceed
+    /// kMaxRayCoordinate, or whose segment starts below 0 or has a NaN end is refused with an Error naming the ray and its numbers, never handed to Embree.
     /// Closest hit along the ray within [tmin, tmax], or nothing.
     [[nodiscard]] std::optional<RayHit> intersect(const glm::vec3& origin, const glm::vec3& dir, float tmin, float tmax) const;
     /// True when anything is hit within [tmin, tmax] (any hit, cheaper than intersect).
@@ -77,6 +85,9 @@ public:
     /// A ray from surface point p (normal n) toward `target`: starts at
     /// p + ray_offset() * n and stops ray_offset() short of the target.
     [[nodiscard]] Ray ray_toward(const glm::vec3& p, const glm::vec3& n, const glm::vec3& target) const;
+
+    /// Throws Error when `ray` is outside what Embree accepts (see above); `what` names the query.
+    static void check_ray(const Ray& ray, const char* what, std::size_t index = 0);
 
     [[nodiscard]] const Bounds& bounds() const noexcept { return m_bounds; }
     [[nodiscard]] std::size_t triangle_count() const noexcept { return m_triangle_count; }

@@ -167,6 +167,14 @@ VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const
                                                     .frame_view = v.inputs.frame_view,
                                                     .surface_maps = run.config.lambert.tap_irradiance});
     });
+    // Legal but useless input (issue 21 cases 15, 17): most of the surface unseen or unlit is
+    // warned; nothing seen, or nothing lit by a train frame of a view that sees it, is refused
+    // here, naming the capture, rather than solved into an all-inpainted texture.
+    for (const std::string& w : visibility_warnings(v.visibility.stats)) run.warn(w);
+    std::vector<std::size_t> train_frames;
+    for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
+        if (capture.desc.frames[f].split == Split::Train) train_frames.push_back(f);
+    require_usable_visibility(v.visibility, v.inputs.frame_view, capture_json_path(run.config.capture), train_frames);
     if (!run.config.lambert.tap_irradiance)
         run.leave_out("per-tap irradiance (surface maps)",
                       "--tap-irradiance off: each sample mixes its 4 pixels as they are (the thesis's sampling), "

@@ -430,4 +430,51 @@ std::string describe(const VisibilityStats& s) {
     return out;
 }
 
+std::vector<std::string> visibility_warnings(const VisibilityStats& s) {
+    std::vector<std::string> out;
+    if (s.particles == 0) return out;
+    auto percent = [&](std::size_t n) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%.1f%%", 100.0 * double(n) / double(s.particles));
+        return std::string(buf);
+    };
+    const double limit = kUnseenWarningFraction * double(s.particles);
+    if (double(s.seen_by_no_view) > limit)
+        out.push_back(std::to_string(s.seen_by_no_view) + " of " + std::to_string(s.particles) + " surface particles (" +
+                      percent(s.seen_by_no_view) + ") are seen by no view: their albedo is not measured, only filled in "
+                      "from seen neighbours (is the object inside the views and the masks, and the mesh wound outward?)");
+    if (double(s.lit_by_no_frame) > limit)
+        out.push_back(std::to_string(s.lit_by_no_frame) + " of " + std::to_string(s.particles) + " surface particles (" +
+                      percent(s.lit_by_no_frame) + ") are lit by no frame (every light is behind them or shadowed): "
+                      "they give no sample");
+    return out;
+}
+
+void require_usable_visibility(const Visibility& vis, std::span<const std::uint32_t> frame_view, const std::filesystem::path& capture,
+                               std::span<const std::size_t> frames) {
+    std::vector<std::size_t> all;
+    if (frames.empty()) {
+        all.resize(std::min<std::size_t>(vis.frame_count, frame_view.size()));
+        for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
+        frames = all;
+    }
+    std::size_t seen = 0;
+    for (std::size_t p = 0; p < vis.particle_count; ++p) {
+        bool seen_here = false;
+        for (std::size_t v = 0; v < vis.view_count && !seen_here; ++v) seen_here = vis.sees(p, v);
+        if (!seen_here) continue;
+        ++seen;
+        for (const std::size_t f : frames)
+            if (f < frame_view.size() && f < vis.frame_count && vis.lights(p, f) && vis.sees(p, frame_view[f])) return;
+    }
+    if (seen == 0)
+        throw InputError(capture, "",
+                         "nothing to reconstruct: no view sees any of the " + std::to_string(vis.particle_count) +
+                             " surface particles (the mesh is outside every image, behind every camera, facing away, "
+                             "or outside every mask; do the poses and the mesh share one coordinate frame and unit?)");
+    throw InputError(capture, "",
+                     "nothing to reconstruct: " + std::to_string(seen) + " surface particles are seen, but none is lit by a "
+                     "frame of a view that sees it (every light is behind the surface or shadowed: check light.position)");
+}
+
 } // namespace specula

@@ -32,6 +32,7 @@
 #include "visibility/convexity.h"
 
 #include <cstdint>
+#include <filesystem>
 #include <span>
 #include <string>
 #include <vector>
@@ -152,5 +153,22 @@ struct VisibilityInputs {
 
 /// Multi-line text of the statistics for logs and the report.
 [[nodiscard]] std::string describe(const VisibilityStats& stats);
+
+/// Fraction of the particles above which visibility_warnings warns that they are seen by no
+/// view (or lit by no frame): most of the surface is then not measured.
+inline constexpr double kUnseenWarningFraction = 0.5;
+
+/// Warnings about legal but useless input, from the statistics alone (pure): more than
+/// kUnseenWarningFraction of the particles seen by no view, or lit by no frame. Empty when
+/// there is nothing to say. (The pipeline adds them to the run's warnings.)
+[[nodiscard]] std::vector<std::string> visibility_warnings(const VisibilityStats& stats);
+
+/// Refuses a capture that leaves nothing to reconstruct: throws InputError(capture, "", why)
+/// when no particle is seen by any view, or when no particle is lit by a frame of a view that
+/// sees it (every sample would be in shadow). `frame_view` maps each frame of vis's lit bits to
+/// its view (VisibilityInputs::frame_view); `frames` limits the frames that count (e.g. the
+/// train frames; empty: all). `capture` names the capture in the error (its capture.json).
+void require_usable_visibility(const Visibility& vis, std::span<const std::uint32_t> frame_view,
+                               const std::filesystem::path& capture, std::span<const std::size_t> frames = {});
 
 } // namespace specula

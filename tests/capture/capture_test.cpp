@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -527,6 +528,85 @@ std::vector<RefusalCase> refusal_cases() {
              fx.j["mesh_path"] = "mesh.gltf";
          },
          "mesh.gltf", "meshes[0].primitives[0].attributes.POSITION"},
+        // ranges (docs/capture-format.md "Ranges"): numbers that are finite as doubles but not
+        // usable as the floats the engine computes with (issue 21 cases 1-3 and 18)
+        {"LightPositionOverflowsFloat", [](CaptureFixture& fx) { fx.j["frames"][0]["light"]["position"] = {1e39, 0.0, 0.0}; },
+         cj, "frames[0].light.position[0]"},
+        {"TranslationBeyondTheWorld",
+         [](CaptureFixture& fx) {
+             for (std::size_t f : {0u, 1u}) fx.j["frames"][f]["transform_matrix"][0][3] = 1e20; // every frame of view 1
+         },
+         cj, "frames[0].transform_matrix[0][3]"},
+        {"FocalDenormal", [](CaptureFixture& fx) { fx.j["fl_x"] = 5e-324; }, cj, "fl_x"},
+        {"FocalBelowTheFieldOfView", [](CaptureFixture& fx) { fx.j["fl_y"] = 1e-3; }, cj, "fl_y"},
+        {"FrameFocalTooLong", [](CaptureFixture& fx) { fx.j["frames"][1]["fl_y"] = 2e6; }, cj, "frames[1].fl_y"},
+        {"PrincipalPointFarOff", [](CaptureFixture& fx) { fx.j["cx"] = 1e9; }, cj, "cx"},
+        {"WidthAboveTheLimit", [](CaptureFixture& fx) { fx.j["w"] = 16385; }, cj, "w"},
+        {"SaturationBelowFloat", [](CaptureFixture& fx) { fx.j["saturation"] = 1e-40; }, cj, "saturation"},
+        {"IntensityOverflowsFloat", [](CaptureFixture& fx) { fx.j["frames"][0]["light"]["intensity"][1] = 1e308; }, cj,
+         "frames[0].light.intensity[1]"},
+        {"IrradianceTooHigh", [](CaptureFixture& fx) { fx.j["frames"][2]["light"]["intensity"] = {1e20, 1.0, 1.0}; }, cj,
+         "frames[2].light.intensity"},
+        {"IrradianceTooLow", [](CaptureFixture& fx) { fx.j["frames"][2]["light"]["intensity"] = {1.0, 1e-20, 1.0}; }, cj,
+         "frames[2].light.intensity[1]"},
+        {"LightOnTheSurface", [](CaptureFixture& fx) { fx.j["frames"][3]["light"]["position"] = {0.5, 0.1, 0.2}; }, cj,
+         "frames[3].light.position"},
+        {"LightFarBeyondTheObject", [](CaptureFixture& fx) { fx.j["frames"][3]["light"]["position"] = {1e8, 0.0, 0.0}; }, cj,
+         "frames[3].light.position"},
+        {"CameraFarBeyondTheObject",
+         [](CaptureFixture& fx) {
+             for (std::size_t f : {2u, 3u}) fx.j["frames"][f]["transform_matrix"] = pose_json(1e7);
+         },
+         cj, "frames[2].transform_matrix"},
+        {"MeshBeyondTheWorld",
+         [](CaptureFixture& fx) {
+             Mesh m = unit_cube_mesh();
+             for (glm::vec3& p : m.positions) p = p * 1e30f;
+             write_mesh_glb(fx.dir / "mesh.glb", m);
+         },
+         "mesh.glb", "mesh_path"},
+        {"MeshTooSmall",
+         [](CaptureFixture& fx) {
+             Mesh m = unit_cube_mesh();
+             for (glm::vec3& p : m.positions) p = p * 1e-12f;
+             write_mesh_glb(fx.dir / "mesh.glb", m);
+         },
+         "mesh.glb", "mesh_path"},
+        // paths: inside the capture's folder, no NUL
+        {"MeshPathAbsolute", [](CaptureFixture& fx) { fx.j["mesh_path"] = (fx.dir / "mesh.glb").string(); }, cj, "mesh_path"},
+        {"FilePathLeavesTheFolder", [](CaptureFixture& fx) { fx.j["frames"][2]["file_path"] = "images/../../v0_l0.png"; }, cj,
+         "frames[2].file_path"},
+        {"MaskPathWithNul", [](CaptureFixture& fx) { fx.j["frames"][2]["mask_path"] = std::string("masks/v0.png\0.txt", 16); },
+         cj, "frames[2].mask_path"},
+        {"FilePathWithNulHeadersOnly",
+         [](CaptureFixture& fx) { fx.j["frames"][1]["file_path"] = std::string("images/v1_l1.png\0", 17); }, cj,
+         "frames[1].file_path", true},
+        {"SymlinkLeavesTheFolder",
+         [](CaptureFixture& fx) {
+             const fs::path outside = fx.dir.path().parent_path() / (fx.dir.path().filename().string() + "-outside.png");
+             write_image(outside, solid(kW, kH, 3, 0.25f), ColorSpace::Srgb);
+             fs::remove(fx.dir / CaptureFixture::image_name(0, 1));
+             fs::create_symlink(outside, fx.dir / CaptureFixture::image_name(0, 1));
+         },
+         "images/v0_l1.png", "frames[3].file_path"},
+        // images decoded only in part (issue 21 case 16): a JPEG cut in half
+        {"TruncatedJpeg",
+         [](CaptureFixture& fx) {
+             Image img(64, 48, 3);
+             for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float(i % 97) / 96.0f;
+             write_image(fx.dir / "images/whole.jpg", img, ColorSpace::Srgb);
+             const std::string bytes = read_text_file(fx.dir / "images/whole.jpg");
+             write_text_file(fx.dir / "images/half.jpg", bytes.substr(0, bytes.size() / 2));
+             fx.j["frames"][3]["file_path"] = "images/half.jpg";
+             fx.j["frames"][3]["w"] = 64;
+             fx.j["frames"][3]["h"] = 48;
+             fx.j["frames"][2]["w"] = 64; // one view, one size
+             fx.j["frames"][2]["h"] = 48;
+             fx.j["frames"][2]["file_path"] = "images/whole.jpg";
+             fx.j["frames"][2].erase("mask_path");
+             fx.j["frames"][3].erase("mask_path");
+         },
+         "images/half.jpg", "frames[3].file_path"},
     };
     return cases;
 }
@@ -587,6 +667,203 @@ TEST(CaptureRefusalText, NonFiniteLightIntensity) {
     // nlohmann refuses -1e999 as a number overflow (malformed, with its place), or reads -inf (non-finite)
     if (e.field().empty()) EXPECT_NE(e.message().find("line 1, column"), std::string::npos) << e.what();
     else EXPECT_EQ(e.field(), "frames[0].light.intensity[1]") << e.what();
+}
+
+TEST(CaptureRefusalText, RangeRefusalsSayWhatAndWhy) {
+    CaptureFixture fx;
+    fx.j["frames"][0]["light"]["intensity"][0] = 1e308;
+    InputError e = expect_input_error([&] { (void)fx.load(); });
+    EXPECT_NE(e.message().find("1e+308 is out of range"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("Ranges"), std::string::npos) << e.what();
+    CaptureFixture g;
+    g.j["frames"][2]["light"]["intensity"] = {1e20, 1.0, 1.0};
+    e = expect_input_error([&] { (void)g.load(); });
+    EXPECT_NE(e.message().find("irradiance I / d^2 of up to"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("d = 2.5"), std::string::npos) << e.what(); // light (-1, 0.5, 3), box face z = 0.5
+}
+
+TEST(CaptureRefusalText, DuplicateKeysAreRefusedNamingTheKey) {
+    CaptureFixture fx;
+    fx.j["frames"][1]["light"]["position"] = {-1.0, 0.6, 3.0}; // makes frames[1]'s light unique in the text
+    std::string text = fx.j.dump();
+    // A second "fl_x" at the top level: nlohmann (and most readers) would keep the last one silently.
+    const std::string top = "\"fl_x\":5.0";
+    ASSERT_NE(text.find(top), std::string::npos);
+    write_text_file(fx.dir / "capture.json", std::string(text).replace(text.find(top), top.size(), top + ",\"fl_x\":7.0"));
+    InputError e = expect_input_error([&] { (void)load_capture(fx.dir.path()); });
+    EXPECT_EQ(e.file(), fx.dir / "capture.json");
+    EXPECT_EQ(e.field(), "fl_x") << e.what();
+    EXPECT_NE(e.message().find("duplicate JSON key"), std::string::npos) << e.what();
+    // Deeper: frames[1].light.type twice (frames[1]'s light differs from every other frame's).
+    const std::string light = fx.j["frames"][1]["light"].dump();
+    ASSERT_EQ(text.find(light), text.rfind(light));
+    std::string text2 = text;
+    text2.replace(text2.find(light), light.size(), light.substr(0, light.size() - 1) + ",\"type\":\"point\"}");
+    write_text_file(fx.dir / "capture.json", text2);
+    e = expect_input_error([&] { (void)load_capture(fx.dir.path(), {.load_images = false}); });
+    EXPECT_EQ(e.field(), "frames[1].light.type") << e.what();
+    // The same text without the duplicate loads.
+    write_text_file(fx.dir / "capture.json", text);
+    EXPECT_NO_THROW((void)load_capture(fx.dir.path(), {.load_images = false}));
+}
+
+TEST(CaptureRefusalText, NulInsideAPathIsRefusedNotCutShort) {
+    CaptureFixture fx;
+    // "images/v1_l0.png\u0000x" would open images/v1_l0.png, which exists.
+    fx.j["frames"][0]["file_path"] = std::string("images/v1_l0.png\0x", 18);
+    const InputError e = expect_input_error([&] { (void)fx.load(); });
+    EXPECT_EQ(e.field(), "frames[0].file_path");
+    EXPECT_NE(e.message().find("NUL"), std::string::npos) << e.what();
+}
+
+TEST(CaptureRefusalText, EveryPathStaysInsideTheCapture) {
+    for (const std::string& path : {std::string("../mesh.glb"), std::string("a/../../mesh.glb"), std::string("/tmp/mesh.glb")}) {
+        CaptureFixture fx;
+        fx.j["mesh_path"] = path;
+        const InputError e = expect_input_error([&] { (void)fx.load(); });
+        EXPECT_EQ(e.field(), "mesh_path") << path;
+        EXPECT_TRUE(e.message().find("leaves the capture's folder") != std::string::npos ||
+                    e.message().find("absolute path") != std::string::npos)
+            << e.what();
+    }
+    CaptureFixture fx; // ".." that stays inside is fine
+    fx.j["frames"][0]["file_path"] = "masks/../" + CaptureFixture::image_name(1, 0);
+    EXPECT_NO_THROW((void)fx.load());
+}
+
+// ---- memory (issue 21 cases 7, 8) --------------------------------------------------
+
+TEST(CaptureMemory, AnImageNamedByManyFramesIsDecodedOnce) {
+    CaptureFixture fx;
+    Image img(kW, kH, 3);
+    for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float(i) / float(img.pixels.size());
+    fx.write_png("images/shared.png", img, ColorSpace::Linear, 16);
+    json frames = json::array();
+    for (int k = 0; k < 150; ++k) {
+        json f = frame_json("images/shared.png", k % 2, 3.0 + k % 2, {1.0, 0.5, 3.0 + 0.01 * k});
+        frames.push_back(f);
+    }
+    fx.j["frames"] = frames;
+    fx.j["color_space"] = "linear";
+    const Capture c = fx.load();
+    EXPECT_EQ(c.image_files_decoded, 1u);
+    ASSERT_EQ(c.images.size(), 150u);
+    for (const FrameImage& im : c.images) EXPECT_EQ(im.color.pixels, c.images.front().color.pixels);
+    EXPECT_NEAR(c.images[149].color.at(3, 2, 1), img.at(3, 2, 1), 1e-4f);
+    // The original fixture: 4 distinct files, 4 decodes.
+    CaptureFixture g;
+    EXPECT_EQ(g.load().image_files_decoded, 4u);
+}
+
+TEST(CaptureMemory, DecodedImageBytesCountFramesMasksAndDecodeBuffers) {
+    CaptureFixture fx;
+    const Capture c = fx.load({.load_images = false});
+    const std::uint64_t pixels = kW * kH;
+    // 4 frames x 13 bytes, 1 mask file x 1 byte, and 2 threads decoding a file each (18 bytes a pixel).
+    EXPECT_EQ(decoded_image_bytes(c.desc, 2), 4 * pixels * 13 + pixels + 2 * pixels * 18);
+    EXPECT_EQ(decoded_image_bytes(c.desc, 1), 4 * pixels * 13 + pixels + pixels * 18);
+}
+
+TEST(CaptureMemory, ACaptureThatCannotFitIsRefusedBeforeDecoding) {
+    // Issue 21 case 7: 150 frames all naming one 4096 x 4096 PNG need 150 decoded copies
+    // (32.7 GB). The PNG here only claims that size in its header: nothing is decoded.
+    CaptureFixture fx;
+    fx.j["w"] = 4096;
+    fx.j["h"] = 4096;
+    fx.j["fl_x"] = 5000.0;
+    fx.j["fl_y"] = 5000.0;
+    fx.j["cx"] = 2048.0;
+    fx.j["cy"] = 2048.0;
+    json frames = json::array();
+    for (int k = 0; k < 150; ++k) frames.push_back(frame_json("images/big.png", k % 2, 3.0 + k % 2, {1.0, 0.5, 3.0}));
+    fx.j["frames"] = frames;
+    write_text_file(fx.dir / "images/big.png", "not decoded");
+    const InputError e = expect_input_error([&] { (void)fx.load({.memory_available = std::uint64_t{4} << 30}); });
+    EXPECT_EQ(e.file(), fx.dir / "capture.json");
+    // 150 x 4096^2 x 13 bytes = 32.7 GB, and one file's decode buffers (4096^2 x 18 bytes).
+    EXPECT_NE(e.message().find("need 33.0 GB"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("150 frames of up to 4096 x 4096"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("4.29 GB is available"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("--no-images"), std::string::npos) << e.what();
+}
+
+// ---- warnings on legal but useless data (issue 21 case 15) ---------------------------
+
+bool has_warning(const Capture& c, const std::string& text) {
+    return std::any_of(c.warnings.begin(), c.warnings.end(), [&](const std::string& w) { return w.find(text) != std::string::npos; });
+}
+
+TEST(CaptureWarnings, EmptyMasksAreNamed) {
+    CaptureFixture fx;
+    write_image(fx.dir / "masks/v0.png", Image(kW, kH, 1, 0.0f), ColorSpace::Linear);
+    Capture c = fx.load();
+    EXPECT_TRUE(has_warning(c, "1 of 1 mask file(s) are empty")) << summarize(c);
+    EXPECT_TRUE(has_warning(c, "frames[2].mask_path (masks/v0.png)")) << summarize(c);
+    EXPECT_FALSE(has_warning(c, "no frame sees the object")) << summarize(c); // view 1 has no mask
+    for (std::size_t f : {0u, 1u}) fx.j["frames"][f]["mask_path"] = "masks/v0.png";
+    c = fx.load();
+    EXPECT_TRUE(has_warning(c, "no frame sees the object")) << summarize(c);
+}
+
+TEST(CaptureWarnings, ViewsThatCannotSeeTheMeshAreNamed) {
+    CaptureFixture fx;
+    // view 1 turned around (180 degrees about y): it looks away from the cube.
+    const json away = json::array({json::array({-1, 0, 0, 0}), json::array({0, 1, 0, 0}), json::array({0, 0, -1, 4.0}),
+                                   json::array({0, 0, 0, 1})});
+    for (std::size_t f : {0u, 1u}) fx.j["frames"][f]["transform_matrix"] = away;
+    Capture c = fx.load();
+    EXPECT_TRUE(has_warning(c, "1 of 2 views cannot see the mesh")) << summarize(c);
+    EXPECT_TRUE(has_warning(c, "view_index 1 (frames[0])")) << summarize(c);
+    EXPECT_FALSE(has_warning(c, "no train view sees it")) << summarize(c);
+    // view 0 shifted sideways far enough that the cube projects outside its 4 x 3 image.
+    for (std::size_t f : {2u, 3u}) fx.j["frames"][f]["transform_matrix"] = pose_json(3.0, 20.0);
+    c = fx.load();
+    EXPECT_TRUE(has_warning(c, "2 of 2 views cannot see the mesh")) << summarize(c);
+    EXPECT_TRUE(has_warning(c, "no train view sees it")) << summarize(c);
+    CaptureFixture ok;
+    EXPECT_FALSE(has_warning(ok.load(), "cannot see the mesh"));
+}
+
+TEST(CaptureWarnings, DarkLightsAndUnlitChannels) {
+    CaptureFixture fx;
+    fx.j["frames"][0]["light"]["intensity"] = {0.0, 0.0, 0.0};
+    for (std::size_t f = 0; f < 4; ++f) fx.j["frames"][f]["light"]["intensity"][2] = 0.0;
+    const Capture c = fx.load();
+    EXPECT_TRUE(has_warning(c, "1 frame(s) have a light of intensity 0 in every channel (first: frames[0]")) << summarize(c);
+    EXPECT_TRUE(has_warning(c, "no train frame lights the blue channel")) << summarize(c);
+    EXPECT_FALSE(has_warning(c, "lights the red channel")) << summarize(c);
+}
+
+TEST(CaptureWarnings, MeshFarFromTheOriginForItsSize) {
+    CaptureFixture fx;
+    Mesh m = unit_cube_mesh();
+    for (glm::vec3& p : m.positions) p.x += 1000.0f;
+    write_mesh_glb(fx.dir / "mesh.glb", m);
+    for (std::size_t f = 0; f < 4; ++f) {
+        const double tz = fx.j["frames"][f]["transform_matrix"][2][3].get<double>();
+        fx.j["frames"][f]["transform_matrix"] = pose_json(tz, 1000.0);
+        fx.j["frames"][f]["light"]["position"][0] = fx.j["frames"][f]["light"]["position"][0].get<double>() + 1000.0;
+    }
+    const Capture c = fx.load();
+    EXPECT_TRUE(has_warning(c, "times its size from the origin")) << summarize(c);
+    CaptureFixture ok;
+    EXPECT_FALSE(has_warning(ok.load(), "from the origin"));
+}
+
+TEST(CaptureWarnings, PixelsBeyondTheRangeAreMissing) {
+    CaptureFixture fx;
+    Image img = solid(kW, kH, 3, 0.5f);
+    img.at(1, 1, 0) = 1e16f; // finite, but beyond what the solve may multiply by an irradiance
+    img.at(2, 1, 2) = -3e20f;
+    img.at(3, 2, 1) = 1e14f; // kept
+    write_image(fx.dir / "images/f.exr", img, ColorSpace::Linear);
+    fx.j["frames"][1]["file_path"] = "images/f.exr";
+    const Capture c = fx.load();
+    EXPECT_EQ(c.images[1].missing_pixels, 2u);
+    EXPECT_EQ(c.images[1].flags[1 * kW + 1], kMissing);
+    EXPECT_EQ(c.images[1].color.at(1, 1, 0), 0.0f);
+    EXPECT_EQ(c.images[1].color.at(3, 2, 1), 1e14f);
+    EXPECT_TRUE(has_warning(c, "2 pixel(s) with non-finite values (or beyond +-1e+15)")) << summarize(c);
 }
 
 // ---- robustness ------------------------------------------------------------------

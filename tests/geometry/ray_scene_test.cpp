@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 #include <thread>
 
@@ -139,6 +140,55 @@ TEST(RayScene, RefusesAnEmptyMesh) {
     EXPECT_THROW(RayScene(Mesh{}), Error);
     Mesh bad = unit_quad_at_z0();
     bad.triangles.push_back({0, 1, 99});
+    EXPECT_THROW(RayScene{bad}, Error);
+}
+
+// The second line of defence (issue 21 cases 1-3): rays Embree cannot trace (it aborts on an
+// assertion in Debian's build) are refused with an Error naming them, whatever the caller checked.
+TEST(RayScene, RaysOutsideEmbreesRangeAreRefusedNotTraced) {
+    const RayScene scene(unit_quad_at_z0());
+    const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+    const glm::vec3 o(0.5f, 0.5f, 1.0f), down(0.0f, 0.0f, -1.0f);
+    auto refused = [&](const Ray& r) {
+        try {
+            (void)scene.intersect(r.origin, r.dir, r.tmin, r.tmax);
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find("outside what the ray tracer accepts"), std::string::npos) << e.what();
+            EXPECT_THROW((void)scene.occluded(r.origin, r.dir, r.tmin, r.tmax), Error);
+            return true;
+        }
+        return false;
+    };
+    EXPECT_TRUE(refused({glm::vec3(float(1e39), 0.0f, 0.0f), 0.0f, down, 10.0f})); // a light at 1e39: infinity as a float
+    EXPECT_TRUE(refused({glm::vec3(1e20f, 0.5f, 1.0f), 0.0f, down, 10.0f}));        // finite, beyond Embree's 1.8e18
+    EXPECT_TRUE(refused({o, 0.0f, glm::vec3(nan, 0.0f, -1.0f), 10.0f}));           // fl_x = 5e-324: a NaN direction
+    EXPECT_TRUE(refused({o, 0.0f, glm::vec3(inf, 0.0f, -1.0f), 10.0f}));
+    EXPECT_TRUE(refused({o, -1.0f, down, 10.0f}));                                  // a segment before the origin
+    EXPECT_TRUE(refused({o, nan, down, 10.0f}));
+    EXPECT_TRUE(refused({o, 0.0f, down, nan}));
+    // In range: traced as before, up to the limit and with an infinite tmax.
+    EXPECT_FALSE(refused({o, 0.0f, down, inf}));
+    EXPECT_TRUE(scene.intersect(o, down, 0.0f, inf).has_value());
+    EXPECT_FALSE(refused({glm::vec3(0.5f, 0.5f, 1e18f), 0.0f, down, inf}));
+    // Batches name the ray.
+    std::vector<Ray> rays(3, Ray{o, 0.0f, down, 10.0f});
+    rays[2].origin.x = nan;
+    std::vector<std::uint8_t> occluded(3);
+    try {
+        scene.occluded(rays, occluded);
+        ADD_FAILURE() << "not refused";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("ray 2 is outside"), std::string::npos) << e.what();
+    }
+    std::vector<std::optional<RayHit>> hits(3);
+    EXPECT_THROW(scene.intersect(rays, hits), Error);
+}
+
+TEST(RayScene, RefusesVerticesItCannotTrace) {
+    Mesh bad = unit_quad_at_z0();
+    bad.positions[2].x = 1e19f;
+    EXPECT_THROW(RayScene{bad}, Error);
+    bad.positions[2].x = std::numeric_limits<float>::infinity();
     EXPECT_THROW(RayScene{bad}, Error);
 }
 

@@ -365,5 +365,66 @@ TEST(Visibility, InputsFromACaptureCombineTheViewsMasks) {
     EXPECT_EQ(in.views[1].flags[2], kOutsideMask);
 }
 
+// ---- legal but useless input (issue 21): the pipeline's warnings and refusal ----------
+
+TEST(VisibilityUsable, NothingSeenIsRefusedAndWarned) {
+    // The plane (normal +y) seen only from below: no view sees any particle (issue 21 case 15:
+    // the object outside every view, or covered by no mask, gives this too).
+    const std::vector<Camera> below = {make_camera({0.1, -3, 0.2}, {0, 0, 0})};
+    const Scene s(test::plane(1.0f, 4), below);
+    const std::vector<PointLight> lights = {light_at({0, 2, 0})};
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(below), lights);
+    const std::vector<std::uint32_t> frame_view = {0};
+    try {
+        require_usable_visibility(vis, frame_view, "cap/capture.json");
+        ADD_FAILURE() << "not refused";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.file(), "cap/capture.json");
+        EXPECT_NE(e.message().find("no view sees any of the " + std::to_string(vis.particle_count)), std::string::npos) << e.what();
+    }
+    const std::vector<std::string> w = visibility_warnings(vis.stats);
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_NE(w[0].find("(100.0%) are seen by no view"), std::string::npos) << w[0];
+}
+
+TEST(VisibilityUsable, SeenButNeverLitByTheSeeingViewIsRefused) {
+    // View 0 sees the plane from above; the only light (frame 0, of view 0) is below it.
+    // Frame 1 lights it but belongs to view 1, which sees nothing.
+    const std::vector<Camera> cams = {make_camera({0.1, 3, 0.2}, {0, 0, 0}), make_camera({0.1, -3, 0.2}, {0, 0, 0})};
+    const Scene s(test::plane(1.0f, 4), cams);
+    const std::vector<PointLight> lights = {light_at({0, -2, 0}), light_at({0, 2, 0})};
+    const Visibility vis = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights);
+    std::vector<std::uint32_t> frame_view = {0, 1};
+    try {
+        require_usable_visibility(vis, frame_view, "cap/capture.json");
+        ADD_FAILURE() << "not refused";
+    } catch (const InputError& e) {
+        EXPECT_NE(e.message().find("none is lit by a frame of a view that sees it"), std::string::npos) << e.what();
+    }
+    // Frame 1 given to view 0 instead: usable.
+    frame_view = {1, 0};
+    EXPECT_NO_THROW(require_usable_visibility(vis, frame_view, "cap/capture.json"));
+    // ... unless only frame 0 counts (e.g. frame 1 is a test frame).
+    const std::vector<std::size_t> train = {0};
+    EXPECT_THROW(require_usable_visibility(vis, frame_view, "cap/capture.json", train), InputError);
+}
+
+TEST(VisibilityUsable, WarningsAboveHalfOfTheParticles) {
+    VisibilityStats st;
+    st.particles = 1000;
+    EXPECT_TRUE(visibility_warnings(st).empty());
+    st.seen_by_no_view = 500; // exactly half: no warning
+    st.lit_by_no_frame = 500;
+    EXPECT_TRUE(visibility_warnings(st).empty());
+    st.seen_by_no_view = 997; // issue 21 case 17: 99.97% of the particles never seen
+    const std::vector<std::string> w = visibility_warnings(st);
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_NE(w[0].find("997 of 1000 surface particles (99.7%) are seen by no view"), std::string::npos) << w[0];
+    st.lit_by_no_frame = 501;
+    ASSERT_EQ(visibility_warnings(st).size(), 2u);
+    EXPECT_NE(visibility_warnings(st)[1].find("lit by no frame"), std::string::npos);
+    EXPECT_TRUE(visibility_warnings(VisibilityStats{}).empty()); // no particles: nothing to say
+}
+
 } // namespace
 } // namespace specula

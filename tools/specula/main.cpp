@@ -3,10 +3,12 @@
 #include "commands.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/memory.h"
 #include "specula/version.h"
 
 #include <cstdio>
 #include <exception>
+#include <new>
 #include <string>
 
 int main(int argc, char** argv) {
@@ -38,6 +40,19 @@ int main(int argc, char** argv) {
     } catch (const specula::UsageError& e) {
         std::fprintf(stderr, "usage error: %s\n", e.what());
         return 2;
+    } catch (const std::bad_alloc&) {
+        // The last resort: the stages name their input when they run out of memory (e.g.
+        // load_capture); an allocation none of them foresaw still never reaches the user as a
+        // bare "std::bad_alloc". Name the command and what it was given.
+        std::string command;
+        for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
+        if (command.size() > 400) command = command.substr(0, 400) + " ...";
+        std::fprintf(stderr,
+                     "error: out of memory (std::bad_alloc) in `specula%s`: the input needs more memory than this process "
+                     "may use (%s available now: %s)\n",
+                     command.c_str(), specula::format_bytes(specula::available_memory().bytes).c_str(),
+                     specula::available_memory().limit.c_str());
+        return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "error: %s\n", e.what());
         return 1;

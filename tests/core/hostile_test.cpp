@@ -1,0 +1,137 @@
+// Core's guards against hostile input and faults (issue 21): the JSON text checks, the memory
+// available, why a write failed, and image files that are not what they claim.
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/image.h"
+#include "core/json_guard.h"
+#include "core/memory.h"
+#include "test_dirs.h"
+
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <future>
+
+namespace specula {
+namespace {
+
+TEST(JsonGuard, DepthIsFoundOnTheTextWithItsPath) {
+    EXPECT_FALSE(json_too_deep(R"({"a": [[1]]})", 3).has_value());
+    const auto deep = json_too_deep(R"({"frames": [{"light": {"position": [[0]]}}]})", 4);
+    ASSERT_TRUE(deep.has_value());
+    EXPECT_EQ(*deep, "frames[0].light.position");
+    EXPECT_EQ(json_too_deep(std::string(300, '['), 256).value_or(""), "[0][0][0][0][0][0]");
+    // Brackets inside strings do not count.
+    EXPECT_FALSE(json_too_deep(R"({"s": "[[[[[[[[["})", 2).has_value());
+    // An unterminated string or a trailing backslash ends the scan safely.
+    EXPECT_FALSE(json_too_deep("{\"s\": \"abc\\", 2).has_value());
+}
+
+TEST(JsonGuard, DuplicateKeysAreNamedByTheirPath) {
+    EXPECT_TRUE(check_json_keys(R"({"a": 1, "b": {"a": 2}, "c": [{"a": 1}, {"a": 2}]})").duplicate_field.empty());
+    EXPECT_EQ(check_json_keys(R"({"w": 1, "w": 2})").duplicate_field, "w");
+    EXPECT_EQ(check_json_keys(R"({"frames": [{"a": 1}, {"light": {"type": "point", "type": "spot"}}]})").duplicate_field,
+              "frames[1].light.type");
+    const JsonKeyReport bad = check_json_keys("{\"a\": 1,,}");
+    EXPECT_TRUE(bad.duplicate_field.empty());
+    EXPECT_FALSE(bad.error.empty());
+    EXPECT_EQ(bad.error_byte, 9u);
+}
+
+TEST(Memory, AvailableIsPositiveAndNamed) {
+    const MemoryAvailable m = available_memory();
+    EXPECT_GT(m.bytes, 0u);
+    EXPECT_FALSE(m.limit.empty());
+}
+
+TEST(Memory, BytesAreFormattedWithThreeDigits) {
+    EXPECT_EQ(format_bytes(12), "12 bytes");
+    EXPECT_EQ(format_bytes(20480), "20.5 KB");
+    EXPECT_EQ(format_bytes(512000000), "512 MB");
+    EXPECT_EQ(format_bytes(32715571200ull), "32.7 GB");
+    EXPECT_EQ(format_bytes(std::uint64_t{1} << 28), "268 MB");
+}
+
+// A full disk used to say "cannot write file" and nothing more. The file size limit
+// (RLIMIT_FSIZE, with SIGXFSZ ignored so the write fails with EFBIG instead of killing the
+// process) stands in for a full disk: the message must carry the system's reason.
+TEST(FileUtil, AFailedWriteSaysWhy) {
+    test::TempDir dir("hostile");
+    const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit old{};
+    ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+    rlimit small = old;
+    small.rlim_cur = 64;
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+    std::string message;
+    try {
+        write_text_file(dir / "big.txt", std::string(4096, 'x'));
+    } catch (const InputError& e) {
+        message = e.what();
+    }
+    ::setrlimit(RLIMIT_FSIZE, &old);
+    std::signal(SIGXFSZ, old_handler);
+    EXPECT_NE(message.find(std::strerror(EFBIG)), std::string::npos) << message;
+    EXPECT_NE(message.find("big.txt"), std::string::npos) << message;
+    EXPECT_FALSE(std::filesystem::exists(dir / "big.txt")); // nothing half-written is left
+    // A folder that cannot be created says why too.
+    write_text_file(dir / "file", "x");
+    try {
+        write_text_file(dir / "file" / "sub" / "a.txt", "x");
+        ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot create directory: "), std::string::npos) << e.what();
+    }
+}
+
+TEST(ImageGuard, ATruncatedJpegIsRefusedNotFilledWithGrey) {
+    test::TempDir dir("hostile");
+    Image img(64, 48, 3);
+    for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = static_cast<float>(i % 97) / 96.0f;
+    write_image(dir / "whole.jpg", img, ColorSpace::Srgb);
+    const std::string bytes = read_text_file(dir / "whole.jpg");
+    write_text_file(dir / "half.jpg", bytes.substr(0, bytes.size() / 2));
+    EXPECT_NO_THROW((void)read_image(dir / "whole.jpg", ColorSpace::Srgb, "f"));
+    try {
+        (void)read_image(dir / "half.jpg", ColorSpace::Srgb, "f");
+        ADD_FAILURE() << "a JPEG cut in half was accepted";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.field(), "f");
+        EXPECT_NE(e.message().find("decoded only in part"), std::string::npos) << e.what();
+    }
+    // The same through the in-memory codec.
+    const std::vector<std::uint8_t> jpeg = encode_image(img, ImageCodec::Jpeg, ColorSpace::Srgb);
+    const std::span<const std::uint8_t> half(jpeg.data(), jpeg.size() / 2);
+    EXPECT_NO_THROW((void)decode_image(jpeg, ColorSpace::Srgb, "m.jpg", "images[0]"));
+    EXPECT_THROW((void)decode_image(half, ColorSpace::Srgb, "m.jpg", "images[0]"), InputError);
+}
+
+TEST(ImageGuard, FilesReadOnlyWhenRegularAndWithinTheSizeLimit) {
+    test::TempDir dir("hostile");
+    write_image(dir / "wide.png", Image(40, 2, 3, 0.5f), ColorSpace::Srgb);
+    EXPECT_NO_THROW((void)read_image(dir / "wide.png", ColorSpace::Srgb, "f"));
+    try {
+        (void)read_image(dir / "wide.png", ColorSpace::Srgb, "f", nullptr, 32);
+        ADD_FAILURE() << "40 x 2 accepted with a limit of 32";
+    } catch (const InputError& e) {
+        EXPECT_NE(e.message().find("image is 40 x 2, above the largest accepted width or height (32)"), std::string::npos)
+            << e.what();
+    }
+    // A FIFO is refused without opening it (opening would block until a writer comes).
+    ASSERT_EQ(::mkfifo((dir / "pipe.png").c_str(), 0600), 0);
+    auto result = std::async(std::launch::async, [&] {
+        EXPECT_THROW((void)read_image_info(dir / "pipe.png", "f"), InputError);
+        EXPECT_THROW((void)read_image(dir / "pipe.png", ColorSpace::Srgb, "f"), InputError);
+    });
+    ASSERT_EQ(result.wait_for(std::chrono::seconds(20)), std::future_status::ready) << "blocked on a FIFO";
+    result.get();
+}
+
+} // namespace
+} // namespace specula
