@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace specula {
@@ -249,14 +250,18 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
         const std::optional<SpecularModel> m = s.candidates[k].fit.model();
         // No usable fit: scored as the diffuse term alone (a zero lobe).
         const SpecularModel scored = m ? *m : SpecularModel(LafortuneRgb{});
+        // With validation frames, a candidate without a validation error (no usable fit) loses:
+        // its train error would not compare with the others' held-out error.
         error[k] = s.candidates[k].validation_mse ? *s.candidates[k].validation_mse
+                   : s.validation_frames > 0      ? std::numeric_limits<double>::infinity()
                                                   : material_mean_square_error(scored, to_material_samples(train));
     }
     const std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
     std::string scores;
     for (std::size_t k = 0; k < s.candidates.size(); ++k)
-        scores += std::string(k ? ", " : "") + to_string(families[k]) + " " + std::to_string(error[k]) + " (" +
-                  std::to_string(psnr_of(error[k])).substr(0, 5) + " dB)";
+        scores += std::string(k ? ", " : "") + to_string(families[k]) +
+                  (std::isfinite(error[k]) ? " " + std::to_string(error[k]) + " (" + std::to_string(psnr_of(error[k])).substr(0, 5) + " dB)"
+                                           : std::string(" no usable fit"));
     const std::string basis = s.validation_frames > 0
                                   ? "mean square error on " + std::to_string(s.validation_frames) + " validation frames (one light of each view, held out): "
                                   : "no validation frames (every view has fewer than 4 train frames): mean square error on the "
