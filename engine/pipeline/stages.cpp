@@ -363,7 +363,9 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
 
     // 2. The winner on all the train frames, as many rounds as its validated estimate kept.
     const JointSteps steps = material_steps(run, s, diffuse.inputs, nullptr, winner, fo, "");
-    JointState state{.solve_options = diffuse.options, .solve = std::move(diffuse.solve), .residuals = {}, .fit = steps.fit(rs, ""),
+    JointState state{.solve_options = diffuse.options, .solve = std::move(diffuse.solve), .residuals = {},
+                     // Without validation frames the candidates were fitted to these very samples: reuse the winner's fit.
+                     .fit = split.held_out > 0 ? steps.fit(rs, "") : s.candidates[best].fit,
                      .validation_mse = std::nullopt};
     state.residuals = std::move(rs);
     JointOptions final_rounds = jo;
