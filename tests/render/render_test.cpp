@@ -24,6 +24,8 @@
 #include "factorization/factorization.h"
 #include "render/renderer.h"
 #include "synth/presets.h"
+#include "synth/rig.h"
+#include "core/timer.h"
 #include "synth/render.h"
 #include "vulkan_env.h"
 
@@ -940,6 +942,59 @@ TEST_F(RenderTest, WarpedFactorizationNeedsALafortuneModel) {
     const Frame none = r.render(cam, light, {.specular = SpecularPath::Factorized});
     EXPECT_FALSE(none.info.specular_pass);
     EXPECT_NE(none.info.specular_note.find("no lobe"), std::string::npos);
+}
+
+// Issue 5's criterion for the coated family: the factorized render within 1 dB of the analytic
+// one. As for the can's lobe above, within 1 dB of the analytic render's masked PSNR against a
+// capture needs PSNR(factorized vs analytic) >= PSNR(analytic vs capture) + 5.9 dB; with the
+// can's figures (41.7 dB train, 33.5 dB test) that is >= 47.6 dB on average over the frames and
+// >= 39.4 dB on every frame, asserted here on the synth presets' meshes (can, cologne, vase,
+// woodenpot, knot; constant albedo) for eta 1.5 and alpha 0.05, 0.12, 0.25, 0.4, with the
+// factorization's default grids, K and weight in the plain GSHD (the automatic choice's, tested
+// in tests/factorization CoatedFamily; its mirrored run would double the time), over the frames of
+// the spread rig (`specula synth`'s: lights 15 to 130 degrees off the camera) and of the thesis's
+// ring (six lights about 15 degrees around the camera), a train view and a test view each (16
+// frames), unshadowed (the same shadow map darkens both paths alike).
+TEST_F(RenderTest, CoatedFactorizedWithinOneDbOfAnalyticOnThePresets) {
+    std::vector<synth::Preset> presets;
+    for (const char* name : {"can", "cologne", "vase", "woodenpot", "knot"}) presets.push_back(synth::make_preset(name));
+    for (const float alpha : {0.05f, 0.12f, 0.25f, 0.4f}) {
+        const CoatedParams model = coated(alpha);
+        const Stopwatch clock;
+        const factorization::Factorization f = factorization::factorize_cpu(model, {.param = FactorParam::Gshd});
+        const double seconds = clock.seconds();
+        std::printf("alpha %.2f: %s, %u x %u, K = %u, weight q = %.2f, factorized in %.1f s (CPU)\n  %s\n", alpha,
+                    to_string(f.cubes.param), f.resolution.grid_h, f.resolution.grid_d, f.term_count(),
+                    static_cast<double>(f.weight_q), seconds, f.terms.reason.c_str());
+        for (const synth::Preset& p : presets) {
+            const SceneData data = constant_albedo(p.mesh, glm::vec3(0.45f, 0.4f, 0.35f));
+            Renderer r(ctx(), data.scene(model), {.shadow_map_size = 16}); // unused: unshadowed
+            r.set_factorization(f.cubes);
+            double worst = 999.0, sum = 0.0;
+            std::size_t frames = 0;
+            for (const bool ring : {false, true}) {
+                synth::RigOptions o;
+                o.size = 128;
+                o.views = 1;
+                o.test_views = 1;
+                if (ring) o.light_angles_deg.clear(); // the thesis's ring about 15 degrees around the camera
+                for (const synth::RigView& view : synth::make_rig(p.mesh, o).views)
+                    for (const PointLight& light : view.lights) {
+                        const Frame an = r.render(view.camera, light, {.specular = SpecularPath::Analytic, .shadows = false});
+                        const Frame fa = r.render(view.camera, light, {.specular = SpecularPath::Factorized, .shadows = false});
+                        const double psnr = masked_psnr(fa, an);
+                        worst = std::min(worst, psnr);
+                        sum += psnr;
+                        ++frames;
+                    }
+            }
+            const double mean = sum / static_cast<double>(frames);
+            std::printf("  %-9s factorized vs analytic masked PSNR over %zu frames: mean %.1f dB, worst %.1f dB\n",
+                        p.name.c_str(), frames, mean, worst);
+            EXPECT_GE(mean, 47.6) << p.name << " alpha " << alpha;
+            EXPECT_GE(worst, 39.4) << p.name << " alpha " << alpha;
+        }
+    }
 }
 
 } // namespace
