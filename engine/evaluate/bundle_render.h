@@ -23,7 +23,8 @@
 
 namespace specula::evaluate {
 
-/// A render::Renderer over a bundle's mesh, atlas, lobe and (when present) cube-maps.
+/// A render::Renderer over a bundle's mesh, atlas, Material (any specular family, as it is)
+/// and (when present) cube-maps.
 class BundleRenderer {
 public:
     /// `name` (usually the bundle's path) is used in error messages. Throws Error when the
@@ -35,7 +36,8 @@ public:
     [[nodiscard]] render::Frame render(const Camera& camera, const PointLight& light, const render::Settings& settings);
 
     [[nodiscard]] bool has_factorization() const noexcept { return m_renderer.has_factorization(); }
-    [[nodiscard]] bool has_lobe() const noexcept { return !m_renderer.lobe().is_zero(); }
+    /// True when the bundle's material has a specular term to draw (any family, not zero).
+    [[nodiscard]] bool has_specular() const noexcept { return m_renderer.has_specular(); }
     [[nodiscard]] render::Renderer& renderer() noexcept { return m_renderer; }
 
 private:

@@ -127,7 +127,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
     if (options.metrics_backend == Backend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
     result.timings.setup_s = setup.seconds();
-    if (options.render.mode != render::Mode::Diffuse && !renderer.has_lobe())
+    if (options.render.mode != render::Mode::Diffuse && !renderer.has_specular())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
 
     std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);

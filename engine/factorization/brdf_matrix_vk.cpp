@@ -21,20 +21,16 @@ void BrdfMatrixVk::record(gpu::Sequence& seq, const gpu::Buffer& matrix, const B
     const uint64_t entries = uint64_t{in.res_h} * in.res_h * in.res_d * in.res_d;
     if (matrix.size() < entries * 3 * sizeof(float))
         throw Error("brdf_matrix: buffer '" + matrix.name() + "' too small for the matrix");
-    shared::BrdfMatrixPush push{.dispatch = {}, .res_h = in.res_h, .res_d = in.res_d, .cx = {}, .cz = {}, .n = {},
-                        .param = static_cast<uint32_t>(in.param), .warp_s = in.warp.x,
-                        .warp_k = {in.warp.y, in.warp.z, in.warp.w}};
-    for (int c = 0; c < 3; ++c) {
-        push.cx[c] = in.lobe.cx[c];
-        push.cz[c] = in.lobe.cz[c];
-        push.n[c] = in.lobe.n[c];
-    }
+    const shared::BrdfMatrixPush push{.dispatch = {}, .res_h = in.res_h, .res_d = in.res_d,
+                                      .material = material_gpu(in.model), .param = static_cast<uint32_t>(in.param),
+                                      .warp_s = in.warp.x, .warp_k = {in.warp.y, in.warp.z, in.warp.w},
+                                      .weight_q = in.weight_q};
     seq.dispatch_1d(m_pipeline, {matrix}, static_cast<uint32_t>(entries), push, "brdf_matrix");
 }
 
 BrdfMatrix BrdfMatrixVk::run(const BrdfMatrixInputs& in) {
     brdf_matrix_validate(in);
-    BrdfMatrix m{.res_h = in.res_h, .res_d = in.res_d, .param = in.param, .warp = in.warp, .values = {}};
+    BrdfMatrix m{.res_h = in.res_h, .res_d = in.res_d, .param = in.param, .warp = in.warp, .weight_q = in.weight_q, .values = {}};
     gpu::Buffer matrix = gpu::Buffer::of<float>(*m_ctx, 3 * m.rows() * m.cols(), "factorization F");
     gpu::Sequence seq(*m_ctx, 2);
     record(seq, matrix, in);

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <utility>
+#include <iterator>
 #include <random>
 
 namespace specula::factorization {
@@ -22,22 +23,36 @@ std::optional<double> FactorizationTimings::gpu_total_ns() const {
 
 namespace {
 
-/// Whether the residual kernels' float sums of products of F with G and H stay finite: the
-/// lobe's height max(|Cx|, |Cz|)^N is at most kResidualMaxValue (F is the lobe itself in the
-/// plain and mirrored parametrizations; the warped F is in [0, 1] and always fits).
-bool residual_sums_fit(const LafortuneRgb& lobe, FactorParam param) {
-    if (param == FactorParam::Warped) return true;
+/// An upper bound of the specular model's value (F's largest entry in the plain and mirrored
+/// parametrizations, where F is the model itself). Lafortune: max(|Cx|, |Cz|)^N. Coated
+/// (shared/coated.h): F <= 1, D <= D(1) = 1 / (pi alpha^2), and G1(c) / (2 c) <= 1 / alpha (its
+/// denominator c + sqrt(c^2 + alpha^2 (1 - c^2)) is at least alpha), so f_s <= tint / (pi alpha^4).
+double model_height(const SpecularModel& model) {
     double height = 0.0;
-    for (int c = 0; c < 3; ++c)
-        height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe.cx[c])),
-                                                    std::abs(static_cast<double>(lobe.cz[c]))),
-                                           static_cast<double>(lobe.n[c])));
-    return height <= kResidualMaxValue;
+    if (const auto* lobe = std::get_if<LafortuneRgb>(&model)) {
+        for (int c = 0; c < 3; ++c)
+            height = std::max(height, std::pow(std::max(std::abs(static_cast<double>(lobe->cx[c])),
+                                                        std::abs(static_cast<double>(lobe->cz[c]))),
+                                               static_cast<double>(lobe->n[c])));
+        return height;
+    }
+    const auto& coated = std::get<CoatedParams>(model);
+    const double a2 = static_cast<double>(coated.alpha) * coated.alpha;
+    for (int c = 0; c < 3; ++c) height = std::max(height, static_cast<double>(coated.tint[c]));
+    return height / (kPi * a2 * a2);
+}
+
+/// Whether the residual kernels' float sums of products of F with G and H stay finite: the
+/// model's height (model_height) is at most kResidualMaxValue (the warped F is in [0, 1] and
+/// always fits).
+bool residual_sums_fit(const SpecularModel& model, FactorParam param) {
+    if (param == FactorParam::Warped) return true;
+    return model_height(model) <= kResidualMaxValue;
 }
 
 /// K_max of the run: the forced K, or max_terms; 1 when the lobe is too high for the
 /// residual kernels' float sums, or unforced in the warped parametrization (note says why).
-uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param, std::string& note) {
+uint32_t terms_to_compute(const SpecularModel& model, const FactorizationOptions& o, FactorParam param, std::string& note) {
     if (o.terms > kMaxFactorTerms)
         throw Error("factorize: terms must be 0 (automatic) or 1.." + std::to_string(kMaxFactorTerms) + " (got " +
                     std::to_string(o.terms) + ")");
@@ -50,8 +65,8 @@ uint32_t terms_to_compute(const LafortuneRgb& lobe, const FactorizationOptions& 
         note = "the warped F is rank 1 per channel: one term";
         return 1;
     }
-    if (!residual_sums_fit(lobe, param)) {
-        note = "the lobe's height max(|Cx|, |Cz|)^N exceeds " + std::to_string(kResidualMaxValue) +
+    if (!residual_sums_fit(model, param)) {
+        note = "the model's height (max(|Cx|, |Cz|)^N for a lobe) exceeds " + std::to_string(kResidualMaxValue) +
                " (float sums of the residual kernels could overflow): one term only";
         return 1;
     }
@@ -66,10 +81,10 @@ std::string percent(double x) {
 
 /// ALS iterations refining term 1 (FactorizationOptions::first_iterations); 0 when the lobe is
 /// too high for the residual kernels' float sums (as terms_to_compute).
-uint32_t first_term_iterations(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param) {
+uint32_t first_term_iterations(const SpecularModel& model, const FactorizationOptions& o, FactorParam param) {
     const uint32_t it = o.first_iterations.value_or(param == FactorParam::Warped ? kResidualIterations : 0u);
     if (it > 1000) throw Error("factorize: first_iterations must be in [0, 1000]");
-    return residual_sums_fit(lobe, param) ? it : 0u;
+    return residual_sums_fit(model, param) ? it : 0u;
 }
 
 /// Matrix errors of the first k terms for every k, then K by the rule of FactorizationOptions::terms.
@@ -117,8 +132,42 @@ TermChoice choose_terms(const BrdfMatrix* m, const Decomposition& first, const s
 
 } // namespace
 
-FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& o, FactorParam param) {
-    FactorizationResolution r = default_resolution(lobe, param);
+float default_weight_exponent(const SpecularModel& model) {
+    const auto* coated = std::get_if<CoatedParams>(&model);
+    if (coated == nullptr || !std::isfinite(coated->alpha)) return 0.0f;
+    const float t = (coated->alpha - kCoatedWeightAlphaLow) / (kCoatedWeightAlphaHigh - kCoatedWeightAlphaLow);
+    return kCoatedWeightExponent * std::clamp(t, 0.0f, 1.0f);
+}
+
+namespace {
+
+/// The run's weight exponent (FactorizationOptions::weight_q), checked, and what the reason says of it.
+float weight_exponent(const SpecularModel& model, const FactorizationOptions& o, FactorizationResolution& r) {
+    const float q = o.weight_q.value_or(default_weight_exponent(model));
+    if (!(q >= 0.0f && q <= 8.0f)) throw Error("factorize: weight_q must be in [0, 8]");
+    if (q != 0.0f) {
+        char buf[224];
+        std::snprintf(buf, sizeof buf,
+                      "; entries weighted by (n.h u.h)^%.3g (%s): a weighted least-squares fit that does not spend the terms "
+                      "on grazing pairs",
+                      static_cast<double>(q), o.weight_q ? "forced" : "default_weight_exponent");
+        r.reason += buf;
+    }
+    return q;
+}
+
+} // namespace
+
+std::optional<glm::vec4> warp_for_model(const SpecularModel& model, std::string* why) {
+    if (const auto* lobe = std::get_if<LafortuneRgb>(&model)) return warp_for_lobe(*lobe, why);
+    if (why)
+        *why = std::string("the ") + to_string(family_of(model)) +
+               " family has no Lafortune radial factor |C u|^N for the warped F to divide by";
+    return std::nullopt;
+}
+
+FactorizationResolution resolve_resolution(const SpecularModel& model, const FactorizationOptions& o, FactorParam param) {
+    FactorizationResolution r = default_resolution(model, param);
     std::string forced;
     const auto force = [&](uint32_t value, uint32_t& field, const char* name) {
         if (value == 0) return;
@@ -145,31 +194,31 @@ std::string param_errors(const ParamCandidate& c) {
     return buf;
 }
 
-ParamCandidate candidate_of(const LafortuneRgb& lobe, const Factorization& f) {
+ParamCandidate candidate_of(const SpecularModel& model, const Factorization& f) {
     return ParamCandidate{.computed = true,
                           .resolution = f.resolution,
                           .terms = f.terms,
-                          .direct_rms = direct_relative_rms(lobe, f, 0, kParamChoicePairs).cube};
+                          .direct_rms = direct_relative_rms(model, f, 0, kParamChoicePairs).cube};
 }
 
-/// The warp of the warped parametrization for `lobe`; throws Error naming why it has none.
-glm::vec4 required_warp(const LafortuneRgb& lobe) {
+/// The warp of the warped parametrization for `model`; throws Error naming why it has none.
+glm::vec4 required_warp(const SpecularModel& model) {
     std::string why;
-    const std::optional<glm::vec4> w = warp_for_lobe(lobe, &why);
-    if (!w) throw Error("factorize: the warped parametrization does not fit this lobe: " + why);
+    const std::optional<glm::vec4> w = warp_for_model(model, &why);
+    if (!w) throw Error("factorize: the warped parametrization does not fit this model: " + why);
     return *w;
 }
 
 /// ParamChoice's rule: `run(param, errors)` factorizes in one parametrization (errors: F's matrix
 /// errors are needed even where the path would skip them).
 template <class Run>
-Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOptions& o, Run&& run) {
+Factorization with_param_choice(const SpecularModel& model, const FactorizationOptions& o, Run&& run) {
     if (o.param) {
         Factorization f = run(*o.param, false);
         ParamChoice& c = f.param_choice;
         c.param = *o.param;
         c.forced = true;
-        c.candidates[static_cast<std::size_t>(*o.param)] = candidate_of(lobe, f);
+        c.candidates[static_cast<std::size_t>(*o.param)] = candidate_of(model, f);
         c.reason = std::string("forced ") + to_string(*o.param) + " (" + param_errors(c.of(*o.param)) + ")";
         return f;
     }
@@ -182,12 +231,12 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
     const auto add = [&](FactorParam p) {
         params.push_back(p);
         runs.push_back(run(p, true));
-        c.candidates[static_cast<std::size_t>(p)] = candidate_of(lobe, runs.back());
+        c.candidates[static_cast<std::size_t>(p)] = candidate_of(model, runs.back());
         errors += std::string(errors.empty() ? " (" : "; ") + to_string(p) + " " + param_errors(c.of(p));
     };
     // The warped parametrization first, where it fits the lobe: good enough, it is kept and the
     // others are left out (their residual terms on the larger grids cost seconds).
-    if (warp_for_lobe(lobe, &no_warp)) {
+    if (warp_for_model(model, &no_warp)) {
         add(FactorParam::Warped);
         if (c.of(FactorParam::Warped).direct_rms <= kWarpedGoodEnough) {
             c.param = FactorParam::Warped;
@@ -228,45 +277,46 @@ Factorization with_param_choice(const LafortuneRgb& lobe, const FactorizationOpt
     return f;
 }
 
-Factorization factorize_cpu_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param) {
+Factorization factorize_cpu_param(const SpecularModel& model, const FactorizationOptions& options, FactorParam param) {
     Factorization f;
     f.cubes.param = param;
-    if (param == FactorParam::Warped) f.cubes.warp = required_warp(lobe);
-    f.resolution = resolve_resolution(lobe, options, param);
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model);
+    f.resolution = resolve_resolution(model, options, param);
+    f.weight_q = weight_exponent(model, options, f.resolution);
     f.p = options.p;
     f.weighting = options.weighting;
     Stopwatch total;
     Stopwatch step;
-    BrdfMatrix m = brdf_matrix_cpu(
-        {.lobe = lobe, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d, .param = param, .warp = f.cubes.warp});
+    BrdfMatrix m = brdf_matrix_cpu({.model = model, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d,
+                                    .param = param, .warp = f.cubes.warp, .weight_q = f.weight_q});
     f.timings.matrix_s = step.seconds();
     step.restart();
     Decomposition first = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
-    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0) first = refine_first_term_cpu(m, first, it);
+    if (const uint32_t it = first_term_iterations(model, options, param); it > 0) first = refine_first_term_cpu(m, first, it);
     f.timings.decomposition_s = step.seconds();
     step.restart();
     const auto term_cubes = [&](const Decomposition& d) {
         return FactorTerm{.g = cubemaps_cpu({.grid = d.g, .grid_res = f.resolution.grid_h, .cube_res = f.resolution.cube_g}),
                           .h = cubemaps_cpu({.grid = d.h, .grid_res = f.resolution.grid_d, .cube_res = f.resolution.cube_h})};
     };
-    f.cubes.terms.push_back(term_cubes(first));
-    f.timings.cubemaps_s = step.seconds();
     std::string note;
-    const uint32_t kmax = terms_to_compute(lobe, options, param, note);
-    step.restart();
+    const uint32_t kmax = terms_to_compute(model, options, param, note);
     std::vector<Decomposition> rest;
     if (kmax > 1)
         rest = residual_terms_cpu({.matrix = &m, .first = &first, .terms = kmax, .iterations = options.iterations});
-    f.terms = choose_terms(&m, first, rest, options, note);
+    f.terms = choose_terms(&m, first, rest, options, note); // on the (weighted) matrix the terms were fitted to
     rest.resize(f.terms.count - 1);
     f.timings.residual_s = step.seconds();
     step.restart();
+    unweight_decomposition(first, f.weight_q);
+    for (Decomposition& d : rest) unweight_decomposition(d, f.weight_q);
+    f.cubes.terms.push_back(term_cubes(first));
     f.grids.push_back(std::move(first));
     for (Decomposition& d : rest) {
         f.cubes.terms.push_back(term_cubes(d));
         f.grids.push_back(std::move(d));
     }
-    f.timings.cubemaps_s += step.seconds();
+    f.timings.cubemaps_s = step.seconds();
     f.timings.total_s = total.seconds();
     if (options.keep_matrix) f.matrix = std::move(m);
     return f;
@@ -274,31 +324,35 @@ Factorization factorize_cpu_param(const LafortuneRgb& lobe, const FactorizationO
 
 } // namespace
 
-Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions& options) {
-    return with_param_choice(lobe, options, [&](FactorParam param, bool) { return factorize_cpu_param(lobe, options, param); });
+Factorization factorize_cpu(const SpecularModel& model, const FactorizationOptions& options) {
+    return with_param_choice(model, options, [&](FactorParam param, bool) { return factorize_cpu_param(model, options, param); });
 }
 
 FactorizeVk::FactorizeVk(gpu::Context& ctx)
     : m_ctx(&ctx), m_matrix(ctx), m_decomposition(ctx), m_residual(ctx), m_cubemaps(ctx) {}
 
-Factorization FactorizeVk::run(const LafortuneRgb& lobe, const FactorizationOptions& options) {
-    return with_param_choice(lobe, options, [&](FactorParam param, bool errors) { return run_param(lobe, options, param, errors); });
+Factorization FactorizeVk::run(const SpecularModel& model, const FactorizationOptions& options) {
+    return with_param_choice(model, options, [&](FactorParam param, bool errors) { return run_param(model, options, param, errors); });
 }
 
-Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param,
+Factorization FactorizeVk::run_param(const SpecularModel& model, const FactorizationOptions& options, FactorParam param,
                                      bool errors) {
     Factorization f;
     f.cubes.param = param;
-    if (param == FactorParam::Warped) f.cubes.warp = required_warp(lobe);
-    f.resolution = resolve_resolution(lobe, options, param);
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model);
+    f.resolution = resolve_resolution(model, options, param);
+    f.weight_q = weight_exponent(model, options, f.resolution);
     f.p = options.p;
     f.weighting = options.weighting;
     const FactorizationResolution& r = f.resolution;
-    const BrdfMatrixInputs min{.lobe = lobe, .res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp};
+    const BrdfMatrixInputs min{.model = model, .res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp,
+                               .weight_q = f.weight_q};
+    // Weighted: the grids are unweighted on the host before any cube-map is made (second submit).
+    const bool weighted = f.weight_q != 0.0f;
     brdf_matrix_validate(min);
     if (!(options.p >= 1.0f && options.p <= 64.0f)) throw Error("factorize: p must be in [1, 64]");
     std::string note;
-    const uint32_t kmax = terms_to_compute(lobe, options, param, note);
+    const uint32_t kmax = terms_to_compute(model, options, param, note);
     if (kmax > 1 && (options.iterations < 1 || options.iterations > 1000))
         throw Error("factorize: iterations must be in [1, 1000]");
     Stopwatch total;
@@ -317,12 +371,14 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     seq.barrier(gpu::Barrier::ComputeToCompute);
     m_decomposition.record(seq, matrix, g, h, r.grid_h, r.grid_d, options.p, options.weighting);
     seq.barrier(gpu::Barrier::ComputeToCompute);
-    if (const uint32_t it = first_term_iterations(lobe, options, param); it > 0) {
+    if (const uint32_t it = first_term_iterations(model, options, param); it > 0) {
         m_residual.record_refine_first(seq, matrix, g, h, r.grid_h, r.grid_d, it);
         seq.barrier(gpu::Barrier::ComputeToCompute);
     }
-    m_cubemaps.record(seq, g, cube_g, r.grid_h, r.cube_g, "cube_g");
-    m_cubemaps.record(seq, h, cube_h, r.grid_d, r.cube_h, "cube_h");
+    if (!weighted) {
+        m_cubemaps.record(seq, g, cube_g, r.grid_h, r.cube_g, "cube_g");
+        m_cubemaps.record(seq, h, cube_h, r.grid_d, r.cube_h, "cube_h");
+    }
     // Terms 2..K_max read term 1's G and H and write their own parts of g and h, which the
     // cube-map dispatches above read: the validator tracks whole buffers, so a barrier first.
     if (kmax > 1) {
@@ -331,13 +387,11 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     }
     seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
 
-    f.grids.push_back(Decomposition{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
-                                    .h = h.download<glm::vec3>(cols), .param = param, .warp = f.cubes.warp});
-    f.cubes.terms.push_back(FactorTerm{.g = CubeMap{.resolution = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)},
-                                       .h = CubeMap{.resolution = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)}});
+    Decomposition first{.res_h = r.grid_h, .res_d = r.grid_d, .g = g.download<glm::vec3>(rows),
+                        .h = h.download<glm::vec3>(cols), .param = param, .warp = f.cubes.warp};
     std::optional<BrdfMatrix> m;
     if (options.keep_matrix || errors || kmax > 1)
-        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp,
+        m = BrdfMatrix{.res_h = r.grid_h, .res_d = r.grid_d, .param = param, .warp = f.cubes.warp, .weight_q = f.weight_q,
                        .values = matrix.download<float>(3 * rows * cols)};
     std::vector<Decomposition> rest;
     if (kmax > 1) {
@@ -350,31 +404,52 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
                                          .param = param,
                                          .warp = f.cubes.warp});
     }
-    f.terms = choose_terms(m ? &*m : nullptr, f.grids.front(), rest, options, note);
+    f.terms = choose_terms(m ? &*m : nullptr, first, rest, options, note); // on the (weighted) matrix the terms were fitted to
     rest.resize(f.terms.count - 1);
-    if (!rest.empty()) { // the chosen residual terms' cube-maps, in a second submit
+    // Terms whose cube-maps the second submit makes: the chosen residual terms, and term 1 too
+    // when weighted (its grids unweighted first).
+    std::vector<Decomposition> later;
+    if (weighted) {
+        unweight_decomposition(first, f.weight_q);
+        later.push_back(first);
+    } else {
+        f.cubes.terms.push_back(FactorTerm{.g = CubeMap{.resolution = r.cube_g, .texels = cube_g.download<glm::vec3>(texels_g)},
+                                           .h = CubeMap{.resolution = r.cube_h, .texels = cube_h.download<glm::vec3>(texels_h)}});
+    }
+    f.grids.push_back(std::move(first));
+    for (Decomposition& d : rest) {
+        unweight_decomposition(d, f.weight_q);
+        later.push_back(std::move(d));
+    }
+    std::optional<gpu::Sequence> cubes_seq;
+    if (!later.empty()) { // a second submit
         std::vector<gpu::Buffer> grids, cubes;
-        gpu::Sequence cubes_seq(*m_ctx, 2);
-        for (const Decomposition& d : rest) {
+        cubes_seq.emplace(*m_ctx, 2 + 2 * kMaxFactorTerms);
+        for (std::size_t k = 0; k < later.size(); ++k) {
+            const Decomposition& d = later[k];
+            const bool term1 = weighted && k == 0; // timed as the first submit's cube-maps would be
             grids.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, rows, "factorization G grid"));
             grids.back().upload(d.g);
             grids.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, cols, "factorization H grid"));
             grids.back().upload(d.h);
             cubes.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, texels_g, "factorization G cube-map"));
             cubes.push_back(gpu::Buffer::of<glm::vec3>(*m_ctx, texels_h, "factorization H cube-map"));
-            m_cubemaps.record(cubes_seq, grids[grids.size() - 2], cubes[cubes.size() - 2], r.grid_h, r.cube_g, "");
-            m_cubemaps.record(cubes_seq, grids.back(), cubes.back(), r.grid_d, r.cube_h, "");
+            m_cubemaps.record(*cubes_seq, grids[grids.size() - 2], cubes[cubes.size() - 2], r.grid_h, r.cube_g,
+                              term1 ? "cube_g" : "");
+            m_cubemaps.record(*cubes_seq, grids.back(), cubes.back(), r.grid_d, r.cube_h, term1 ? "cube_h" : "");
         }
-        cubes_seq.barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
-        for (std::size_t k = 0; k < rest.size(); ++k) {
+        cubes_seq->barrier(gpu::Barrier::ComputeToHost).submit_and_wait();
+        for (std::size_t k = 0; k < later.size(); ++k) {
             f.cubes.terms.push_back(FactorTerm{.g = CubeMap{.resolution = r.cube_g, .texels = cubes[2 * k].download<glm::vec3>(texels_g)},
                                                .h = CubeMap{.resolution = r.cube_h, .texels = cubes[2 * k + 1].download<glm::vec3>(texels_h)}});
-            f.grids.push_back(std::move(rest[k]));
+            if (!(weighted && k == 0)) f.grids.push_back(std::move(later[k]));
         }
     }
     if (options.keep_matrix) f.matrix = std::move(m);
     f.timings.total_s = total.seconds();
-    for (const auto& t : seq.timings()) {
+    std::vector<gpu::GpuTiming> timings = seq.timings();
+    if (cubes_seq) std::ranges::copy(cubes_seq->timings(), std::back_inserter(timings));
+    for (const auto& t : timings) {
         if (t.label == "brdf_matrix") f.timings.matrix_gpu_ns = t.ns;
         else if (t.label == "decomposition_g") f.timings.decomposition_g_gpu_ns = t.ns;
         else if (t.label == "decomposition_h") f.timings.decomposition_h_gpu_ns = t.ns;
@@ -387,11 +462,11 @@ Factorization FactorizeVk::run_param(const LafortuneRgb& lobe, const Factorizati
     return f;
 }
 
-Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options, Backend backend,
+Factorization factorize(const SpecularModel& model, const FactorizationOptions& options, Backend backend,
                         gpu::Context* ctx) {
-    if (backend == Backend::Cpu) return factorize_cpu(lobe, options);
+    if (backend == Backend::Cpu) return factorize_cpu(model, options);
     if (ctx == nullptr) throw Error("factorize: the Vulkan backend needs a gpu::Context");
-    return FactorizeVk(*ctx).run(lobe, options);
+    return FactorizeVk(*ctx).run(model, options);
 }
 
 double matrix_relative_rms(const BrdfMatrix& m, std::span<const Decomposition* const> terms) {
@@ -445,13 +520,16 @@ double matrix_relative_rms(const BrdfMatrix& m, const Decomposition& dec) {
 
 namespace {
 
-/// Relative RMS against the lobe over `pairs` random (u, v) pairs, both uniform in solid
-/// angle on the upper hemisphere; `model(c)` gives the (grid, cube-map) approximations at the
-/// coordinates c of a pair in parametrization `param` (warp: FactorParam::Warped's), which the
-/// radial factor multiplies in the warped parametrization.
+/// Relative RMS against the specular model (material_specular, any family) over `pairs` random
+/// (u, v) pairs, both uniform in solid angle on the upper hemisphere; `model(c)` gives the (grid,
+/// cube-map) approximations at the coordinates c of a pair in parametrization `param` (warp:
+/// FactorParam::Warped's), which the lobe's radial factor multiplies in the warped parametrization.
 template <class Model>
-DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm::vec4 warp, uint32_t pairs, uint32_t seed,
-                                Model&& model) {
+DirectError sample_direct_error(const SpecularModel& specular, FactorParam param, glm::vec4 warp, uint32_t pairs,
+                                uint32_t seed, Model&& model) {
+    if (param == FactorParam::Warped && family_of(specular) != MaterialFamily::Lafortune)
+        throw Error("direct_relative_rms: the warped parametrization needs a model of the lafortune family");
+    const shared::MaterialGpu material = material_gpu(specular);
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     const double two_pi = 6.283185307179586;
@@ -475,10 +553,12 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm
                 gg[k] = g2[k];
                 gc[k] = c2[k];
             }
+        const glm::dvec3 fs = shared::f64::material_specular(material, u.z, v.z, glm::dot(u, v));
         for (int k = 0; k < 3; ++k) {
-            const double f = std::min<double>(shared::f64::lafortune_eval(lobe.cx[k], lobe.cz[k], lobe.n[k], u, v), shared::kGshdMaxValue);
+            const double f = std::min<double>(fs[k], shared::kGshdMaxValue);
             const double radial = param == FactorParam::Warped
-                                      ? std::min<double>(shared::f64::lafortune_radial(lobe.cx[k], lobe.cz[k], lobe.n[k], u), shared::kGshdMaxValue)
+                                      ? std::min<double>(shared::f64::lafortune_radial(material.a[k], material.b[k], material.c[k], u),
+                                                         shared::kGshdMaxValue)
                                       : 1.0;
             ref += f * f;
             err_grid += (radial * gg[k] - f) * (radial * gg[k] - f);
@@ -494,10 +574,10 @@ DirectError sample_direct_error(const LafortuneRgb& lobe, FactorParam param, glm
 
 } // namespace
 
-DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& dec, const CubeMap* cube_g,
+DirectError direct_relative_rms(const SpecularModel& model, const Decomposition& dec, const CubeMap* cube_g,
                                 const CubeMap* cube_h, uint32_t pairs, uint32_t seed) {
     const bool cubes = cube_g != nullptr && cube_h != nullptr;
-    DirectError out = sample_direct_error(lobe, dec.param, dec.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    DirectError out = sample_direct_error(model, dec.param, dec.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         const glm::dvec3 gg = grid_sample(dec.g, dec.res_h, c.h) * grid_sample(dec.h, dec.res_d, c.d);
         const glm::dvec3 gc = cubes ? cubemap_sample(*cube_g, c.h) * cubemap_sample(*cube_h, c.d) : glm::dvec3(0.0);
         return std::pair{gg, gc};
@@ -506,14 +586,14 @@ DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& d
     return out;
 }
 
-DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& fac, uint32_t terms, uint32_t pairs,
+DirectError direct_relative_rms(const SpecularModel& model, const Factorization& fac, uint32_t terms, uint32_t pairs,
                                 uint32_t seed) {
     const uint32_t k_count = terms == 0 ? fac.term_count() : terms;
     if (k_count > fac.term_count())
         throw Error("direct_relative_rms: " + std::to_string(k_count) + " terms asked, the factorization has " +
                     std::to_string(fac.term_count()));
     // The same draws as the one-term overload; the sum of the terms is clamped at 0 as the renderer does.
-    return sample_direct_error(lobe, fac.cubes.param, fac.cubes.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
+    return sample_direct_error(model, fac.cubes.param, fac.cubes.warp, pairs, seed, [&](const shared::f64::GshdCoords& c) {
         glm::dvec3 gg(0.0), gc(0.0);
         for (uint32_t k = 0; k < k_count; ++k) {
             const Decomposition& d = fac.grids[k];

@@ -1,11 +1,13 @@
 #pragma once
 /// \file
 /// Stage 6, the Kautz-McCool factorization (pipeline.md section 6; thesis appendix A):
-/// the fitted lobe sampled as F[h, d] over the GSHD parametrization (brdf_matrix), the
+/// the fitted specular model (any family of material/material.h: a Lafortune lobe or the coated
+/// family's GGX reflection, evaluated by shared/material.h material_specular) sampled as F[h, d]
+/// over the GSHD parametrization (brdf_matrix), the
 /// normalized decomposition F ~ G(h) H(d) (normalized_decomposition), and G and H
 /// resampled into two cube-maps (cubemaps). Math shared with the shaders: shared/gshd.h.
 ///
-///   auto f = factorize(lobe, {}, Backend::Vulkan, &ctx);
+///   auto f = factorize(model, {}, Backend::Vulkan, &ctx);   // model: SpecularModel (or a LafortuneRgb)
 ///   f.cubes                            // material/material.h FactorizedSpecular: what the
 ///                                      // renderer draws and the bundle stores, as it is
 ///   f.cubes.terms[k].g.texels          // term k's G: 6 x res x res rgb, Vulkan face order
@@ -25,10 +27,20 @@
 /// for every lobe in the channel its warp fits. By default each is factorized and the one with
 /// the least error against the lobe through the cube-maps is kept (f.param_choice says which,
 /// why, and every error).
+///
+/// The coated family (shared/coated.h): the warped parametrization is not offered, since F there
+/// is the model over the Lafortune lobe's radial factor |C u|^N, which the GGX reflection does
+/// not have. The plain GSHD suits it: h is the half vector, so D(n.h) is a function of h alone
+/// and the Fresnel factor F(u.h) = F(d.z) of d alone, leaving only the masking and 1 / (4 n.u n.v)
+/// to the residual terms; the mirrored GSHD is factorized beside it and the automatic choice keeps
+/// the one of least error against the model through the cube-maps, as for a lobe (measured at
+/// alpha 0.25: 2.9% plain, 67.5% mirrored). Its grids come from alpha (resolution.h) and its
+/// entries are weighted where the lobe is rough (default_weight_exponent).
 #include "factorization/brdf_matrix.h"
 #include "factorization/cubemaps.h"
 #include "core/backend.h"
 #include "material/lafortune.h"
+#include "material/material.h"
 #include "shared/lafortune.h"
 #include "factorization/normalized_decomposition.h"
 #include "factorization/residual_term.h"
@@ -45,7 +57,7 @@ namespace specula::factorization {
 
 
 struct FactorizationOptions {
-    /// 0 = default_resolution(lobe) for that field.
+    /// 0 = default_resolution(model) for that field.
     uint32_t grid_h = 0;
     uint32_t grid_d = 0;
     uint32_t cube_g = 0;
@@ -67,7 +79,32 @@ struct FactorizationOptions {
     /// Parametrization of the pairs: nullopt = automatic (both factorized, ParamChoice's rule),
     /// else forced (FactorParam::Gshd is the thesis). Zero grid fields take each one's default rule.
     std::optional<FactorParam> param;
+    /// Exponent q of the entries' weight (h.z d.z)^q (brdf_matrix.h: a weighted least-squares fit):
+    /// nullopt = default_weight_exponent(model), 0 for every lafortune lobe.
+    std::optional<float> weight_q;
 };
+
+/// The coated family's weight exponent (default_weight_exponent): 0 up to alpha
+/// kCoatedWeightAlphaLow, kCoatedWeightExponent from kCoatedWeightAlphaHigh on, linear between.
+inline constexpr float kCoatedWeightExponent = 2.0f;
+inline constexpr float kCoatedWeightAlphaLow = 0.12f;
+inline constexpr float kCoatedWeightAlphaHigh = 0.25f;
+
+/// The weight exponent q of the factorization of `model` (FactorizationOptions::weight_q).
+/// Lafortune lobes: 0, the thesis's plain fit (their height is bounded by the peak). Coated: F
+/// grows without bound towards grazing pairs (1 / (4 n.u n.v), the Fresnel factor near 1, limited
+/// only by the masking), which a render shows on few pixels and dimmed by n.u; the plain fit
+/// spends its terms there, and a rough lobe's peak is low enough that they dominate F's norm.
+/// Measured on the presets' meshes (eta 1.5; masked PSNR factorized vs analytic over the spread
+/// and the thesis's ring rigs, worst near-camera frame / worst far-light frame / lowest mean; the
+/// far-light figures before render/terms.glsl cut the coated factorized term at the view's
+/// horizon, which lifted the knot's worst from 39.3 to 52 dB at alpha 0.4), alpha
+/// 0.4 on 32 x 64 grids: q = 0 33.1 / 39.3 / 48.7 dB, q = 2 56.8 / 39.3 / 58.9 dB; alpha 0.25
+/// on 48 x 64: q = 0 42.7 / 45.0 / 54.1, q = 2 49.1 / 44.3 / 57.4. A sharp lobe's peak dominates
+/// F already and the weight costs its far-light frames (alpha 0.12 on 64 x 48: q = 0 43.3 / 43.3 /
+/// 56.5, q = 2 42.2 / 36.7 / 55.6; alpha 0.05 on 96 x 32: q = 0 40.8 / 40.2 / 53.7, q = 2
+/// 40.8 / 30.7 / 52.2): hence no weight below alpha 0.12, the full weight from 0.25.
+[[nodiscard]] float default_weight_exponent(const SpecularModel& model);
 
 /// Wall-clock seconds per step (host side, including the submit and wait on Vulkan) and,
 /// on Vulkan, each dispatch's GPU time from timestamps (nullopt where there are none).
@@ -117,9 +154,9 @@ inline constexpr double kParamTieMargin = 0.02;
 /// 0.4%; the factorization stage then takes ~1 s instead of 4 to 14 s on lavapipe).
 inline constexpr double kWarpedGoodEnough = 0.01;
 
-/// How the parametrization was chosen. Automatic: the warped one first where it fits the lobe
-/// (warp_for_lobe), kept when its error is within kWarpedGoodEnough; else every one that fits
-/// is factorized (each on its own default grids, each with its own K by TermChoice's rule) and
+/// How the parametrization was chosen. Automatic: the warped one first where it fits the model
+/// (warp_for_model: a Lafortune lobe warp_for_lobe accepts), kept when its error is within
+/// kWarpedGoodEnough; else every one that fits is factorized (each on its own default grids, each with its own K by TermChoice's rule) and
 /// the one whose K terms have the least relative RMS against the lobe through the cube-maps
 /// (ParamCandidate::direct_rms) is kept; within kParamTieMargin the one with fewer terms
 /// (cheaper to render), then the thesis's GSHD. Not the matrix error: the two matrices sample the (u, v) pairs differently (and on
@@ -131,14 +168,15 @@ struct ParamChoice {
     FactorParam param = FactorParam::Gshd;
     bool forced = false;
     std::string reason;
-    /// index = FactorParam's value; only the forced one when forced, and warped only for a lobe
-    /// warp_for_lobe accepts
+    /// index = FactorParam's value; only the forced one when forced, and warped only for a model
+    /// warp_for_model accepts
     std::array<ParamCandidate, kFactorParamCount> candidates{};
     [[nodiscard]] const ParamCandidate& of(FactorParam p) const { return candidates[static_cast<std::size_t>(p)]; }
 };
 
 struct Factorization {
     FactorizationResolution resolution;
+    float weight_q = 0.0f; ///< the entries' weight exponent (FactorizationOptions::weight_q); the grids are unweighted
     /// The K terms' cube-maps (terms[0] is term 1) with how (h, d) come from (u, v)
     /// (shared/gshd.h parts 4, 5). FactorParam::Warped: cubes.warp is (s, k_r, k_g, k_b)
     /// (warp_for_lobe; channel c looks up at the coordinates of its warp (s, k_c)), and the terms
@@ -151,28 +189,33 @@ struct Factorization {
     float p = 2.0f;
     DecompositionWeighting weighting = DecompositionWeighting::Energy;
     [[nodiscard]] uint32_t term_count() const noexcept { return static_cast<uint32_t>(cubes.terms.size()); }
-    std::optional<BrdfMatrix> matrix; // with keep_matrix
+    std::optional<BrdfMatrix> matrix; // with keep_matrix (weighted when weight_q != 0, as the terms were fitted)
     FactorizationTimings timings;
 };
 
+/// The warp of the warped parametrization for `model` (warp_for_lobe for the lafortune family);
+/// nullopt, with the reason in *why, for a lobe warp_for_lobe refuses and for every other family
+/// (the warped F divides by the Lafortune lobe's radial factor, which they do not have).
+[[nodiscard]] std::optional<glm::vec4> warp_for_model(const SpecularModel& model, std::string* why = nullptr);
+
 /// The options' resolutions with zeros replaced by the default rule of parametrization `param`
 /// (reason says which were forced).
-[[nodiscard]] FactorizationResolution resolve_resolution(const LafortuneRgb& lobe, const FactorizationOptions& options,
+[[nodiscard]] FactorizationResolution resolve_resolution(const SpecularModel& model, const FactorizationOptions& options,
                                                          FactorParam param = FactorParam::Gshd);
 
 /// The reference path (all steps on the CPU, double accumulation).
-[[nodiscard]] Factorization factorize_cpu(const LafortuneRgb& lobe, const FactorizationOptions& options = {});
+[[nodiscard]] Factorization factorize_cpu(const SpecularModel& model, const FactorizationOptions& options = {});
 
 /// The Vulkan path: the three kernels recorded in one Sequence (F, G and H stay on the
 /// device; only the grids and cube-maps, and F with keep_matrix, are read back).
 class FactorizeVk {
 public:
     explicit FactorizeVk(gpu::Context& ctx);
-    [[nodiscard]] Factorization run(const LafortuneRgb& lobe, const FactorizationOptions& options = {});
+    [[nodiscard]] Factorization run(const SpecularModel& model, const FactorizationOptions& options = {});
 
 private:
     /// One parametrization; F is read back when keep_matrix or errors (the automatic choice needs them).
-    [[nodiscard]] Factorization run_param(const LafortuneRgb& lobe, const FactorizationOptions& options, FactorParam param,
+    [[nodiscard]] Factorization run_param(const SpecularModel& model, const FactorizationOptions& options, FactorParam param,
                                           bool errors);
     gpu::Context* m_ctx;
     BrdfMatrixVk m_matrix;
@@ -182,7 +225,7 @@ private:
 };
 
 /// Either path; ctx is required for Vulkan.
-[[nodiscard]] Factorization factorize(const LafortuneRgb& lobe, const FactorizationOptions& options,
+[[nodiscard]] Factorization factorize(const SpecularModel& model, const FactorizationOptions& options,
                                       Backend backend, gpu::Context* ctx = nullptr);
 
 // ---- approximation error -------------------------------------------------------------
@@ -197,14 +240,14 @@ struct DirectError {
     double cube = 0.0; ///< G, H looked up bilinearly in the cube-maps (NaN without them)
     uint32_t pairs = 0;
 };
-/// Relative RMS of G(h) H(d) against lafortune_eval(u, v) for `pairs` pairs (u, v) drawn
-/// uniformly (in solid angle) from the upper hemisphere with a fixed seed: the sampling,
+/// Relative RMS of G(h) H(d) against the model (material_specular(u, v)) for `pairs` pairs (u, v)
+/// drawn uniformly (in solid angle) from the upper hemisphere with a fixed seed: the sampling,
 /// decomposition and interpolation errors together. (h, d) in the decomposition's param.
-[[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Decomposition& decomposition,
+[[nodiscard]] DirectError direct_relative_rms(const SpecularModel& model, const Decomposition& decomposition,
                                               const CubeMap* cube_g, const CubeMap* cube_h, uint32_t pairs = 1u << 18,
                                               uint32_t seed = 1);
 /// The same for max(0, sum_k G_k H_k) over the first `terms` terms of f (0 = all of them).
-[[nodiscard]] DirectError direct_relative_rms(const LafortuneRgb& lobe, const Factorization& f, uint32_t terms = 0,
+[[nodiscard]] DirectError direct_relative_rms(const SpecularModel& model, const Factorization& f, uint32_t terms = 0,
                                               uint32_t pairs = 1u << 18, uint32_t seed = 1);
 
 } // namespace specula::factorization

@@ -59,6 +59,11 @@ struct Decomposition {
     glm::vec4 warp{1.0f};            // and its warp (FactorParam::Warped)
 };
 
+/// Divides a decomposition of a weighted F (BrdfMatrixInputs::weight_q = q, brdf_matrix.h) by the
+/// weight's factors: G at h cell i by h_i.z^q, H at d cell j by d_j.z^q (cell centres: z > 0), so
+/// that G H approximates the model itself. No-op for q = 0.
+void unweight_decomposition(Decomposition& d, float q);
+
 /// Throws specula::Error for a missing or inconsistent matrix or p not in [1, 64].
 void decomposition_validate(const DecompositionInputs& in);
 

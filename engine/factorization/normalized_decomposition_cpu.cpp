@@ -98,4 +98,18 @@ Decomposition normalized_decomposition_cpu(const DecompositionInputs& in) {
     return out;
 }
 
+void unweight_decomposition(Decomposition& d, float q) {
+    if (q == 0.0f) return;
+    if (d.g.size() != std::size_t{d.res_h} * d.res_h || d.h.size() != std::size_t{d.res_d} * d.res_d)
+        throw Error("unweight_decomposition: the grids do not match their resolutions");
+    const auto unweight = [q](std::vector<glm::vec3>& grid, uint32_t res) {
+        for (std::size_t i = 0; i < grid.size(); ++i) {
+            const double w = std::pow(shared::f64::gshd_grid_dir(static_cast<uint32_t>(i), res).z, static_cast<double>(q));
+            grid[i] = glm::vec3(glm::dvec3(grid[i]) / w);
+        }
+    };
+    unweight(d.g, d.res_h);
+    unweight(d.h, d.res_d);
+}
+
 } // namespace specula::factorization

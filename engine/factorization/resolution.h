@@ -13,8 +13,13 @@
 // kMirroredPeakCellsPerHalfWidth instead of kCellsPerHalfWidth:
 //   R_d = ceil(kMirroredPeakCellsPerHalfWidth * sqrt(N_max)),  clamped to [16, 128]
 // (finer: there the separability floor is gone and the rendered highlights' tails need it).
+// The coated family (shared/coated.h; no warped parametrization) has its own rule, from the GGX
+// roughness alpha instead of the lobe's N (derivation and measurements in resolution.cpp):
+//   grazing axis (d plain, h mirrored): R_g = ceil(kCoatedGrazingCellsPerAlpha alpha), clamped to [32, 64]
+//   peak axis (h plain, d mirrored):    R_p = min(kMaxGridResH, kMaxGridProduct / R_g)
 #include "material/factor_param.h"
 #include "material/lafortune.h"
+#include "material/material.h"
 #include "shared/lafortune.h"
 
 #include <cstdint>
@@ -41,10 +46,15 @@ inline constexpr uint32_t kMinGridRes = 16;
 inline constexpr uint32_t kMaxGridResH = 128;
 inline constexpr uint32_t kMaxGridResD = 64;
 inline constexpr uint32_t kMaxGridProduct = 3072; // 3 (R_h R_d)^2 floats <= 108 MiB
+/// The coated family: the grazing axis's resolution per unit of alpha, and its bounds
+/// (resolution.cpp, coated_resolution: why and what was measured).
+inline constexpr double kCoatedGrazingCellsPerAlpha = 400.0;
+inline constexpr uint32_t kCoatedMinGrazingRes = 32;
+inline constexpr uint32_t kCoatedMaxGrazingRes = 64;
 
-/// The default rule above, for the grids of parametrization `param`. Non-finite or
-/// non-positive exponents count as N = 1.
-[[nodiscard]] FactorizationResolution default_resolution(const LafortuneRgb& lobe, FactorParam param = FactorParam::Gshd);
+/// The default rule above, for the grids of parametrization `param` (the lafortune family's or
+/// the coated family's). Non-finite or non-positive exponents count as N = 1.
+[[nodiscard]] FactorizationResolution default_resolution(const SpecularModel& model, FactorParam param = FactorParam::Gshd);
 
 /// Cube-map face size that resolves a grid of resolution `grid_res` (texel no larger than a cell).
 [[nodiscard]] uint32_t cube_res_for_grid(uint32_t grid_res);

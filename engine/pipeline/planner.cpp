@@ -332,8 +332,8 @@ void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std
 
 // ---- factorization grid -----------------------------------------------------------------
 
-factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d) {
-    factorization::FactorizationResolution r = factorization::default_resolution(lobe);
+factorization::FactorizationResolution decided_grid(const SpecularModel& model, std::uint32_t forced_h, std::uint32_t forced_d) {
+    factorization::FactorizationResolution r = factorization::default_resolution(model);
     if (forced_h != 0) r.grid_h = forced_h;
     if (forced_d != 0) r.grid_d = forced_d;
     if (r.grid_h * r.grid_d > factorization::kMaxGridProduct)
@@ -345,24 +345,29 @@ factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, st
     return r;
 }
 
-PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d) {
-    const factorization::FactorizationResolution def = factorization::default_resolution(lobe);
-    const factorization::FactorizationResolution r = decided_grid(lobe, forced_h, forced_d);
+PlanDecision decide_factorization_grid(const SpecularModel& model, std::uint32_t forced_h, std::uint32_t forced_d) {
+    const factorization::FactorizationResolution def = factorization::default_resolution(model);
+    const factorization::FactorizationResolution r = decided_grid(model, forced_h, forced_d);
     PlanDecision d;
     d.name = "factorization_grid";
     d.forced = forced_h != 0 || forced_d != 0;
     d.value = "h " + std::to_string(r.grid_h) + " x d " + std::to_string(r.grid_d) + " (cube faces " + std::to_string(r.cube_g) +
               ", " + std::to_string(r.cube_h) + ")";
-    double n_max = 1.0;
-    for (int c = 0; c < 3; ++c)
-        if (std::isfinite(lobe.n[c])) n_max = std::max(n_max, static_cast<double>(lobe.n[c]));
     d.detail = {{"grid_h", r.grid_h},
                 {"grid_d", r.grid_d},
                 {"cube_g", r.cube_g},
                 {"cube_h", r.cube_h},
                 {"auto_grid_h", def.grid_h},
-                {"auto_grid_d", def.grid_d},
-                {"max_exponent", n_max}};
+                {"auto_grid_d", def.grid_d}};
+    // The figure the rule reads: the sharpest lobe's exponent, or the coated family's roughness.
+    if (const auto* lobe = std::get_if<LafortuneRgb>(&model)) {
+        double n_max = 1.0;
+        for (int c = 0; c < 3; ++c)
+            if (std::isfinite(lobe->n[c])) n_max = std::max(n_max, static_cast<double>(lobe->n[c]));
+        d.detail["max_exponent"] = n_max;
+    } else {
+        d.detail["alpha"] = std::get<CoatedParams>(model).alpha;
+    }
     d.reason = d.forced ? "--factorization-grid " + std::to_string(r.grid_h) + "," + std::to_string(r.grid_d) +
                               " (the planner would use h " + std::to_string(def.grid_h) + " x d " + std::to_string(def.grid_d) +
                               ": " + def.reason + ")"

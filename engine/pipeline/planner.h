@@ -140,14 +140,15 @@ void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std
 
 // ---- factorization grid -----------------------------------------------------------------
 
-/// Auto: factorization::default_resolution(lobe); forced: the given grid (0 = auto for
+/// Auto: factorization::default_resolution(model) (from the lobe's N, or the coated
+/// family's alpha); forced: the given grid (0 = auto for
 /// that axis). `measured_seconds` (matrix + decomposition) scales, by the matrix size
 /// (3 R_h^2 R_d^2 entries), into the estimated cost of the finest grid the rule allows.
-[[nodiscard]] PlanDecision decide_factorization_grid(const LafortuneRgb& lobe, std::uint32_t forced_h, std::uint32_t forced_d);
+[[nodiscard]] PlanDecision decide_factorization_grid(const SpecularModel& model, std::uint32_t forced_h, std::uint32_t forced_d);
 /// `what` names the measurement (wall time of the steps, or their dispatches' GPU time).
 void set_factorization_cost(PlanDecision& d, double matrix_and_decomposition_seconds, const std::string& what);
 /// The grid a decision chose. Throws UsageError when a forced grid has R_h R_d > kMaxGridProduct.
-[[nodiscard]] factorization::FactorizationResolution decided_grid(const LafortuneRgb& lobe, std::uint32_t forced_h,
+[[nodiscard]] factorization::FactorizationResolution decided_grid(const SpecularModel& model, std::uint32_t forced_h,
                                                                   std::uint32_t forced_d);
 
 } // namespace specula

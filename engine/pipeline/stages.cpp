@@ -439,19 +439,16 @@ FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& sp
             run.leave_out("specular term in the bundle", "the " + std::string(to_string(specular.fit->family)) +
                                                              " fit gave no usable model: the bundle is diffuse only");
     }
-    const LafortuneRgb* lafortune = f.material ? std::get_if<LafortuneRgb>(&*f.material) : nullptr;
-    if (!lafortune) {
+    if (!f.material) {
         run.plan().add(PlanDecision{.name = "factorization_grid",
                                     .value = "none",
                                     .forced = false,
                                     .skipped = true,
-                                    .reason = f.material   ? "the coated family is rendered from its formula (its factorization is not built yet)"
-                                              : specular.fit ? "no usable fit: no specular to factorize"
-                                                             : "no specular: the specular stages were left out"});
-        if (f.material) run.leave_out("factorization cube-maps", "the coated family is rendered from its formula");
+                                    .reason = specular.fit ? "no usable fit: no specular to factorize"
+                                                           : "no specular: the specular stages were left out"});
         return f;
     }
-    const LafortuneRgb& lobe = *lafortune;
+    const SpecularModel& lobe = *f.material;
     run.plan().add(decide_factorization_grid(lobe, config.factorization_grid_h, config.factorization_grid_d));
     const factorization::FactorizationResolution res = decided_grid(lobe, config.factorization_grid_h, config.factorization_grid_d);
     f.cubes = run.stage("factorization", [&] {

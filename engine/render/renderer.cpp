@@ -109,12 +109,14 @@ gpu::Image upload_cube(gpu::Context& ctx, const CubeMap& cube, const char* name)
     return image;
 }
 
-// The Lafortune lobe the analytic passes evaluate (zero: no specular term; the coated family is
-// not drawn by these passes yet).
-LafortuneRgb lobe_of(const std::optional<SpecularModel>& specular) {
-    if (!specular) return {};
-    if (const auto* l = std::get_if<LafortuneRgb>(&*specular)) return *l;
-    return {};
+// Whether a factorization in `param` can be drawn for `specular`: the warped parametrization
+// multiplies the terms by the Lafortune lobe's radial factor (shared/gshd.h part 5), which no
+// other family has.
+void require_drawable(FactorParam param, const std::optional<SpecularModel>& specular) {
+    if (param != FactorParam::Warped || !specular || family_of(*specular) == MaterialFamily::Lafortune) return;
+    throw Error(std::string("renderer: a warped factorization needs the lafortune family's radial factor; the specular "
+                            "model is ") +
+                to_string(family_of(*specular)) + " (its factorizations are plain or mirrored GSHD)");
 }
 
 } // namespace
@@ -189,7 +191,7 @@ struct Renderer::Impl {
     Options options;
     bool cull = false;
     std::optional<SpecularModel> specular;
-    LafortuneRgb lobe; // of `specular`
+    shared::MaterialGpu material; // material_gpu(specular): what every pass shader evaluates
     Bounds bounds;
     std::size_t triangles = 0;
     uint32_t vertex_count = 0;
@@ -229,7 +231,7 @@ struct Renderer::Impl {
         : ctx(&c), options(opts),
           cull(opts.culling == Culling::Always ||
                (opts.culling == Culling::Auto && is_closed_outward(*checked_mesh(scene)))),
-          specular(scene.material.specular), lobe(lobe_of(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
+          specular(scene.material.specular), material(material_gpu(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
           triangles(scene.mesh->triangles.size()),
           params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
           vertices(upload_vertices(c, scene)),
@@ -377,11 +379,13 @@ struct Renderer::Impl {
         info.diffuse_pass = want_diffuse;
         if (!want_specular) {
             info.specular_note = "mode diffuse";
-        } else if (lobe.is_zero()) {
-            info.specular_note = "no lobe (Cx = Cz = 0 on every channel): the specular pass is left out";
+        } else if (!specular || is_zero(*specular)) {
+            info.specular_note = "no lobe (no specular model, or a zero one: Cx = Cz = 0 on every channel, or a coated "
+                                 "tint of 0): the specular pass is left out";
         } else if (settings.specular == SpecularPath::Factorized && cubes_g.empty()) {
             throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
         } else {
+            if (settings.specular == SpecularPath::Factorized) require_drawable(factor_param, specular);
             info.specular_pass = true;
             info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
@@ -401,9 +405,7 @@ struct Renderer::Impl {
         p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
         p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
         p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
-        p.lobe_cx = glm::vec4(lobe.cx, 0.0f);
-        p.lobe_cz = glm::vec4(lobe.cz, 0.0f);
-        p.lobe_n = glm::vec4(lobe.n, 0.0f);
+        p.material = material;
         p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u,
                              static_cast<uint32_t>(factor_param));
         p.factor_warp = factor_warp;
@@ -499,10 +501,11 @@ Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
 void Renderer::set_specular(const std::optional<SpecularModel>& specular) {
     m_impl->specular = specular;
-    m_impl->lobe = lobe_of(specular);
+    m_impl->material = material_gpu(specular);
 }
 const std::optional<SpecularModel>& Renderer::specular() const noexcept { return m_impl->specular; }
-LafortuneRgb Renderer::lobe() const noexcept { return m_impl->lobe; }
+bool Renderer::has_specular() const noexcept { return m_impl->specular && !is_zero(*m_impl->specular); }
+shared::MaterialGpu Renderer::material() const noexcept { return m_impl->material; }
 std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
 bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
 VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
@@ -521,6 +524,7 @@ void Renderer::set_factorization(const FactorizedSpecular& cubes) {
     if (param == FactorParam::Warped && !valid_warp(warp))
         throw Error("renderer: the warped parametrization needs a warp (+-1, k_r, k_g, k_b), every k in [1/64, 64]");
     Impl& m = *m_impl;
+    require_drawable(param, m.specular);
     std::vector<gpu::Image> g, h; // all uploaded before anything is replaced
     for (std::size_t k = 0; k < terms.size(); ++k) {
         const std::string suffix = " cube-map (term " + std::to_string(k + 1) + ")";

@@ -3,16 +3,21 @@
 /// Offscreen raster renderer of a reconstruction (pipeline.md section 7, thesis
 /// chapter 4): two passes over the mesh, as in the thesis.
 ///
-///   pass 1, diffuse:   (rho / pi) I max(0, n.u) / d^2, rho from the albedo atlas
+///   pass 1, diffuse:   (rho / pi) k_d(u, v) I max(0, n.u) / d^2, rho from the albedo atlas,
+///                      k_d the material's diffuse factor (1 for the lafortune family; the
+///                      coating's Fresnel transmittances for the coated one), in both modes
 ///   pass 2, specular:  f_s(u, v) I max(0, n.u) / d^2, blended additively, with f_s
-///                      the Lafortune lobe (`analytic`) or max(0, sum_k G_k(h) H_k(d))
-///                      from K pairs of cube-maps (`factorized`, Kautz-McCool, shared/gshd.h;
-///                      K = 1 is the thesis, up to kMaxFactorTerms), (h, d) in the
-///                      factorization's parametrization (plain or mirrored GSHD)
+///                      the material's specular BRDF, any family (`analytic`), or
+///                      max(0, sum_k G_k(h) H_k(d)) from K pairs of cube-maps (`factorized`,
+///                      Kautz-McCool, shared/gshd.h; K = 1 is the thesis, up to kMaxFactorTerms),
+///                      (h, d) in the factorization's parametrization (plain, mirrored or warped
+///                      GSHD; warped for the lafortune family only)
 ///
-/// The formulas live once in shaders/shared/render.h (with lafortune.h,
-/// tangent_frame.h, gshd.h); the synth renderer (engine/synth) evaluates the same
-/// definitions by ray casting and is the reference of the analytic mode.
+/// The formulas live once in shaders/shared/render.h (with material.h, which evaluates every
+/// family: material_specular and material_diffuse_factor, and gshd.h); the material reaches the
+/// shaders as shared::MaterialGpu (material_gpu()) in the per-frame parameters. The synth
+/// renderer (engine/synth) evaluates the same definitions by ray casting and is the reference of
+/// the analytic mode for the lafortune family.
 ///
 /// Cast shadows, on by default (Settings::shadows): before the lit passes a depth-only
 /// pass renders the mesh from the point light into a square shadow map (Options::
@@ -62,8 +67,9 @@ struct Scene {
     const Mesh* mesh = nullptr;            ///< positions, smooth unit normals (one per position), triangles
     std::span<const glm::vec2> corner_uv;  ///< 3 per triangle (Atlas::corner_uv): atlas coordinates in [0, 1]
     const Image* albedo = nullptr;         ///< linear RGB rho, the atlas (AlbedoTexture::image); 1 to 4 channels
-    /// The specular model (absent or zero: no specular pass) and, when present, its cube-maps
-    /// (as set_factorization takes them).
+    /// The specular model, any family (absent or zero: no specular pass; the coated family's
+    /// diffuse factor applies even with a zero tint) and, when present, its cube-maps (as
+    /// set_factorization takes them).
     Material material;
 };
 
@@ -155,15 +161,18 @@ public:
     /// Replaces the specular model (absent or zero: no specular pass); keeps the cube-maps.
     void set_specular(const std::optional<SpecularModel>& specular);
     [[nodiscard]] const std::optional<SpecularModel>& specular() const noexcept;
-    /// The Lafortune lobe the analytic passes draw (zero without a specular model).
-    [[nodiscard]] LafortuneRgb lobe() const noexcept;
+    /// True when there is a specular term to draw (a model that is not zero).
+    [[nodiscard]] bool has_specular() const noexcept;
+    /// The model as the pass shaders read it (material_gpu(specular())).
+    [[nodiscard]] shared::MaterialGpu material() const noexcept;
 
     /// Uploads the factorization's cube-maps: K = terms.size() terms (1..kMaxFactorTerms), each a
     /// G (looked up by h) and an H (by d), each cube-map with its own resolution; the sum is
     /// clamped at 0 per channel. Enables SpecularPath::Factorized. `param` is the parametrization
     /// they were made in (shared/gshd.h parts 4, 5) and `warp` its warp (FactorParam::Warped only:
     /// then the terms are multiplied by the radial factor of the specular model's lobe, which must
-    /// be the factorized one).
+    /// be the factorized one; Error when the model is of another family, here or at a factorized
+    /// render after set_specular).
     void set_factorization(const FactorizedSpecular& cubes);
     [[nodiscard]] bool has_factorization() const noexcept;
     [[nodiscard]] uint32_t factorization_terms() const noexcept; ///< 0 before set_factorization
@@ -171,7 +180,8 @@ public:
     [[nodiscard]] glm::vec4 factorization_warp() const noexcept;
 
     /// Renders one frame and reads it back. Throws Error when `settings` asks for the
-    /// factorized model before set_factorization().
+    /// factorized model before set_factorization(), or for a warped factorization of a model
+    /// that is not of the lafortune family.
     [[nodiscard]] Frame render(const Camera& camera, const PointLight& light, const Settings& settings = {});
 
     /// The same passes as render(), recorded into the caller's command buffer and target

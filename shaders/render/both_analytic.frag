@@ -1,6 +1,6 @@
 #version 450
 // Both terms in one pass (Settings::passes = Fused), analytic specular: the diffuse
-// term plus the lobe, summed here instead of by the blend unit. Alpha = 1: coverage.
+// term plus the material's specular, summed here instead of by the blend unit. Alpha = 1: coverage.
 #extension GL_GOOGLE_include_directive : require
 #include "render/terms.glsl"
 

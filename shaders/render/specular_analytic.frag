@@ -1,8 +1,8 @@
 #version 450
-// Pass 2, specular, analytic mode: the Lafortune lobe (render/terms.glsl) evaluated
-// per fragment; blended additively onto pass 1 (alpha is kept by the blend state, so
-// it stays the coverage). The same definitions as the synth renderer
-// (engine/synth/render_cpu.cpp), which is this mode's reference.
+// Pass 2, specular, analytic mode: the material's specular BRDF (render/terms.glsl,
+// shared/material.h: any family) evaluated per fragment; blended additively onto pass 1
+// (alpha is kept by the blend state, so it stays the coverage). The same definitions as the
+// synth renderer (engine/synth/render_cpu.cpp), which is this mode's reference.
 #extension GL_GOOGLE_include_directive : require
 #include "render/terms.glsl"
 

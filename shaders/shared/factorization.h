@@ -5,20 +5,20 @@
 #define SPECULA_SHARED_FACTORIZATION_H
 #include "shared/prelude.h"
 #include "shared/dispatch.h"
+#include "shared/material.h"
 
 SPECULA_SHARED_BEGIN
 
-// brdf_matrix.comp: the lobe sampled as F[h, d].
+// brdf_matrix.comp: the specular model sampled as F[h, d].
 struct BrdfMatrixPush {
     DispatchHeader dispatch;
     uint res_h;
     uint res_d;
-    vec4 cx; // rgb in xyz
-    vec4 cz;
-    vec4 n;
+    MaterialGpu material; // any family (shared/material.h); kGshdWarped: the lafortune family's Cx, Cz, N in a, b, c
     uint param; // kGshdPlain, kGshdMirrored or kGshdWarped (shared/gshd.h)
     float warp_s;
     float warp_k[3]; // per channel
+    float weight_q;  // entries times (h.z d.z)^weight_q (0: none; engine/factorization/brdf_matrix.h)
 };
 
 // normalized_decomposition.comp: G (pass 0), then H (pass 1).
@@ -51,9 +51,9 @@ SPECULA_SHARED_END
 
 #ifdef __cplusplus
 #include <cstddef>
-static_assert(sizeof(specula::shared::BrdfMatrixPush) == 84 && offsetof(specula::shared::BrdfMatrixPush, cx) == 16 &&
-              offsetof(specula::shared::BrdfMatrixPush, n) == 48 && offsetof(specula::shared::BrdfMatrixPush, param) == 64 &&
-              offsetof(specula::shared::BrdfMatrixPush, warp_k) == 72);
+static_assert(sizeof(specula::shared::BrdfMatrixPush) == 104 && offsetof(specula::shared::BrdfMatrixPush, material) == 16 &&
+              offsetof(specula::shared::BrdfMatrixPush, param) == 80 && offsetof(specula::shared::BrdfMatrixPush, warp_k) == 88 &&
+              offsetof(specula::shared::BrdfMatrixPush, weight_q) == 100);
 static_assert(sizeof(specula::shared::DecompositionPush) == 28 && offsetof(specula::shared::DecompositionPush, weighting) == 24);
 static_assert(sizeof(specula::shared::ResidualTermPush) == 24);
 static_assert(sizeof(specula::shared::CubemapPush) == 16);

@@ -4,16 +4,19 @@
 // Radiometry (capture-format.md, "Radiometry"), for a surface point p with unit
 // shading normal n, a point light at l with RGB intensity I, u = (l - p) / d,
 // d = |l - p|, v the unit direction from p to the camera:
-//     pass 1 (diffuse):   (rho / pi) * I max(0, n.u) / d^2
-//     pass 2 (specular):  f_s(u, v)  * I max(0, n.u) / d^2      added by blending
-// with f_s the Lafortune lobe in the appendix-B tangent frame (analytic mode) or
-// G(h) H(d) from the two Kautz-McCool cube-maps (factorized mode, shared/gshd.h).
+//     pass 1 (diffuse):   (rho / pi) k_d(u, v) * I max(0, n.u) / d^2
+//     pass 2 (specular):  f_s(u, v)            * I max(0, n.u) / d^2      added by blending
+// with k_d and f_s the material's (shared/material.h: material_diffuse_factor, 1 for the
+// lafortune family, and material_specular, evaluated in the analytic mode), or f_s from the
+// Kautz-McCool cube-maps (factorized mode, shared/gshd.h; k_d is still evaluated: the
+// factorization tabulates the specular part only).
 // Both terms are multiplied by the light's visibility V in [0, 1] (cast shadows,
 // render/terms.glsl light_visibility: a shadow map with 2x2 PCF); V = 1 everywhere
 // when shadows are off (shadow.x == 0), the thesis's unshadowed render.
 #ifndef SPECULA_SHARED_RENDER_H
 #define SPECULA_SHARED_RENDER_H
 #include "shared/prelude.h"
+#include "shared/material.h"
 
 SPECULA_SHARED_BEGIN
 
@@ -23,9 +26,8 @@ struct RenderParams {
     vec4 eye;             // xyz: camera centre (world)
     vec4 light_position;  // xyz: point light (world)
     vec4 light_intensity; // rgb: radiant intensity
-    vec4 lobe_cx;         // rgb: Lafortune Cx per channel
-    vec4 lobe_cz;         // rgb: Lafortune Cz
-    vec4 lobe_n;          // rgb: Lafortune N
+    MaterialGpu material; // the specular model (shared/material.h; engine/material material_gpu): every
+                          // family's f_s and k_d; the zero material without one
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
                           // y: factorized terms K (1..4, render/terms.glsl);
                           // z: 1 = the deferred shading pass adds the specular term;
@@ -74,7 +76,12 @@ SHARED_FN vec3 direction_to(vec3 p, vec3 q) {
 SPECULA_SHARED_END
 
 #ifdef __cplusplus
-static_assert(sizeof(specula::shared::RenderParams) == 272, "std430 size of RenderParams");
+#include <cstddef>
+static_assert(sizeof(specula::shared::RenderParams) == 288, "std430 size of RenderParams");
+static_assert(offsetof(specula::shared::RenderParams, material) == 112 && offsetof(specula::shared::RenderParams, flags) == 176 &&
+                  offsetof(specula::shared::RenderParams, light_to_clip) == 192 &&
+                  offsetof(specula::shared::RenderParams, factor_warp) == 272,
+              "std430 offsets of RenderParams (MaterialGpu is 16-aligned in std430)");
 static_assert(sizeof(specula::shared::RenderVertex) == 32, "std430 stride of RenderVertex");
 #endif
 

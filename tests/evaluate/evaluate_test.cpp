@@ -300,6 +300,44 @@ TEST_F(EvaluateTest, FactorizedBundleIsLookedUpInItsParametrization) {
     EXPECT_GE(psnr[1], psnr[0] + 10.0);
 }
 
+// A bundle's Material is rendered as it is, whatever its family: a coated one (built in memory)
+// goes through BundleRenderer (what `specula render`, `specula evaluate` and specula-view draw)
+// to the renderer unchanged, pixel for pixel the render of the same Material by render::Renderer,
+// in both specular paths; evaluate() scores it without the "no specular lobe" warning a bundle
+// without a specular term gets.
+TEST_F(EvaluateTest, CoatedBundleIsRenderedAsItIs) {
+    const SphereCapture& s = sphere();
+    const CoatedParams model{.eta = 1.5f, .alpha = 0.2f, .tint = glm::vec3(1.0f)};
+    Bundle b = s.truth;
+    b.material.specular = model;
+    b.material.factorized = factorization::factorize_cpu(model, {.grid_h = 16, .grid_d = 16, .param = FactorParam::Gshd}).cubes;
+    BundleRenderer coated(ctx(), b, "coated");
+    EXPECT_TRUE(coated.has_specular());
+    EXPECT_TRUE(coated.has_factorization());
+    EXPECT_EQ(coated.renderer().material().family.x, shared::kMaterialCoated);
+    const std::vector<glm::vec2> corner_uv = corner_uvs(b.mesh);
+    render::Renderer direct(ctx(), render::Scene{.mesh = &b.mesh, .corner_uv = corner_uv, .albedo = &b.albedo, .material = b.material});
+    BundleRenderer lafortune(ctx(), s.truth, "truth");
+    const FrameDesc& fd = s.capture.desc.frames[1];
+    for (const render::SpecularPath path : {render::SpecularPath::Analytic, render::SpecularPath::Factorized}) {
+        const render::Frame a = coated.render(fd.camera(), fd.light, {.specular = path});
+        const render::Frame d = direct.render(fd.camera(), fd.light, {.specular = path});
+        EXPECT_TRUE(a.info.specular_pass);
+        EXPECT_EQ(a.mask, d.mask);
+        EXPECT_EQ(a.color.pixels, d.color.pixels) << render::specular_path_name(path);
+        if (path == render::SpecularPath::Analytic)
+            EXPECT_NE(a.color.pixels, lafortune.render(fd.camera(), fd.light, {}).color.pixels);
+    }
+    const EvaluationResult r = evaluate(ctx(), b, s.capture, {});
+    for (const std::string& w : r.warnings) EXPECT_EQ(w.find("no specular"), std::string::npos) << w;
+    EXPECT_GT(r.train_frames, 0u);
+    Bundle none = s.truth;
+    none.material.specular.reset();
+    const EvaluationResult rn = evaluate(ctx(), none, s.capture, {});
+    ASSERT_FALSE(rn.warnings.empty());
+    EXPECT_NE(rn.warnings.front().find("no specular lobe"), std::string::npos);
+}
+
 TEST(EvaluateSelect, EvenlySpacedPerSplit) {
     CaptureDesc d;
     for (int i = 0; i < 10; ++i) d.frames.push_back(FrameDesc{.split = i < 8 ? Split::Train : Split::Test});

@@ -92,7 +92,7 @@ TEST_F(NormalizedDecompositionConformance, LafortuneLobes) {
     NormalizedDecompositionVk kernel(ctx());
     for (const LafortuneRgb& lobe : {gray(-0.8962f, 0.7587f, 10.11f), gray(-1.4299f, -0.7763f, 9.74f),
                                      gray(-1.0f, 1.0f, 1000.0f), gray(-1.5f, 1.5f, 10000.0f)}) {
-        const BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = 16, .res_d = 12});
+        const BrdfMatrix m = brdf_matrix_cpu({.model = lobe, .res_h = 16, .res_d = 12});
         for (auto w : {DecompositionWeighting::Uniform, DecompositionWeighting::Energy}) {
             const DecompositionInputs in{.matrix = &m, .p = 2.0f, .weighting = w};
             expect_conformant(m, 2.0f, normalized_decomposition_cpu(in), kernel.run(in), to_string(w), w);

@@ -89,7 +89,7 @@ TEST_F(ResidualTermKernel, MatchesReferenceOnPresetLobes) {
                                      std::pair{"cologne", LafortuneRgb{glm::vec3(-0.8874f, -0.895f, -0.902f),
                                                                        glm::vec3(1.1162f, 1.11f, 1.105f),
                                                                        glm::vec3(18.09f, 18.5f, 18.9f)}}}) {
-        const BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = 16, .res_d = 12});
+        const BrdfMatrix m = brdf_matrix_cpu({.model = lobe, .res_h = 16, .res_d = 12});
         check(ctx(), m, kMaxFactorTerms, name);
     }
 }
@@ -106,7 +106,7 @@ TEST_F(ResidualTermKernel, FirstTermRefinementMatchesReference) {
           std::tuple{"woodenpot_warped", gray(-1.4299f, -0.7763f, 9.74f), FactorParam::Warped},
           std::tuple{"can_plain", gray(-0.8962f, 0.7587f, 10.11f), FactorParam::Gshd}}) {
         const glm::vec4 warp = param == FactorParam::Warped ? warp_for_lobe(lobe).value() : glm::vec4(1.0f);
-        const BrdfMatrix m = brdf_matrix_cpu({.lobe = lobe, .res_h = 12, .res_d = 20, .param = param, .warp = warp});
+        const BrdfMatrix m = brdf_matrix_cpu({.model = lobe, .res_h = 12, .res_d = 20, .param = param, .warp = warp});
         const Decomposition first = normalized_decomposition_cpu({.matrix = &m});
         const Decomposition ref = refine_first_term_cpu(m, first, kResidualIterations);
         const Decomposition got = vk.run_refine_first(m, first, kResidualIterations);
@@ -138,12 +138,12 @@ TEST_F(ResidualTermKernel, MatchesReferenceOnARandomMatrixWithInvalidEntries) {
 }
 
 TEST_F(ResidualTermKernel, ValidatesItsInputs) {
-    const BrdfMatrix m = brdf_matrix_cpu({.lobe = gray(-1.0f, 1.0f, 5.0f), .res_h = 4, .res_d = 4});
+    const BrdfMatrix m = brdf_matrix_cpu({.model = gray(-1.0f, 1.0f, 5.0f), .res_h = 4, .res_d = 4});
     const Decomposition first = normalized_decomposition_cpu({.matrix = &m});
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = &first, .terms = 1}), Error);
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = &first, .terms = kMaxFactorTerms + 1}), Error);
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &m, .first = nullptr, .terms = 2}), Error);
-    const BrdfMatrix other = brdf_matrix_cpu({.lobe = gray(-1.0f, 1.0f, 5.0f), .res_h = 5, .res_d = 4});
+    const BrdfMatrix other = brdf_matrix_cpu({.model = gray(-1.0f, 1.0f, 5.0f), .res_h = 5, .res_d = 4});
     EXPECT_THROW((void)residual_terms_cpu({.matrix = &other, .first = &first, .terms = 2}), Error);
 }
 

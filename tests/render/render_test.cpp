@@ -24,6 +24,8 @@
 #include "factorization/factorization.h"
 #include "render/renderer.h"
 #include "synth/presets.h"
+#include "synth/rig.h"
+#include "core/timer.h"
 #include "synth/render.h"
 #include "vulkan_env.h"
 
@@ -811,6 +813,188 @@ TEST_F(RenderTest, ResizesToEachCameraAndRefusesBadInputs) {
     bad.corner_uv.pop_back();
     EXPECT_THROW(Renderer(ctx(), bad.scene()), Error);
     EXPECT_THROW(Renderer(ctx(), Scene{.mesh = &data.mesh, .corner_uv = data.corner_uv, .albedo = nullptr}), Error);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The coated family (shared/coated.h): every pass draws the scene's material through
+// shared/material.h, the diffuse term times k_d = T(n.u) T(n.v) / T(1)^2 in both specular paths.
+
+CoatedParams coated(float alpha, float eta = 1.5f, glm::vec3 tint = glm::vec3(1.0f)) {
+    return CoatedParams{.eta = eta, .alpha = alpha, .tint = tint};
+}
+
+/// What a pixel of a flat, uniformly lit-and-shaded scene should show, from the C++ (double)
+/// evaluation of the same definitions: the point where the pixel centre's ray meets the plane
+/// (point `p0`, unit normal `n`), then (rho / pi) k_d + f_s (or the factorized f_s `factor`
+/// when given) times I max(0, n.u) / d^2.
+glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
+                        const glm::dvec3& rho, const SpecularModel& model, Mode mode, std::optional<glm::dvec3> factor) {
+    const Intrinsics& k = cam.intrinsics;
+    const glm::dvec3 o = cam.center();
+    const glm::dvec3 c((x + 0.5 - k.cx) / k.fl_x, -(y + 0.5 - k.cy) / k.fl_y, -1.0);
+    const glm::dvec3 dir = glm::normalize(glm::dvec3(cam.camera_to_world * glm::dvec4(c, 0.0)));
+    const glm::dvec3 p = o + dir * (glm::dot(p0 - o, n) / glm::dot(dir, n));
+    const glm::dvec3 to_light = light.position - p;
+    const double d2 = glm::dot(to_light, to_light);
+    const glm::dvec3 u = to_light / std::sqrt(d2), v = glm::normalize(o - p);
+    const double ci = glm::dot(n, u), co = glm::dot(n, v);
+    const glm::dvec3 irradiance = light.intensity * (std::max(ci, 0.0) / d2);
+    const shared::MaterialGpu m = material_gpu(model);
+    glm::dvec3 f(0.0);
+    if (mode != Mode::Specular) f += rho / kPi * shared::f64::material_diffuse_factor(m, ci, co);
+    if (mode != Mode::Diffuse) f += factor ? *factor : shared::f64::material_specular(m, ci, co, glm::dot(u, v));
+    return f * irradiance;
+}
+
+// The analytic render of a coated material equals the direct C++ evaluation of the model at
+// every interior pixel of a tilted plane (constant normal, so the renderer's interpolation is
+// exact), in every mode and pass arrangement; the factorized path (constant cube-maps G = a,
+// H = b: f_s = a b) too, its diffuse term with the coating's k_d. Tolerance: float against
+// double, 2e-4 relative plus 1e-5 of the frame's peak (measured: 2e-5 relative at most; the
+// sharp lobe's slope, 4 theta / alpha^2 per radian, over float's direction error is below it).
+// A lafortune model of zero lobe draws the plain Lambertian term (k_d = 1), which differs.
+TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
+    const glm::dvec3 n = glm::normalize(glm::dvec3(0.25, 0.15, 1.0));
+    const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0))), b = glm::cross(n, t);
+    Mesh quad;
+    const double corners[4][2] = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
+    for (const auto& c : corners) quad.positions.push_back(glm::vec3(c[0] * t + c[1] * b));
+    quad.normals.assign(4, glm::vec3(n));
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    if (glm::dot(glm::cross(glm::dvec3(quad.positions[1] - quad.positions[0]), glm::dvec3(quad.positions[2] - quad.positions[0])), n) < 0.0)
+        quad.triangles = {{0, 2, 1}, {0, 3, 2}}; // counter-clockwise about n
+    const glm::dvec3 rho(0.55, 0.4, 0.3);
+    const SceneData data = constant_albedo(quad, glm::vec3(rho));
+    const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
+    const PointLight light{{0.9, 0.3, 2.6}, {5.0, 4.5, 4.0}};
+    const glm::vec3 a(0.3f, 0.5f, 0.7f), bb(0.9f, 0.4f, 0.2f);
+    const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
+        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
+    };
+    for (const CoatedParams& model : {coated(0.12f), coated(0.4f, 2.0f, {0.9f, 0.7f, 0.5f})}) {
+        Renderer r(ctx(), data.scene(model));
+        EXPECT_TRUE(r.has_specular());
+        EXPECT_EQ(r.material().family.x, shared::kMaterialCoated);
+        r.set_factorization(FactorizedSpecular{.param = FactorParam::Gshd, .terms = {{constant_cube(8, a), constant_cube(8, bb)}}});
+        double worst = 0.0;
+        std::size_t compared = 0;
+        for (const SpecularPath path : {SpecularPath::Analytic, SpecularPath::Factorized})
+            for (const Mode mode : {Mode::Both, Mode::Diffuse, Mode::Specular})
+                for (const Passes passes : {Passes::Separate, Passes::Fused, Passes::Deferred}) {
+                    const Frame f = r.render(cam, light, {.mode = mode, .specular = path, .passes = passes, .shadows = false});
+                    const std::string what = std::string(mode_name(mode)) + "/" + specular_path_name(path) + "/" + passes_name(passes);
+                    const std::optional<glm::dvec3> factor =
+                        path == SpecularPath::Factorized ? std::optional(glm::dvec3(a * bb)) : std::nullopt;
+                    double peak = 0.0;
+                    for (const float x : f.color.pixels) peak = std::max(peak, static_cast<double>(x));
+                    ASSERT_GT(peak, 0.0) << what;
+                    for (int y = 0; y < 64; ++y)
+                        for (int x = 0; x < 64; ++x) {
+                            if (!interior(f.mask, 64, 64, x, y)) continue;
+                            const glm::dvec3 e = direct_pixel(cam, x, y, glm::dvec3(0.0), n, light, rho, model, mode, factor);
+                            for (int c = 0; c < 3; ++c) {
+                                const double got = f.color.at(x, y, c), err = std::abs(got - e[c]);
+                                worst = std::max(worst, err / (std::abs(e[c]) + 0.05 * peak));
+                                ASSERT_LE(err, 2e-4 * std::abs(e[c]) + 1e-5 * peak)
+                                    << what << " alpha " << model.alpha << " pixel (" << x << ", " << y << ") channel " << c
+                                    << ": " << got << " vs " << e[c];
+                            }
+                            ++compared;
+                        }
+                }
+        EXPECT_GT(compared, 18u * 1000u);
+        std::printf("coated alpha %.2f: %zu pixel comparisons, worst relative error %.3g\n", model.alpha, compared, worst);
+        // The coating's k_d is there: the Lambertian term of the zero lobe is brighter at grazing
+        // and darker nowhere (T(c) <= T(1)).
+        const Frame coated_diffuse = r.render(cam, light, {.mode = Mode::Diffuse, .shadows = false});
+        r.set_specular(LafortuneRgb{});
+        const Frame lambert = r.render(cam, light, {.mode = Mode::Diffuse, .shadows = false});
+        double lower = 0.0;
+        for (std::size_t i = 0; i < lambert.color.pixels.size(); ++i) {
+            EXPECT_LE(coated_diffuse.color.pixels[i], lambert.color.pixels[i] * (1.0f + 1e-5f) + 1e-9f);
+            lower = std::max(lower, static_cast<double>(lambert.color.pixels[i] - coated_diffuse.color.pixels[i]));
+        }
+        EXPECT_GT(lower, 0.0);
+    }
+}
+
+// A warped factorization multiplies by the Lafortune lobe's radial factor: a coated model does
+// not have it, so the renderer refuses the pair (at set_factorization, or at a factorized render
+// when the model changes after it), and draws the analytic path still.
+TEST_F(RenderTest, WarpedFactorizationNeedsALafortuneModel) {
+    const synth::Preset preset = synth::make_preset("sphere");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
+    const CubeMap cube{8, std::vector<glm::vec3>(6 * 8 * 8, glm::vec3(0.5f))};
+    const FactorizedSpecular warped{.param = FactorParam::Warped, .warp = glm::vec4(-1.0f, 0.8f, 0.8f, 0.8f), .terms = {{cube, cube}}};
+    Renderer coated_renderer(ctx(), data.scene(coated(0.2f)));
+    EXPECT_THROW(coated_renderer.set_factorization(warped), Error);
+    EXPECT_FALSE(coated_renderer.has_factorization());
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    r.set_factorization(warped);
+    const Camera cam = make_camera(32, 32, 40.0, 40.0, 16.0, 16.0, {0.0, 0.0, 2.0}, {0, 0, 0});
+    const PointLight light{{1.0, 1.0, 2.0}, {3.0, 3.0, 3.0}};
+    EXPECT_NO_THROW((void)r.render(cam, light, {.specular = SpecularPath::Factorized}));
+    r.set_specular(coated(0.2f));
+    EXPECT_THROW((void)r.render(cam, light, {.specular = SpecularPath::Factorized}), Error);
+    const Frame analytic = r.render(cam, light, {.specular = SpecularPath::Analytic});
+    EXPECT_TRUE(analytic.info.specular_pass);
+    r.set_specular(coated(0.2f, 1.5f, glm::vec3(0.0f))); // zero tint: no specular pass, nothing refused
+    const Frame none = r.render(cam, light, {.specular = SpecularPath::Factorized});
+    EXPECT_FALSE(none.info.specular_pass);
+    EXPECT_NE(none.info.specular_note.find("no lobe"), std::string::npos);
+}
+
+// Issue 5's criterion for the coated family: the factorized render within 1 dB of the analytic
+// one. As for the can's lobe above, within 1 dB of the analytic render's masked PSNR against a
+// capture needs PSNR(factorized vs analytic) >= PSNR(analytic vs capture) + 5.9 dB; with the
+// can's figures (41.7 dB train, 33.5 dB test) that is >= 47.6 dB on average over the frames and
+// >= 39.4 dB on every frame, asserted here on the synth presets' meshes (can, cologne, vase,
+// woodenpot, knot; constant albedo) for eta 1.5 and alpha 0.05, 0.12, 0.25, 0.4, with the
+// factorization's default grids, K and weight in the plain GSHD (the automatic choice's, tested
+// in tests/factorization CoatedFamily; its mirrored run would double the time), over the frames of
+// the spread rig (`specula synth`'s: lights 15 to 130 degrees off the camera) and of the thesis's
+// ring (six lights about 15 degrees around the camera), a train view and a test view each (16
+// frames), unshadowed (the same shadow map darkens both paths alike).
+TEST_F(RenderTest, CoatedFactorizedWithinOneDbOfAnalyticOnThePresets) {
+    std::vector<synth::Preset> presets;
+    for (const char* name : {"can", "cologne", "vase", "woodenpot", "knot"}) presets.push_back(synth::make_preset(name));
+    for (const float alpha : {0.05f, 0.12f, 0.25f, 0.4f}) {
+        const CoatedParams model = coated(alpha);
+        const Stopwatch clock;
+        const factorization::Factorization f = factorization::factorize_cpu(model, {.param = FactorParam::Gshd});
+        const double seconds = clock.seconds();
+        std::printf("alpha %.2f: %s, %u x %u, K = %u, weight q = %.2f, factorized in %.1f s (CPU)\n  %s\n", alpha,
+                    to_string(f.cubes.param), f.resolution.grid_h, f.resolution.grid_d, f.term_count(),
+                    static_cast<double>(f.weight_q), seconds, f.terms.reason.c_str());
+        for (const synth::Preset& p : presets) {
+            const SceneData data = constant_albedo(p.mesh, glm::vec3(0.45f, 0.4f, 0.35f));
+            Renderer r(ctx(), data.scene(model), {.shadow_map_size = 16}); // unused: unshadowed
+            r.set_factorization(f.cubes);
+            double worst = 999.0, sum = 0.0;
+            std::size_t frames = 0;
+            for (const bool ring : {false, true}) {
+                synth::RigOptions o;
+                o.size = 128;
+                o.views = 1;
+                o.test_views = 1;
+                if (ring) o.light_angles_deg.clear(); // the thesis's ring about 15 degrees around the camera
+                for (const synth::RigView& view : synth::make_rig(p.mesh, o).views)
+                    for (const PointLight& light : view.lights) {
+                        const Frame an = r.render(view.camera, light, {.specular = SpecularPath::Analytic, .shadows = false});
+                        const Frame fa = r.render(view.camera, light, {.specular = SpecularPath::Factorized, .shadows = false});
+                        const double psnr = masked_psnr(fa, an);
+                        worst = std::min(worst, psnr);
+                        sum += psnr;
+                        ++frames;
+                    }
+            }
+            const double mean = sum / static_cast<double>(frames);
+            std::printf("  %-9s factorized vs analytic masked PSNR over %zu frames: mean %.1f dB, worst %.1f dB\n",
+                        p.name.c_str(), frames, mean, worst);
+            EXPECT_GE(mean, 47.6) << p.name << " alpha " << alpha;
+            EXPECT_GE(worst, 39.4) << p.name << " alpha " << alpha;
+        }
+    }
 }
 
 } // namespace

@@ -39,8 +39,8 @@ int main(int argc, char** argv) try {
         }
     }
     Bundle b = read_bundle(argv[1]);
-    if (!b.material.specular) throw Error(std::string(argv[1]) + ": no lobe");
-    const Factorization f = factorize_cpu(std::get<LafortuneRgb>(*b.material.specular), o);
+    if (!b.material.specular) throw Error(std::string(argv[1]) + ": no specular model");
+    const Factorization f = factorize_cpu(*b.material.specular, o); // any family
     b.material.factorized = f.cubes;
     write_bundle(argv[2], b);
     std::printf("%s: %s, h %u x d %u (cube faces %u, %u), K = %u; against the lobe through the cube-maps %.4f\n  %s\n  %s\n",
