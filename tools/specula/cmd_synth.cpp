@@ -97,6 +97,8 @@ void run(SynthArgs& a) {
     }
     if (a.preset.empty() == a.mesh.empty()) throw UsageError("give exactly one of --preset NAME or --mesh FILE.glb (see --list-presets)");
     a.options.format = synth::parse_image_format(a.format);
+    if (!a.mesh.empty()) a.options.inputs.emplace_back(a.mesh);
+    if (!a.albedo.empty()) a.options.inputs.emplace_back(a.albedo);
     const synth::SynthObject object = make_object(a);
     const synth::SynthResult r = synth::write_synthetic_capture(object, a.out, a.options);
     std::printf("wrote %s\n", r.dir.c_str());
