@@ -855,8 +855,7 @@ std::vector<std::string> check_capture_scene(const CaptureDesc& desc, const std:
 
 namespace {
 
-Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptions& options) {
-    const Stopwatch clock;
+CaptureDesc read_capture_file(const fs::path& json_path) {
     std::error_code ec;
     if (fs::exists(json_path, ec)) {
         if (!fs::is_regular_file(json_path, ec)) throw InputError(json_path, "", "not a regular file");
@@ -865,10 +864,14 @@ Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptio
             throw InputError(json_path, "", "the file holds " + format_bytes(bytes) + ", above the " +
                                                 format_bytes(kMaxCaptureJsonBytes) + " a capture description may take");
     }
-    const std::string text = read_text_file(json_path);
+    return parse_capture_text(read_text_file(json_path), json_path);
+}
 
+Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptions& options) {
+    const Stopwatch clock;
+    std::error_code ec;
     Capture capture;
-    capture.desc = parse_capture_text(text, json_path);
+    capture.desc = read_capture_file(json_path);
     const CaptureDesc& desc = capture.desc;
 
     // Views, sorted by view_index, frames in file order.
@@ -1070,6 +1073,22 @@ Capture load_capture(const fs::path& dir_or_file, const CaptureLoadOptions& opti
         throw InputError(json_path, "", "out of memory while loading the capture (" + format_bytes(available_memory().bytes) +
                                             " available now); use smaller images or fewer frames");
     }
+}
+
+CaptureDesc read_capture_desc(const fs::path& dir_or_file) { return read_capture_file(capture_json_path(dir_or_file)); }
+
+std::vector<fs::path> capture_input_paths(const CaptureDesc& desc) {
+    // The folder holds capture.json; "" (capture.json named without a folder) is the working directory.
+    std::vector<fs::path> paths{desc.dir.empty() ? fs::path(".") : desc.dir, desc.resolve(desc.mesh_path)};
+    std::set<fs::path> seen(paths.begin(), paths.end());
+    const auto add = [&](const fs::path& p) {
+        if (seen.insert(p).second) paths.push_back(p);
+    };
+    for (const FrameDesc& f : desc.frames) {
+        add(desc.resolve(f.file_path));
+        if (f.mask_path) add(desc.resolve(*f.mask_path));
+    }
+    return paths;
 }
 
 std::string summarize(const Capture& capture) {

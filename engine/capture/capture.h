@@ -170,6 +170,13 @@ inline constexpr int kMaxCaptureJsonDepth = 256;
 /// the text before it is parsed (core/json_guard.h), then parse_capture_desc.
 [[nodiscard]] CaptureDesc parse_capture_text(std::string_view text, const std::filesystem::path& json_path);
 
+/// Reads and parses capture.json (the size limit, then parse_capture_text); opens no other file.
+[[nodiscard]] CaptureDesc read_capture_desc(const std::filesystem::path& dir_or_file);
+
+/// Every path a capture is read from: its folder (which holds capture.json), the mesh, each distinct image
+/// and mask (what an output folder may not be or contain: core/output_dir.h).
+[[nodiscard]] std::vector<std::filesystem::path> capture_input_paths(const CaptureDesc& desc);
+
 /// The checks that need the mesh (docs/capture-format.md, "Ranges"): the mesh's size and
 /// coordinates, camera centres and lights within kMaxDistanceToObject of it, lights off its
 /// surface, irradiances within [kMinIrradiance, kMaxIrradiance]. Throws InputError naming the

@@ -1,6 +1,9 @@
 #include "pipeline/reconstruct.h"
 
 #include "core/error.h"
+#include "core/file_util.h"
+#include "core/log.h"
+#include "core/output_dir.h"
 #include "pipeline/report.h"
 #include "pipeline/run.h"
 #include "pipeline/stages.h"
@@ -16,11 +19,36 @@ const char* to_string(SpecularMode mode) noexcept {
     return "?";
 }
 
+namespace {
+
+// An earlier result of reconstruct: its report.json, which names specula's version.
+bool holds_reconstruct_result(const std::filesystem::path& out) {
+    std::error_code ec;
+    const std::filesystem::path report = out / "report.json";
+    if (!std::filesystem::is_regular_file(report, ec)) return false;
+    try {
+        return read_text_file(report).find("\"specula_version\"") != std::string::npos;
+    } catch (const Error&) {
+        return false;
+    }
+}
+
+} // namespace
+
 ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* preloaded) {
     if (config.out_dir.empty()) throw UsageError("no output folder given");
     const Stopwatch total;
+    // The output folder is checked, locked and staged before any stage runs; every stage
+    // writes into the staging folder (run.config.out_dir), moved into place at the end.
+    const std::vector<std::filesystem::path> inputs =
+        capture_input_paths(preloaded != nullptr ? preloaded->desc : read_capture_desc(config.capture));
+    OutputFolder out(config.out_dir, {.option = "--out", .force = config.force, .is_previous = holds_reconstruct_result,
+                                      .inputs = inputs});
+    for (const std::string& line : out.recovered()) log::info(line);
+    ReconstructConfig staged = config;
+    staged.out_dir = out.staging();
     ReconstructResult result;
-    PipelineRun run(config, result);
+    PipelineRun run(staged, result);
 
     std::optional<Capture> loaded;
     const Capture& capture = load_stage(run, preloaded, loaded);
@@ -50,6 +78,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                                   .bundle = bundle,
                                                   .evaluation = evaluation});
     write_reports(run, result.report);
+    out.commit();
     return result;
 }
 

@@ -36,6 +36,9 @@ enum class SpecularMode { Auto, On, Off };
 struct ReconstructConfig {
     std::filesystem::path capture;  ///< folder or capture.json
     std::filesystem::path out_dir;  ///< albedo.exr, albedo.png, report.json go here
+    /// Replace an existing non-empty out_dir that holds no earlier result of reconstruct (no
+    /// report.json of specula): replacing deletes what it holds, so that needs asking for.
+    bool force = false;
     Backend backend = Backend::Vulkan;
     std::string device;             ///< Vulkan device selector (empty: SPECULA_DEVICE, then the default)
     LambertOptions lambert;         ///< solve mode, view choice, rejection thresholds
@@ -106,8 +109,13 @@ struct ReconstructResult {
     double total_seconds = 0.0;
 };
 
-/// Runs every stage built so far and writes the outputs into config.out_dir
-/// (each file atomically; report.json last, so its presence means a complete run).
+/// Runs every stage built so far and writes the outputs into config.out_dir, as a whole
+/// (core/output_dir.h): into a staging folder beside it, renamed into place once complete,
+/// so out_dir holds the previous complete result or the new one, never a part. Refused before
+/// any stage runs (UsageError / InputError naming out_dir): an out_dir that is a file, that is
+/// or contains the capture's folder, mesh, images or masks, that cannot be created, that is a
+/// non-empty folder without an earlier result (unless config.force), or that another run is
+/// writing (its lock, .NAME.lock beside it).
 /// Throws InputError for a bad capture, Error for a failed stage.
 /// `preloaded`: a capture already loaded with its mesh and images (the sweep loads once);
 /// its load time is then not part of this run's stages.

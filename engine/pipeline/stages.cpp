@@ -548,7 +548,13 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         return evaluate::evaluate(*ctx, bundle, capture, eo);
     });
     log::info(evaluate::format_summary(ev));
-    write_text_file(config.out_dir / "evaluation.json", evaluate::to_json(ev).dump(2) + "\n");
+    // Sheets relative to the output folder, as in report.json: the run writes into a staging
+    // folder that is renamed into place at the end (core/output_dir.h).
+    nlohmann::json ej = evaluate::to_json(ev);
+    nlohmann::json sheets = nlohmann::json::array();
+    for (const fs::path& sp : ev.sheets) sheets.push_back(fs::relative(sp, config.out_dir).generic_string());
+    ej["sheets"] = std::move(sheets);
+    write_text_file(config.out_dir / "evaluation.json", ej.dump(2) + "\n");
     if (!config.evaluate_train) run.leave_out("evaluation of the train frames", "test frames only (evaluate_train off)");
     return ev;
 }

@@ -3,11 +3,10 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/log.h"
+#include "core/output_dir.h"
 
-#include <atomic>
 #include <cstdio>
 #include <future>
-#include <unistd.h>
 
 namespace specula::synth {
 
@@ -85,75 +84,6 @@ SpecularModel material_from_json(const nlohmann::json& j) {
 
 namespace {
 
-// ".NAME<kind><tag>" beside `path` (built by appending: GCC 12 warns falsely on the chained + form).
-fs::path hidden_sibling(const fs::path& path, const char* kind, const std::string& tag) {
-    std::string name(".");
-    name += path.filename().string();
-    name += kind;
-    name += tag;
-    return path.parent_path() / name;
-}
-
-} // namespace
-
-fs::path check_output_folder(const fs::path& out_arg, bool force) {
-    fs::path out = fs::absolute(out_arg).lexically_normal();
-    if (out.filename().empty()) out = out.parent_path(); // "dir/" names dir
-    std::error_code ec;
-    if (fs::exists(out, ec)) {
-        if (!fs::is_directory(out, ec)) throw UsageError("--out: '" + out.string() + "' exists and is not a folder");
-        if (!fs::is_empty(out, ec) && !force)
-            throw UsageError("--out: folder '" + out.string() + "' is not empty (use --force to replace it)");
-    }
-    return out;
-}
-
-void write_folder_atomically(const fs::path& out_arg, bool force, const std::function<void(const fs::path& tmp)>& write) {
-    static std::atomic<unsigned> counter{0};
-    const fs::path out = check_output_folder(out_arg, force);
-    std::error_code ec;
-    const bool exists = fs::exists(out, ec);
-    const fs::path parent = out.parent_path();
-    fs::create_directories(parent, ec);
-    if (ec) throw InputError(parent, "--out", "cannot create folder: " + ec.message());
-    const std::string tag = std::to_string(getpid()) + "-" + std::to_string(counter++);
-    const fs::path tmp = hidden_sibling(out, ".tmp-", tag);
-    fs::remove_all(tmp, ec);
-    if (!fs::create_directory(tmp, ec) || ec) throw InputError(tmp, "--out", "cannot create temporary folder: " + ec.message());
-    try {
-        write(tmp);
-    } catch (...) {
-        fs::remove_all(tmp, ec);
-        throw;
-    }
-    // The new folder is complete: only now does the old one go.
-    if (exists) {
-        const fs::path old = hidden_sibling(out, ".old-", tag);
-        fs::rename(out, old, ec);
-        if (ec) {
-            fs::remove_all(tmp, ec);
-            throw InputError(out, "--out", "cannot move the existing folder aside");
-        }
-        fs::rename(tmp, out, ec);
-        if (ec) {
-            std::error_code ec2;
-            fs::rename(old, out, ec2);
-            fs::remove_all(tmp, ec2);
-            throw InputError(out, "--out", "cannot move the new capture into place: " + ec.message());
-        }
-        fs::remove_all(old, ec);
-    } else {
-        fs::rename(tmp, out, ec);
-        if (ec) {
-            std::error_code ec2;
-            fs::remove_all(tmp, ec2);
-            throw InputError(out, "--out", "cannot move the new capture into place: " + ec.message());
-        }
-    }
-}
-
-namespace {
-
 std::string frame_stem(int view_index, int light) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "v%02d_l%d", view_index, light);
@@ -205,7 +135,8 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
     if (options.threads < 1 || options.threads > 256) throw UsageError("--threads must be between 1 and 256");
     if (!(options.noise_sigma >= 0.0) || !(options.shot_noise >= 0.0) || !std::isfinite(options.noise_sigma) || !std::isfinite(options.shot_noise))
         throw UsageError("--noise and --shot-noise must be finite and non-negative");
-    (void)check_output_folder(out, options.force); // refuse before any work; checked again when writing
+    // The output folder is checked and locked before any work (core/output_dir.h).
+    OutputFolder folder(out, {.option = "--out", .force = options.force, .inputs = options.inputs});
     StageClock clock;
     Stopwatch sw;
 
@@ -236,7 +167,7 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
     result.train_frames = rig.frame_count(Split::Train);
     result.test_frames = rig.frame_count(Split::Test);
 
-    write_folder_atomically(out, options.force, [&](const fs::path& tmp) {
+    const auto write = [&](const fs::path& tmp) {
         fs::create_directories(tmp / "images");
         fs::create_directories(tmp / "masks");
         fs::create_directories(tmp / "truth");
@@ -344,15 +275,17 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
         sw.restart();
         write_capture_json(desc);
         clock.add("capture.json", sw.seconds());
-    });
-    result.dir = check_output_folder(out, true);
+    };
+    write(folder.staging());
+    folder.commit();
+    result.dir = folder.path();
     result.times = clock.times();
     result.seconds = total.seconds();
     return result;
 }
 
 void export_preset(const Preset& preset, const fs::path& out, bool force) {
-    write_folder_atomically(out, force, [&](const fs::path& tmp) {
+    (void)write_folder_atomically(out, {.option = "--out", .force = force}, [&](const fs::path& tmp) {
         write_mesh_glb(tmp / "mesh.glb", preset.mesh);
         const Image albedo = albedo_truth(preset.material);
         write_image(tmp / "albedo.exr", albedo, ColorSpace::Linear);

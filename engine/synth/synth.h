@@ -39,6 +39,8 @@ struct SynthOptions {
     int threads = 2;
     bool lambertian = false; // zero the lobe (lafortune family only: refused for a coated material)
     bool force = false;      // replace an existing non-empty output folder (only once the new one is complete)
+    /// Files the object was read from (--mesh, --albedo): the output folder may not hold them.
+    std::vector<std::filesystem::path> inputs;
     /// Called after each frame is rendered and queued for writing (done, total); may throw
     /// to abort (nothing is then left at the output path).
     std::function<void(std::size_t done, std::size_t total)> on_frame;
@@ -69,9 +71,10 @@ struct SynthResult {
 
 /// Renders and writes a whole capture into `out` (see capture-format.md):
 /// images/, masks/, mesh.glb, truth/albedo.exr, capture.json. Everything goes to a
-/// temporary sibling folder first and is renamed into place at the end: a failure
-/// leaves no output. An existing non-empty `out` is refused (UsageError) unless
-/// options.force, in which case it is replaced only after the new capture is complete.
+/// staging folder beside it first and is renamed into place at the end
+/// (core/output_dir.h): a failure or a kill leaves no output, or the previous one. An
+/// existing non-empty `out` is refused (UsageError) unless options.force, in which case it is
+/// replaced only after the new capture is complete; a second run on the same `out` is refused.
 SynthResult write_synthetic_capture(const SynthObject& object, const std::filesystem::path& out, const SynthOptions& options);
 
 /// Writes a preset's mesh.glb, albedo.exr (linear truth), albedo.png (sRGB preview)
@@ -89,14 +92,5 @@ void export_preset(const Preset& preset, const std::filesystem::path& out, bool 
 [[nodiscard]] nlohmann::json material_to_json(const SpecularModel& model);
 /// The inverse of material_to_json; throws Error naming what is missing or unknown.
 [[nodiscard]] SpecularModel material_from_json(const nlohmann::json& j);
-
-/// The absolute, normalized output folder; throws UsageError when it exists and is
-/// not a folder, or is a non-empty folder and `force` is not set.
-[[nodiscard]] std::filesystem::path check_output_folder(const std::filesystem::path& out, bool force);
-
-/// Writes into a temporary sibling of `out`, then renames it into place (see
-/// write_synthetic_capture for the rules about an existing `out`).
-void write_folder_atomically(const std::filesystem::path& out, bool force,
-                             const std::function<void(const std::filesystem::path& tmp)>& write);
 
 } // namespace specula::synth

@@ -755,6 +755,30 @@ TEST(CaptureMemory, AnImageNamedByManyFramesIsDecodedOnce) {
     EXPECT_EQ(g.load().image_files_decoded, 4u);
 }
 
+// What an output folder may not be or contain (core/output_dir.h): read from capture.json
+// alone, each distinct file once.
+TEST(CaptureInputs, FolderMeshImagesAndMasksFromTheDescriptionAlone) {
+    CaptureFixture fx;
+    fx.write_json();
+    const CaptureDesc desc = read_capture_desc(fx.dir.path());
+    EXPECT_EQ(desc.dir, fx.dir.path());
+    const std::vector<fs::path> paths = capture_input_paths(desc);
+    const std::vector<fs::path> expected{fx.dir.path(),
+                                         fx.dir / "mesh.glb",
+                                         fx.dir / CaptureFixture::image_name(1, 0),
+                                         fx.dir / CaptureFixture::image_name(1, 1),
+                                         fx.dir / CaptureFixture::image_name(0, 0),
+                                         fx.dir / "masks/v0.png",
+                                         fx.dir / CaptureFixture::image_name(0, 1)};
+    EXPECT_EQ(paths, expected); // the mask two frames share, once
+    // The same refusals as load_capture for a broken description; no image is opened.
+    fs::remove(fx.dir / CaptureFixture::image_name(0, 0));
+    EXPECT_NO_THROW((void)read_capture_desc(fx.dir / "capture.json"));
+    fx.j["w"] = -1;
+    fx.write_json();
+    EXPECT_THROW((void)read_capture_desc(fx.dir.path()), InputError);
+}
+
 TEST(CaptureMemory, DecodedImageBytesCountFramesMasksAndDecodeBuffers) {
     CaptureFixture fx;
     const Capture c = fx.load({.load_images = false});

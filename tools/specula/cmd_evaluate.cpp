@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/log.h"
+#include "core/output_dir.h"
 #include "evaluate/bundle_render.h"
 #include "evaluate/evaluate.h"
 #include "export/bundle.h"
@@ -15,6 +16,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +41,16 @@ struct EvaluateArgs {
     std::string device;
 };
 
+// An earlier --sheets folder: nothing but sheet_*.png files.
+bool holds_only_sheets(const std::filesystem::path& dir) {
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (!it->is_regular_file(ec) || name.rfind("sheet_", 0) != 0 || it->path().extension() != ".png") return false;
+    }
+    return !ec;
+}
+
 void run_evaluate(const EvaluateArgs& a) {
     evaluate::EvaluateOptions o;
     o.render.mode = a.mode == "diffuse" ? render::Mode::Diffuse : a.mode == "specular" ? render::Mode::Specular : render::Mode::Both;
@@ -47,9 +59,18 @@ void run_evaluate(const EvaluateArgs& a) {
     o.metrics_backend = a.metrics == "cpu" ? Backend::Cpu : Backend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
-    if (!a.sheets.empty()) o.sheet_dir = a.sheets;
     o.sheet_frames = a.sheet_frames;
     o.bundle_name = a.bundle;
+    // The sheets folder is written as a whole (core/output_dir.h), checked and locked before
+    // any work: it may not hold the bundle or the capture, and replaces only an earlier one.
+    std::optional<OutputFolder> sheets;
+    if (!a.sheets.empty()) {
+        std::vector<std::filesystem::path> inputs = capture_input_paths(read_capture_desc(a.capture));
+        inputs.emplace_back(a.bundle);
+        sheets.emplace(a.sheets, OutputFolderOptions{.option = "--sheets", .is_previous = holds_only_sheets, .inputs = inputs});
+        for (const std::string& line : sheets->recovered()) log::info(line);
+        o.sheet_dir = sheets->staging();
+    }
 
     Bundle bundle = read_bundle(a.bundle);
     evaluate::require_specular_model(bundle, o.render.specular, a.bundle);
@@ -63,9 +84,13 @@ void run_evaluate(const EvaluateArgs& a) {
     const Capture capture = load_capture(a.capture, {.load_mesh = false, .load_images = true, .threads = a.threads});
     for (const std::string& w : capture.warnings) log::warn(w);
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
-    const evaluate::EvaluationResult r = evaluate::evaluate(ctx, bundle, capture, o);
+    evaluate::EvaluationResult r = evaluate::evaluate(ctx, bundle, capture, o);
     for (const std::string& w : r.warnings) log::warn(w);
     std::fputs(evaluate::format_summary(r).c_str(), stdout);
+    if (sheets) {
+        sheets->commit();
+        for (auto& s : r.sheets) s = sheets->path() / s.filename(); // where they are now
+    }
     if (!a.json.empty()) {
         nlohmann::json j = evaluate::to_json(r);
         j["timings"]["capture_load_s"] = capture.load_seconds;
@@ -90,8 +115,9 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_option("--json", a->json,
                     "Write the aggregates (train/test x masked/full) and per-frame measures here (psnr_display, psnr_linear, ...)");
     cmd->add_option("--sheets", a->sheets,
-                    "Write captured | rendered | difference sheets (PNG) here; difference = 0.5 + 4 x (rendered - captured)\n"
-                    "in sRGB display values");
+                    "Write captured | rendered | difference sheets (PNG) into this folder; difference = 0.5 + 4 x (rendered -\n"
+                    "captured) in sRGB display values. The folder is written as a whole (it replaces an earlier sheets\n"
+                    "folder only once complete) and may not hold the bundle or the capture");
     cmd->add_option("--sheet-frames", a->sheet_frames, "Frames to make sheets of (default: the first train and first test frame)")
         ->delimiter(',');
     cmd->add_option("--frames", a->frames, "At most N frames per split, evenly spaced (default: all)");

@@ -87,7 +87,13 @@ void add_reconstruct_command(CLI::App& app) {
         "--atlas, --texels-per-pixel/--texture-size, --factorization-grid, --factor-param; the report then gives the cost of the\n"
         "forced work.");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
-    cmd->add_option("-o,--out", args->config.out_dir, "Output folder (created if missing)")->required();
+    cmd->add_option("-o,--out", args->config.out_dir,
+                    "Output folder, written as a whole: the run writes into .OUT.tmp-* beside it and renames that into\n"
+                    "place once complete, so OUT holds the previous result or the new one, never a part. Refused: OUT\n"
+                    "holding the capture, or being written by another run")
+        ->required();
+    cmd->add_flag("--force", args->config.force,
+                  "Replace a non-empty OUT that holds no earlier result of reconstruct (only once the new one is complete)");
     cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
         ->check(CLI::IsMember({"vulkan", "cpu"}))
         ->capture_default_str();

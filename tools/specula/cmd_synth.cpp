@@ -119,6 +119,8 @@ void run(SynthArgs& a) {
     a.options.rig = synth::parse_rig_kind(a.rig);
     if (a.options.rig == synth::RigKind::Thesis && a.light_angles_given)
         throw UsageError("--light-angles places the spread rig's lights; the thesis rig's are all 15 degrees off the camera");
+    if (!a.mesh.empty()) a.options.inputs.emplace_back(a.mesh);
+    if (!a.albedo.empty()) a.options.inputs.emplace_back(a.albedo);
     const synth::SynthObject object = make_object(a);
     const synth::SynthResult r = synth::write_synthetic_capture(object, a.out, a.options);
     std::printf("wrote %s\n", r.dir.c_str());
