@@ -95,15 +95,18 @@ int main(int argc, char** argv) {
         b.doc()["scene"] = 0;
         write_text_file(out / "gltf_mesh/quad.gltf", b.text());
 
-        // Bundles: with the extension (albedo, lobe), and a foreign glTF with a base colour PNG.
+        // Bundles: with the extension (albedo, a lobe or the coated family), and a foreign glTF with a base colour PNG.
         Bundle bundle;
         bundle.mesh.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
         bundle.mesh.texcoords = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
         bundle.mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
         bundle.mesh.normals = compute_vertex_normals(bundle.mesh.positions, bundle.mesh.triangles);
         bundle.albedo = gradient(4, 4, 3);
-        bundle.lobe = LafortuneRgb{{-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}, {20.0f, 20.0f, 20.0f}};
+        bundle.material.specular = LafortuneRgb{{-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}, {20.0f, 20.0f, 20.0f}};
         write_bundle(out / "bundle/specula.glb", bundle);
+        // The coated family (extension version 5, and the core glTF material's ior and specular).
+        bundle.material.specular = CoatedParams{.eta = 1.5f, .alpha = 0.2f, .tint = {1.0f, 1.0f, 1.0f}};
+        write_bundle(out / "bundle/coated.glb", bundle);
         test::GltfBuilder f;
         json prim = {{"attributes", {{"POSITION", f.positions({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0})},
                                      {"TEXCOORD_0", f.texcoords({0, 0, 1, 0, 1, 1, 0, 1})}}},
