@@ -72,6 +72,17 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
             break;
         }
     }
+    // Out of rounds while still moving: say how far from settled (the caller names the
+    // parameters underdetermined; the fit's standard errors hold the albedo fixed and miss it).
+    const bool at_limit = options.rounds > 0 && out.rounds.size() == options.rounds && !out.rounds.back().rejected;
+    if (at_limit && out.rounds.back().max_relative_change >= options.tolerance) {
+        const double last = out.rounds.back().max_relative_change;
+        out.unsettled_change = last;
+        if (out.rounds.size() >= 2) {
+            const double q = last / std::max(1e-12, out.rounds[out.rounds.size() - 2].max_relative_change);
+            if (q < 1.0) out.unsettled_remaining = last * q / (1.0 - q);
+        }
+    }
     return out;
 }
 

@@ -131,9 +131,21 @@ void set_refinement_cost(PlanDecision& d, double seconds);
 
 // ---- specular stages --------------------------------------------------------------------
 
-/// Auto: fit when energy.has_specular. `probe_seconds` / `probe_samples`: a fit timed on a
-/// small subsample when auto skips (nullopt otherwise), scaled to `fit_samples`.
-[[nodiscard]] PlanDecision decide_specular(const ResidualEnergy& energy, Toggle toggle);
+/// Residual energy (in noise variances) above which, with validation frames, the auto decision
+/// lets the held-out error decide rather than the energy threshold alone: between this and
+/// the threshold the families are estimated and "diffuse only" competes with them (it wins
+/// when its validation error is least). Why: on the thesis's near-camera rig every light of a
+/// particle's best view sees its highlight, so the first (Lambertian) solve absorbs most of it
+/// into the albedo and the residuals keep ~2 noise variances of a real lobe (can, Lafortune
+/// truth, 128 px: 2.13), while a Lambertian truth leaves ~0.35 (docs/pipeline.md section 9).
+inline constexpr double kSpecularValidatedRatio = 1.0;
+
+/// Auto: fit when energy.has_specular; with `validation_frames` > 0 also when the energy
+/// ratio exceeds kSpecularValidatedRatio, the value then being "validate" (fit the families
+/// and let "diffuse only" compete on the validation frames). `probe_seconds` /
+/// `probe_samples`: a fit timed on a small subsample when auto skips (nullopt otherwise),
+/// scaled to `fit_samples`.
+[[nodiscard]] PlanDecision decide_specular(const ResidualEnergy& energy, Toggle toggle, std::size_t validation_frames = 0);
 /// Fills the cost figures of a specular decision once known.
 void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std::size_t probe_samples,
                        std::size_t fit_samples, std::optional<double> measured_seconds);
