@@ -1,10 +1,12 @@
 #include "pipeline/joint.h"
 
+#include "core/format.h"
 #include "core/log.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <utility>
 
 namespace specula {
@@ -84,6 +86,37 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         }
     }
     return out;
+}
+
+// The joint rounds ran out while the material still moved (JointResult::unsettled_change):
+// the fit's standard errors hold the albedo fixed, so they cannot see that the albedo still
+// holds part of the specular. The distance to the fixed point is about the last change plus
+// its geometric tail (unknown when the changes do not shrink); where that exceeds the bound a
+// parameter must meet to count as determined (the coated fit's max_relative_error, 5%), the
+// coated parameters are named underdetermined with the reason, and a Lafortune fit keeps its
+// status (its lobe stays usable) with the reason appended. Returns whether it was named.
+bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds, double bound) {
+    if (!joint.unsettled_change) return false;
+    const double last = *joint.unsettled_change;
+    const double distance = joint.unsettled_remaining ? last + *joint.unsettled_remaining : std::numeric_limits<double>::infinity();
+    if (distance <= bound) return false;
+    std::string reason = "the joint estimate of albedo and material had not settled after " + std::to_string(rounds) +
+                         " rounds: the last changed the material by " + format_text("%.2g", 100.0 * last) + "%";
+    reason += joint.unsettled_remaining
+                  ? " (" + format_text("%.2g", 100.0 * *joint.unsettled_remaining) + "% more if the rounds keep converging at that rate)"
+                  : " (and the changes are not shrinking)";
+    reason += ", so the parameters may be off by more than " + format_text("%.3g", 100.0 * bound) +
+              "%, whatever their standard errors (which hold the albedo fixed) say: the albedo still holds part of the "
+              "specular (lights near the camera put the highlight in every frame of a particle's best view); more "
+              "--joint-rounds would settle it";
+    if (fit.coated && fit.coated->usable()) {
+        fit.coated->status = CoatedFitStatus::Underdetermined;
+        fit.coated->alpha_determined = fit.coated->eta_determined = false;
+        fit.coated->reason = fit.coated->reason == "converged" ? reason : fit.coated->reason + "; " + reason;
+    }
+    if (fit.lafortune)
+        for (LafortuneChannelFit& c : fit.lafortune->channel) c.reason += (c.reason.empty() ? "" : "; ") + reason;
+    return true;
 }
 
 } // namespace specula

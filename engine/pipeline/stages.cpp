@@ -240,28 +240,6 @@ JointSteps material_steps(PipelineRun& run, SpecularStage& s, const LambertInput
     return steps;
 }
 
-// The joint rounds ran out while the material still moved (JointResult::unsettled_change):
-// the fit's standard errors hold the albedo fixed, so they cannot see that the albedo still
-// holds part of the specular. The coated fit's parameters are named underdetermined, with the
-// reason; a Lafortune fit keeps its status (its lobe stays usable) and the reason says it.
-void mark_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds) {
-    const double last = *joint.unsettled_change;
-    std::string reason = "the joint estimate of albedo and material had not settled after " + std::to_string(rounds) +
-                         " rounds: the last changed the material by " + format_text("%.2g", 100.0 * last) + "%";
-    if (joint.unsettled_remaining)
-        reason += " (" + format_text("%.2g", 100.0 * *joint.unsettled_remaining) + "% more if the rounds keep converging at that rate)";
-    reason += ", so the parameters may be off by that much, more than their standard errors (which hold the albedo fixed) "
-              "say; the albedo still holds part of the specular (lights near the camera put the highlight in every frame of "
-              "a particle's best view); more --joint-rounds would settle it";
-    if (fit.coated && fit.coated->usable()) {
-        fit.coated->status = CoatedFitStatus::Underdetermined;
-        fit.coated->alpha_determined = fit.coated->eta_determined = false;
-        fit.coated->reason = fit.coated->reason == "converged" ? reason : fit.coated->reason + "; " + reason;
-    }
-    if (fit.lafortune)
-        for (LafortuneChannelFit& c : fit.lafortune->channel) c.reason += (c.reason.empty() ? "" : "; ") + reason;
-}
-
 // PSNR of a mean square error in image units (images in [0, 1]), for the logs and the report.
 double psnr_of(double mse) { return mse > 0.0 ? -10.0 * std::log10(mse) : 99.0; }
 
@@ -358,6 +336,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
             state.residuals.counts = rs0.counts;
             MaterialCandidate c;
             c.joint = joint_estimate(state, jo, steps);
+            (void)name_unsettled(state.fit, c.joint, jo.rounds, fo.coated.max_relative_error);
             c.fit = std::move(state.fit);
             c.validation_mse = state.validation_mse;
             c.seconds = w.seconds();
@@ -429,7 +408,9 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     const bool undid_a_round = !validated.rounds.empty() && validated.rounds.back().rejected;
     if (split.held_out > 0 && undid_a_round) final_rounds.rounds = validated.accepted;
     s.joint = joint_estimate(state, final_rounds, steps);
-    if (s.joint.unsettled_change) mark_unsettled(state.fit, s.joint, final_rounds.rounds);
+    if (name_unsettled(state.fit, s.joint, final_rounds.rounds, fo.coated.max_relative_error))
+        run.warn("the joint estimate had not settled after " + std::to_string(final_rounds.rounds) +
+                 " rounds: the material may be off by more than its standard errors say (report.json specular)");
     if (config.joint_rounds == 0) run.leave_out("joint albedo and material estimate", "--joint-rounds 0: the thesis's one-pass estimate");
     s.seconds = watch.seconds();
     diffuse.solve = std::move(state.solve);

@@ -157,6 +157,42 @@ TEST(JointEstimate, OutOfRoundsWhileStillMovingIsUnsettled) {
     EXPECT_NEAR(*r.unsettled_remaining, last * q / (1.0 - q), 1e-5);
 }
 
+// What the pipeline reports then: the coated fit's parameters are named underdetermined with
+// the reason where the distance to the fixed point (last change + geometric tail) exceeds 5%,
+// whatever their standard errors say; close enough, the status stands. A Lafortune fit keeps
+// its status (and its lobe) and the reason says it.
+TEST(JointEstimate, AnUnsettledEstimateNamesTheParametersUnderdetermined) {
+    Script s{.fits = {coated_of(1.45f, 0.09f), coated_of(1.47f, 0.099f), coated_of(1.48f, 0.104f)}};
+    JointState state{.fit = coated_of(1.40f, 0.08f)};
+    const JointResult r = joint_estimate(state, {.rounds = 3, .tolerance = 0.005}, s.steps());
+    MaterialFit fit = state.fit;
+    fit.coated->alpha_determined = fit.coated->eta_determined = true;
+    fit.coated->reason = "converged";
+    ASSERT_TRUE(name_unsettled(fit, r, 3, 0.05)); // 5.1% + 5.4% tail > 5%
+    EXPECT_EQ(fit.coated->status, CoatedFitStatus::Underdetermined);
+    EXPECT_FALSE(fit.coated->alpha_determined);
+    EXPECT_FALSE(fit.coated->eta_determined);
+    EXPECT_NE(fit.coated->reason.find("had not settled after 3 rounds"), std::string::npos) << fit.coated->reason;
+    ASSERT_TRUE(fit.model()); // still the best estimate: rendered and factorized
+    EXPECT_FLOAT_EQ(std::get<CoatedParams>(*fit.model()).alpha, 0.104f);
+
+    MaterialFit close = state.fit;
+    EXPECT_FALSE(name_unsettled(close, r, 3, 0.2)); // within a looser bound: the status stands
+    EXPECT_EQ(close.coated->status, CoatedFitStatus::Converged);
+
+    MaterialFit lobe = fit_of(-0.9f, 0.8f, 20.0f, LafortuneFitStatus::Constrained);
+    ASSERT_TRUE(name_unsettled(lobe, r, 3, 0.05));
+    EXPECT_EQ(lobe.lafortune->channel[0].status, LafortuneFitStatus::Constrained);
+    EXPECT_NE(lobe.lafortune->channel[2].reason.find("had not settled"), std::string::npos);
+    EXPECT_TRUE(lobe.model());
+
+    JointResult settled = r;
+    settled.unsettled_change.reset();
+    settled.unsettled_remaining.reset();
+    MaterialFit untouched = state.fit;
+    EXPECT_FALSE(name_unsettled(untouched, settled, 3, 0.05));
+}
+
 TEST(JointEstimate, SettledOrUndoneRoundsAreNotUnsettled) {
     {   // settled below the tolerance before the limit
         Script s{.fits = {fit_of(-0.9f, 0.8f, 20.0f), fit_of(-0.901f, 0.8f, 20.0f)}};
