@@ -74,10 +74,22 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
             break;
         }
     }
-    // Out of rounds while still moving: say how far from settled (the caller names the
-    // parameters underdetermined; the fit's standard errors hold the albedo fixed and miss it).
-    const bool at_limit = options.rounds > 0 && out.rounds.size() == options.rounds && !out.rounds.back().rejected;
-    if (at_limit && out.rounds.back().max_relative_change >= options.tolerance) {
+    // Ended unsettled: out of rounds while still moving, or a round undone (by the validation
+    // error) while the kept state had itself just moved. Say how far from settled (the caller
+    // names the parameters underdetermined; the fit's standard errors hold the albedo fixed
+    // and miss it).
+    if (!out.rounds.empty() && out.rounds.back().rejected) {
+        // The kept state's own last move, or the undone round's step from it: whichever is larger
+        // (no tail: the rounds did not go on). Vase, coated, thesis rig: kept round 2 had moved
+        // by 20%, the undone round 3 by 1.3%, and alpha was 11% low.
+        double moved = out.rounds.back().max_relative_change;
+        if (out.rounds.size() >= 2) moved = std::max(moved, out.rounds[out.rounds.size() - 2].max_relative_change);
+        if (moved >= options.tolerance) {
+            out.unsettled_change = moved;
+            out.unsettled_remaining = 0.0;
+        }
+    } else if (options.rounds > 0 && out.rounds.size() == options.rounds &&
+               out.rounds.back().max_relative_change >= options.tolerance) {
         const double last = out.rounds.back().max_relative_change;
         out.unsettled_change = last;
         if (out.rounds.size() >= 2) {
@@ -101,8 +113,10 @@ bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t ro
     const double distance = joint.unsettled_remaining ? last + *joint.unsettled_remaining : std::numeric_limits<double>::infinity();
     if (distance <= bound) return false;
     std::string reason = "the joint estimate of albedo and material had not settled after " + std::to_string(rounds) +
-                         " rounds: the last changed the material by " + format_text("%.2g", 100.0 * last) + "%";
-    reason += joint.unsettled_remaining
+                         " rounds: the material last moved by " + format_text("%.2g", 100.0 * last) + "%";
+    const bool undone = !joint.rounds.empty() && joint.rounds.back().rejected;
+    reason += undone ? " (round " + std::to_string(joint.rounds.back().round) + " was undone: it raised the validation error)"
+              : joint.unsettled_remaining
                   ? " (" + format_text("%.2g", 100.0 * *joint.unsettled_remaining) + "% more if the rounds keep converging at that rate)"
                   : " (and the changes are not shrinking)";
     reason += ", so the parameters may be off by more than " + format_text("%.3g", 100.0 * bound) +

@@ -67,14 +67,16 @@ struct JointResult {
     std::uint32_t accepted = 0;             ///< rounds kept
     std::optional<double> first_validation_mse; ///< of the first fit, before any round
     std::string stop;                       ///< why the loop ended
-    /// Present when the loop ran out of rounds while the material still moved: the last kept
-    /// round's relative change (>= tolerance). The fixed point was not reached, so the material
-    /// is off by about this much or more (the rounds converge geometrically: see
-    /// unsettled_remaining), whatever its fit's standard errors say (they hold the albedo fixed).
+    /// Present when the loop ended with the material still moving (>= tolerance): out of
+    /// rounds (the last round's relative change), or a round undone by the validation error
+    /// (the larger of the kept round's change and the undone round's). The fixed point was not
+    /// reached, so the material may be off by about this much or more, whatever its fit's
+    /// standard errors say (they hold the albedo fixed).
     std::optional<double> unsettled_change;
-    /// With unsettled_change and two kept rounds of shrinking change (ratio q = last / previous
-    /// < 1): the geometric tail q / (1 - q) times the last change, the distance to the fixed
-    /// point if the rounds keep converging at the same rate; absent when they do not shrink.
+    /// Out of rounds, with two rounds of shrinking change (ratio q = last / previous < 1): the
+    /// geometric tail q / (1 - q) times the last change, the distance still to go if the rounds
+    /// keep converging at the same rate; 0 when a round was undone (the loop did not go on);
+    /// absent when the changes do not shrink.
     std::optional<double> unsettled_remaining;
 };
 
