@@ -92,10 +92,14 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
                out.rounds.back().max_relative_change >= options.tolerance) {
         const double last = out.rounds.back().max_relative_change;
         out.unsettled_change = last;
-        if (out.rounds.size() >= 2) {
-            const double q = last / std::max(1e-12, out.rounds[out.rounds.size() - 2].max_relative_change);
-            if (q < 1.0) out.unsettled_remaining = last * q / (1.0 - q);
-        }
+        // The rate: the slowest of the last (up to) three ratios of successive changes, since the
+        // rate drifts from round to round (woodenpot, coated, thesis rig, 128 px: 0.82, 0.75,
+        // 0.67; the last ratio alone promised 2.9% more where alpha was still 7.5% off).
+        const std::size_t n = out.rounds.size();
+        double q = 0.0;
+        for (std::size_t k = n - 1; k >= 1 && k + 3 >= n; --k)
+            q = std::max(q, out.rounds[k].max_relative_change / std::max(1e-12, out.rounds[k - 1].max_relative_change));
+        if (n >= 2 && q < 1.0) out.unsettled_remaining = last * q / (1.0 - q);
     }
     return out;
 }

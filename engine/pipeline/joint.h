@@ -73,10 +73,10 @@ struct JointResult {
     /// reached, so the material may be off by about this much or more, whatever its fit's
     /// standard errors say (they hold the albedo fixed).
     std::optional<double> unsettled_change;
-    /// Out of rounds, with two rounds of shrinking change (ratio q = last / previous < 1): the
-    /// geometric tail q / (1 - q) times the last change, the distance still to go if the rounds
-    /// keep converging at the same rate; 0 when a round was undone (the loop did not go on);
-    /// absent when the changes do not shrink.
+    /// Out of rounds, with shrinking changes: the geometric tail q / (1 - q) times the last
+    /// change, q the largest of the last (up to) three ratios of successive changes (all < 1),
+    /// the distance still to go if the rounds keep converging at that rate; 0 when a round was
+    /// undone (the loop did not go on); absent when the changes do not shrink.
     std::optional<double> unsettled_remaining;
 };
 

@@ -136,9 +136,10 @@ void set_refinement_cost(PlanDecision& d, double seconds);
 /// the threshold the families are estimated and "diffuse only" competes with them (it wins
 /// when its validation error is least). Why: on the thesis's near-camera rig every light of a
 /// particle's best view sees its highlight, so the first (Lambertian) solve absorbs most of it
-/// into the albedo and the residuals keep ~2 noise variances of a real lobe (can, Lafortune
-/// truth, 128 px: 2.13), while a Lambertian truth leaves ~0.35 (docs/pipeline.md section 9).
-inline constexpr double kSpecularValidatedRatio = 1.0;
+/// into the albedo and the residuals keep little of a real lobe (128 px, noise-free: can,
+/// Lafortune truth 2.13 noise variances; woodenpot, coated alpha 0.3, 0.71), while a
+/// Lambertian truth leaves less (can 0.35, woodenpot 0.14) (docs/pipeline.md section 5.8).
+inline constexpr double kSpecularValidatedRatio = 0.5;
 
 /// Auto: fit when energy.has_specular; with `validation_frames` > 0 also when the energy
 /// ratio exceeds kSpecularValidatedRatio, the value then being "validate" (fit the families

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <string>
 #include <vector>
 
@@ -150,10 +152,11 @@ TEST(JointEstimate, OutOfRoundsWhileStillMovingIsUnsettled) {
     ASSERT_EQ(r.rounds.size(), 3u);
     EXPECT_EQ(r.stop, "joint rounds: 3 allowed");
     ASSERT_TRUE(r.unsettled_change);
-    const double last = (0.104 - 0.099) / 0.099, previous = (0.099 - 0.09) / 0.09;
+    const double first = (0.09 - 0.08) / 0.08, previous = (0.099 - 0.09) / 0.09, last = (0.104 - 0.099) / 0.099;
     EXPECT_NEAR(*r.unsettled_change, last, 1e-5);
-    ASSERT_TRUE(r.unsettled_remaining); // the changes shrink: a geometric tail
-    const double q = last / previous;
+    ASSERT_TRUE(r.unsettled_remaining); // the changes shrink: a geometric tail at the slowest recent rate
+    const double q = std::max(previous / first, last / previous);
+    EXPECT_NEAR(q, 0.8, 1e-5);
     EXPECT_NEAR(*r.unsettled_remaining, last * q / (1.0 - q), 1e-5);
 }
 
@@ -168,7 +171,7 @@ TEST(JointEstimate, AnUnsettledEstimateNamesTheParametersUnderdetermined) {
     MaterialFit fit = state.fit;
     fit.coated->alpha_determined = fit.coated->eta_determined = true;
     fit.coated->reason = "converged";
-    ASSERT_TRUE(name_unsettled(fit, r, 3, 0.05)); // 5.1% + 5.4% tail > 5%
+    ASSERT_TRUE(name_unsettled(fit, r, 3, 0.05)); // 5.1% + 20% tail > 5%
     EXPECT_EQ(fit.coated->status, CoatedFitStatus::Underdetermined);
     EXPECT_FALSE(fit.coated->alpha_determined);
     EXPECT_FALSE(fit.coated->eta_determined);
@@ -177,7 +180,7 @@ TEST(JointEstimate, AnUnsettledEstimateNamesTheParametersUnderdetermined) {
     EXPECT_FLOAT_EQ(std::get<CoatedParams>(*fit.model()).alpha, 0.104f);
 
     MaterialFit close = state.fit;
-    EXPECT_FALSE(name_unsettled(close, r, 3, 0.2)); // within a looser bound: the status stands
+    EXPECT_FALSE(name_unsettled(close, r, 3, 0.3)); // within a looser bound: the status stands
     EXPECT_EQ(close.coated->status, CoatedFitStatus::Converged);
 
     MaterialFit lobe = fit_of(-0.9f, 0.8f, 20.0f, LafortuneFitStatus::Constrained);

@@ -85,7 +85,7 @@ TEST(Planner, SpecularStagesFollowTheEnergyTest) {
 
 // Near-camera lights (the thesis rig) leave a real lobe mostly in the first solve's albedo:
 // can, Lafortune truth, 128 px: 2.13 noise variances, below the threshold 4; a Lambertian
-// truth 0.35. With validation frames the band above 1 is decided by held-out error.
+// truth 0.35. With validation frames the band above 0.5 is decided by held-out error.
 TEST(Planner, LittleEnergyWithValidationFramesLetsTheHeldOutErrorDecide) {
     ResidualEnergy weak{.mean_square = 3.4e-5, .mean = 0.0, .noise_sigma = 0.004, .ratio = 2.13, .threshold = 4.0, .has_specular = false};
     const PlanDecision v = decide_specular(weak, Toggle::Auto, 12);
