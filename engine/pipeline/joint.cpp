@@ -125,8 +125,8 @@ bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t ro
                   : " (and the changes are not shrinking)";
     reason += ", so the parameters may be off by more than " + format_text("%.3g", 100.0 * bound) +
               "%, whatever their standard errors (which hold the albedo fixed) say: the albedo still holds part of the "
-              "specular (lights near the camera put the highlight in every frame of a particle's best view); more "
-              "--joint-rounds would settle it";
+              "specular (lights near the camera put the highlight in every frame of a particle's best view); the "
+              "rounds stop at --joint-rounds, or at as many as the validated estimate kept where it undid one";
     if (fit.coated && fit.coated->usable()) {
         fit.coated->status = CoatedFitStatus::Underdetermined;
         fit.coated->alpha_determined = fit.coated->eta_determined = false;
