@@ -67,6 +67,17 @@ struct JointResult {
     std::uint32_t accepted = 0;             ///< rounds kept
     std::optional<double> first_validation_mse; ///< of the first fit, before any round
     std::string stop;                       ///< why the loop ended
+    /// Present when the loop ended with the material still moving (>= tolerance): out of
+    /// rounds (the last round's relative change), or a round undone by the validation error
+    /// (the larger of the kept round's change and the undone round's). The fixed point was not
+    /// reached, so the material may be off by about this much or more, whatever its fit's
+    /// standard errors say (they hold the albedo fixed).
+    std::optional<double> unsettled_change;
+    /// Out of rounds, with shrinking changes: the geometric tail q / (1 - q) times the last
+    /// change, q the largest of the last (up to) three ratios of successive changes (all < 1),
+    /// the distance still to go if the rounds keep converging at that rate; 0 when a round was
+    /// undone (the loop did not go on); absent when the changes do not shrink.
+    std::optional<double> unsettled_remaining;
 };
 
 /// The validation frames of the material choice and of the joint rounds: train frames held out
@@ -79,6 +90,15 @@ struct ValidationSplit {
     std::size_t held_out = 0;
 };
 [[nodiscard]] ValidationSplit split_validation_frames(const LambertInputs& in, std::size_t min_frames = 4);
+
+/// Where `joint` ran out of rounds while the material still moved (unsettled_change) and the
+/// distance to the fixed point (the last change plus its geometric tail; unknown when the
+/// changes do not shrink) exceeds `bound` (relative; the pipeline passes the coated fit's
+/// max_relative_error, 5%), says so in `fit`: the coated parameters are named
+/// underdetermined with the reason (the fit's standard errors hold the albedo fixed and
+/// cannot see it), a Lafortune fit keeps its status and lobe with the reason appended.
+/// `rounds`: the limit the loop ran with. Returns whether it named anything.
+bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds, double bound);
 
 /// Runs the rounds on `state` (which holds the first solve, residuals and fit on entry and the
 /// last accepted ones on return). The residual samples are released as each round starts: on

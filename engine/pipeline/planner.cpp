@@ -289,12 +289,13 @@ void set_refinement_cost(PlanDecision& d, double seconds) {
 
 // ---- specular stages --------------------------------------------------------------------
 
-PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle) {
+PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle, std::size_t validation_frames) {
     PlanDecision d;
     d.name = "specular_stages";
     d.forced = toggle != Toggle::Auto;
-    const bool fit = toggle == Toggle::On || (toggle == Toggle::Auto && e.has_specular);
-    d.value = fit ? "fit" : "skip";
+    const bool validate = toggle == Toggle::Auto && !e.has_specular && validation_frames > 0 && e.ratio > kSpecularValidatedRatio;
+    const bool fit = toggle == Toggle::On || (toggle == Toggle::Auto && e.has_specular) || validate;
+    d.value = validate ? "validate" : fit ? "fit" : "skip";
     d.skipped = !fit;
     const std::string energy = "mean squared residual " + format_text("%.3g", e.mean_square) + " = " + format_text("%.3g", e.ratio) +
                                " noise variances (noise sigma " + format_text("%.3g", e.noise_sigma) + ", threshold " +
@@ -302,9 +303,15 @@ PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle) {
     d.detail = {{"mean_square_residual", e.mean_square},
                 {"ratio_to_noise_variance", e.ratio},
                 {"threshold", e.threshold},
+                {"validated_threshold", kSpecularValidatedRatio},
                 {"noise_sigma", e.noise_sigma},
                 {"has_specular", e.has_specular}};
-    if (toggle == Toggle::Auto)
+    if (validate)
+        d.reason = "the residuals hold little energy: " + energy + ", but more than " + format_text("%.3g", kSpecularValidatedRatio) +
+                   " and " + std::to_string(validation_frames) +
+                   " validation frames can tell: the families are estimated and 'diffuse only' competes with them on the "
+                   "validation frames (near-camera lights leave a real lobe mostly in the albedo of the first solve)";
+    else if (toggle == Toggle::Auto)
         d.reason = e.has_specular ? "the residuals hold specular energy: " + energy + "; fit, factorization and specular pass run"
                                   : "the residuals hold no more energy than the noise: " + energy +
                                         "; no Lafortune fit, factorization or specular pass";

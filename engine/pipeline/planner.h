@@ -131,9 +131,22 @@ void set_refinement_cost(PlanDecision& d, double seconds);
 
 // ---- specular stages --------------------------------------------------------------------
 
-/// Auto: fit when energy.has_specular. `probe_seconds` / `probe_samples`: a fit timed on a
-/// small subsample when auto skips (nullopt otherwise), scaled to `fit_samples`.
-[[nodiscard]] PlanDecision decide_specular(const ResidualEnergy& energy, Toggle toggle);
+/// Residual energy (in noise variances) above which, with validation frames, the auto decision
+/// lets the held-out error decide rather than the energy threshold alone: between this and
+/// the threshold the families are estimated and "diffuse only" competes with them (it wins
+/// when its validation error is least). Why: on the thesis's near-camera rig every light of a
+/// particle's best view sees its highlight, so the first (Lambertian) solve absorbs most of it
+/// into the albedo and the residuals keep little of a real lobe (128 px, noise-free: can,
+/// Lafortune truth 2.13 noise variances; woodenpot, coated alpha 0.3, 0.71), while a
+/// Lambertian truth leaves less (can 0.35, woodenpot 0.14) (docs/pipeline.md section 5.8).
+inline constexpr double kSpecularValidatedRatio = 0.5;
+
+/// Auto: fit when energy.has_specular; with `validation_frames` > 0 also when the energy
+/// ratio exceeds kSpecularValidatedRatio, the value then being "validate" (fit the families
+/// and let "diffuse only" compete on the validation frames). `probe_seconds` /
+/// `probe_samples`: a fit timed on a small subsample when auto skips (nullopt otherwise),
+/// scaled to `fit_samples`.
+[[nodiscard]] PlanDecision decide_specular(const ResidualEnergy& energy, Toggle toggle, std::size_t validation_frames = 0);
 /// Fills the cost figures of a specular decision once known.
 void set_specular_cost(PlanDecision& d, std::optional<double> probe_seconds, std::size_t probe_samples,
                        std::size_t fit_samples, std::optional<double> measured_seconds);

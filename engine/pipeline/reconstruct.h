@@ -66,8 +66,10 @@ struct ReconstructConfig {
     CoatedFitOptions coated;        ///< the coated family's fit
     LafortuneFitOptions lafortune;  ///< noise_sigma is set from lambert.noise_sigma (weights make f_s noise image noise)
     /// Joint estimate: after a fit, at most this many rounds of (diffuse solve with the lobe's
-    /// light subtracted, residuals, fit); 0 = the thesis's one pass.
-    std::uint32_t joint_rounds = 3;
+    /// light subtracted, residuals, fit); 0 = the thesis's one pass. 8: on the thesis's
+    /// near-camera rig the rounds converge slowly (each removes about half of what the first
+    /// solve's albedo absorbed; can, coated, 128 px: 6 rounds to settle, 3 leave alpha 7.6% low).
+    std::uint32_t joint_rounds = 8;
     double joint_tolerance = 0.005; ///< stop when no lobe parameter changes by more than this (relative)
     /// Albedo refinement by back-projection (albedo_refine.h): rounds of A <- A + S(captured) -
     /// S(render(A)) after the last solve. nullopt: the planner's choice (kAlbedoRefineRounds);

@@ -141,10 +141,14 @@ json material_choice_json(const SpecularStage& s) {
         if (c.fit.coated) m["coated"] = coated_json(*c.fit.coated);
         candidates.push_back(std::move(m));
     }
-    return {{"family", to_string(s.fit->family)},
-            {"choice", s.choice},
-            {"validation_frames", s.validation_frames},
-            {"candidates", candidates}};
+    json j = {{"family", s.fit ? to_string(s.fit->family) : "diffuse_only"},
+              {"choice", s.choice},
+              {"validation_frames", s.validation_frames},
+              {"candidates", candidates}};
+    if (s.diffuse_only_mse)
+        j["diffuse_only"] = {{"validation_mse", *s.diffuse_only_mse},
+                             {"validation_psnr_linear_db", *s.diffuse_only_mse > 0.0 ? json(-10.0 * std::log10(*s.diffuse_only_mse)) : json(nullptr)}};
+    return j;
 }
 
 json specular_json(const SpecularStage& s, double joint_tolerance) {
@@ -177,7 +181,8 @@ json specular_json(const SpecularStage& s, double joint_tolerance) {
     if (rs.gpu_ms) seconds["residuals_gpu_ms"] = *rs.gpu_ms;
     if (!s.fit) {
         j["lobe"] = nullptr;
-        j["material"] = nullptr;
+        // Diffuse only may have beaten the families on the validation frames (decide_specular "validate").
+        j["material"] = s.candidates.empty() ? json(nullptr) : material_choice_json(s);
         j["seconds"] = seconds;
         return j;
     }
@@ -211,6 +216,10 @@ json specular_json(const SpecularStage& s, double joint_tolerance) {
     j["samples"]["fitted"] = s.fit_samples; // stride subsample (max_fit_samples)
     j["joint"] = joint_json(s.joint);
     j["joint"]["tolerance"] = joint_tolerance;
+    // Out of rounds while still moving (the fit's status and reason say what it means).
+    j["joint"]["settled"] = !s.joint.unsettled_change.has_value();
+    if (s.joint.unsettled_change) j["joint"]["unsettled_change"] = *s.joint.unsettled_change;
+    if (s.joint.unsettled_remaining) j["joint"]["unsettled_remaining"] = *s.joint.unsettled_remaining;
     j["joint"]["seconds"] = s.seconds; // the candidates, the final fit and its joint rounds
     return j;
 }

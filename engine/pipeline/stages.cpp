@@ -2,6 +2,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/format.h"
 #include "core/log.h"
 #include "core/timer.h"
 #include "gpu/context.h"
@@ -256,11 +257,13 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
                    : s.validation_frames > 0      ? std::numeric_limits<double>::infinity()
                                                   : material_mean_square_error(scored, to_material_samples(train));
     }
+    // "Diffuse only" (its index: families.size()) when it competes (decide_specular "validate").
+    if (s.diffuse_only_mse) error.push_back(*s.diffuse_only_mse);
     const std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
     std::string scores;
-    for (std::size_t k = 0; k < s.candidates.size(); ++k) {
+    for (std::size_t k = 0; k < error.size(); ++k) {
         if (k > 0) scores += ", ";
-        scores += to_string(families[k]);
+        scores += k < families.size() ? to_string(families[k]) : "diffuse only";
         if (!std::isfinite(error[k])) {
             scores += " no usable fit";
             continue;
@@ -276,7 +279,7 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
                                   : "no validation frames (every view has fewer than 4 train frames): mean square error on the "
                                     "train residuals, which favours the more flexible model: ";
     if (run.config.material) s.choice = std::string("forced (--material ") + to_string(*run.config.material) + "); " + basis + scores;
-    else s.choice = std::string(to_string(families[best])) + " has the least " + basis + scores;
+    else s.choice = std::string(best < families.size() ? to_string(families[best]) : "diffuse only") + " has the least " + basis + scores;
     return best;
 }
 
@@ -296,7 +299,10 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     ResidualSamples rs = run_residuals(run, diffuse.inputs, diffuse.solve, diffuse.options, "residual samples");
     s.energy = residual_energy(rs.samples, static_cast<double>(diffuse.options.noise_sigma), config.specular_energy_threshold);
     const Toggle toggle = config.specular == SpecularMode::On ? Toggle::On : Toggle::Auto;
-    const PlanDecision& decision = run.plan().add(decide_specular(s.energy, toggle));
+    const ValidationSplit split = split_validation_frames(diffuse.inputs);
+    const PlanDecision& decision = run.plan().add(decide_specular(s.energy, toggle, split.held_out));
+    // Little energy, but validation frames: "diffuse only" competes with the families.
+    const bool diffuse_only_competes = decision.value == "validate";
     log::info("residual samples: " + std::to_string(rs.counts.used) + " used; " + decision.reason);
     MaterialFitOptions fo{.lafortune = config.lafortune, .coated = config.coated, .max_samples = config.max_fit_samples};
     fo.lafortune.noise_sigma = static_cast<double>(diffuse.options.noise_sigma);
@@ -320,11 +326,16 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     else for (std::size_t f = 0; f < kMaterialFamilyCount; ++f) families.push_back(static_cast<MaterialFamily>(f));
 
     // 1. Each family on the train frames less the validation frames, scored on those.
-    const ValidationSplit split = split_validation_frames(diffuse.inputs);
     s.validation_frames = split.held_out;
     if (split.held_out > 0) {
         const LambertOutputs solve0 = run_solve(run, split.fit, diffuse.options, "diffuse solve (validation split)");
         const ResidualSamples rs0 = run_residuals(run, split.fit, solve0, diffuse.options, "residual samples (validation split)");
+        if (diffuse_only_competes) {
+            // The first solve's albedo with no specular at all, scored as every family is.
+            const ResidualSamples rv = run_residuals(run, split.validation, solve0, diffuse.options, "validation (diffuse only)");
+            s.diffuse_only_mse = material_mean_square_error(SpecularModel(LafortuneRgb{}), to_material_samples(rv.samples));
+            log::info("material candidate diffuse only: validation PSNR " + std::to_string(psnr_of(*s.diffuse_only_mse)) + " dB");
+        }
         for (const MaterialFamily family : families) {
             const Stopwatch w;
             const std::string label = std::string(" (") + to_string(family) + ", validation split)";
@@ -334,6 +345,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
             state.residuals.counts = rs0.counts;
             MaterialCandidate c;
             c.joint = joint_estimate(state, jo, steps);
+            (void)name_unsettled(state.fit, c.joint, jo.rounds, fo.coated.max_relative_error);
             c.fit = std::move(state.fit);
             c.validation_mse = state.validation_mse;
             c.seconds = w.seconds();
@@ -352,8 +364,28 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
         }
     }
     const std::size_t best = choose_material(run, s, families, rs.samples);
-    const MaterialFamily winner = families[best];
     log::info("material: " + s.choice);
+    if (best == families.size()) {
+        // Diffuse only has the least validation error: the specular is left out, measured.
+        PlanDecision& d = *run.plan().find("specular_stages");
+        d.value = "skip";
+        d.skipped = true;
+        d.reason += "; diffuse only won: " + s.choice;
+        d.measured_seconds = watch.seconds();
+        d.cost_basis = "measured: the candidates' estimates on the validation split, which diffuse only beat";
+        PlanDecision m{.name = "material", .value = "diffuse only", .forced = false, .reason = s.choice};
+        m.measured_seconds = watch.seconds();
+        m.cost_basis = "measured: each candidate's joint estimate on the train frames less the validation frames";
+        run.plan().add(std::move(m));
+        run.leave_out("specular fit, factorization and specular pass", "diffuse only has the least validation error: " + s.choice);
+        s.decision = "skipped: diffuse only has the least validation error (--specular auto)";
+        s.seconds = watch.seconds();
+        s.backend = run.particle_backend();
+        rs.samples = {};
+        s.residuals = std::move(rs);
+        return s;
+    }
+    const MaterialFamily winner = families[best];
     {
         PlanDecision d{.name = "material", .value = to_string(winner), .forced = config.material.has_value(), .reason = s.choice};
         double seconds = 0.0;
@@ -378,8 +410,16 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
                      .validation_mse = std::nullopt};
     state.residuals = std::move(rs);
     JointOptions final_rounds = jo;
-    if (split.held_out > 0) final_rounds.rounds = s.candidates[best].joint.accepted;
+    // Without a validation step the final rounds cannot undo a round that makes things worse:
+    // where the validated estimate undid one (an oscillation), at most its kept rounds run;
+    // where it settled or ran out of rounds, the same limit (a settled estimate stops early).
+    const JointResult& validated = s.candidates[best].joint;
+    const bool undid_a_round = !validated.rounds.empty() && validated.rounds.back().rejected;
+    if (split.held_out > 0 && undid_a_round) final_rounds.rounds = validated.accepted;
     s.joint = joint_estimate(state, final_rounds, steps);
+    if (name_unsettled(state.fit, s.joint, final_rounds.rounds, fo.coated.max_relative_error))
+        run.warn("the joint estimate had not settled after " + std::to_string(final_rounds.rounds) +
+                 " rounds: the material may be off by more than its standard errors say (report.json specular)");
     if (config.joint_rounds == 0) run.leave_out("joint albedo and material estimate", "--joint-rounds 0: the thesis's one-pass estimate");
     s.seconds = watch.seconds();
     diffuse.solve = std::move(state.solve);

@@ -80,6 +80,9 @@ struct SpecularStage {
     std::vector<MaterialCandidate> candidates; ///< every family estimated, in MaterialFamily order
     std::string choice;                   ///< why the winner won (or was forced)
     std::size_t validation_frames = 0;    ///< frames held out for the choice and the joint rounds
+    /// "Diffuse only" as a candidate (decide_specular "validate": little residual energy, but
+    /// validation frames): the validation error of the first solve's albedo with no specular.
+    std::optional<double> diffuse_only_mse;
     double fit_seconds = 0.0;             ///< the fits alone (all candidates and the final fit)
     std::size_t fit_samples = 0;          ///< samples of the last fit (stride subsample)
     JointResult joint;                    ///< the final estimate's rounds

@@ -83,6 +83,26 @@ TEST(Planner, SpecularStagesFollowTheEnergyTest) {
     EXPECT_NEAR(skip.avoided_seconds.value_or(0.0), 10.0, 1e-9); // 0.2 s x 200000 / 4000
 }
 
+// Near-camera lights (the thesis rig) leave a real lobe mostly in the first solve's albedo:
+// can, Lafortune truth, 128 px: 2.13 noise variances, below the threshold 4; a Lambertian
+// truth 0.35. With validation frames the band above 0.5 is decided by held-out error.
+TEST(Planner, LittleEnergyWithValidationFramesLetsTheHeldOutErrorDecide) {
+    ResidualEnergy weak{.mean_square = 3.4e-5, .mean = 0.0, .noise_sigma = 0.004, .ratio = 2.13, .threshold = 4.0, .has_specular = false};
+    const PlanDecision v = decide_specular(weak, Toggle::Auto, 12);
+    EXPECT_EQ(v.value, "validate");
+    EXPECT_FALSE(v.skipped);
+    EXPECT_NE(v.reason.find("diffuse only"), std::string::npos) << v.reason;
+    EXPECT_EQ(decide_specular(weak, Toggle::Auto, 0).value, "skip"); // no validation frames: the threshold alone
+    ResidualEnergy lambertian = weak;
+    lambertian.ratio = 0.35;
+    EXPECT_EQ(decide_specular(lambertian, Toggle::Auto, 12).value, "skip");
+    ResidualEnergy shiny = weak;
+    shiny.ratio = 40.0, shiny.has_specular = true;
+    EXPECT_EQ(decide_specular(shiny, Toggle::Auto, 12).value, "fit"); // above the threshold: no competition
+    EXPECT_EQ(decide_specular(weak, Toggle::On, 12).value, "fit");
+    EXPECT_EQ(decide_specular(weak, Toggle::Off, 12).value, "skip");
+}
+
 TEST(Planner, DiffuseModeNeedsNonCoplanarLights) {
     LightConditioning good{.views = 10, .capable_views = 10, .median_rcond = 0.05, .min_rcond = 1e-3, .min_lights = 6};
     LightConditioning bad{.views = 10, .capable_views = 2, .median_rcond = 0.0, .min_rcond = 1e-3, .min_lights = 2};

@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 
 namespace specula {
@@ -81,9 +82,74 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
 
 INSTANTIATE_TEST_SUITE_P(Truths, MaterialChoice,
                          ::testing::Values(ChoiceCase{"coated_spread", MaterialFamily::Coated, synth::RigKind::Spread},
-                                           ChoiceCase{"coated_thesis", MaterialFamily::Coated, synth::RigKind::Thesis, 0.03, 0.10},
+                                           ChoiceCase{"coated_thesis", MaterialFamily::Coated, synth::RigKind::Thesis, 0.02, 0.05},
                                            ChoiceCase{"lafortune_spread", MaterialFamily::Lafortune, synth::RigKind::Spread}),
                          [](const auto& info) { return info.param.name; });
+
+// The thesis's near-camera rig (issue 15): every light of a particle's best view sees its
+// highlight, so the first (Lambertian) solve absorbs most of a real lobe and the residuals keep
+// about 2 noise variances of it (can, Lafortune truth, 128 px: 2.13), below the energy
+// threshold 4 that used to leave the specular out. With validation frames the planner lets
+// the held-out error decide: the Lafortune truth keeps a specular (constrained: the rig shows
+// one light-view angle), whose validation error beats "diffuse only"; a Lambertian truth
+// (0.35 noise variances) still ends diffuse only and says why.
+ReconstructResult reconstruct_thesis_rig(const fs::path& dir, bool lambertian) {
+    synth::SynthOptions so;
+    so.size = 128;
+    so.views = 12;
+    so.rig = synth::RigKind::Thesis;
+    so.lambertian = lambertian;
+    const fs::path capture = dir / "can";
+    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("can", lambertian, MaterialFamily::Lafortune)), capture, so);
+    ReconstructConfig c;
+    c.capture = capture;
+    c.out_dir = dir / "out";
+    c.evaluate = false;
+    c.refine_rounds = 0;
+    c.threads = 2;
+    c.factorization_grid_h = c.factorization_grid_d = 16; // the choice is the test, not the cube-maps
+    return reconstruct(c);
+}
+
+const nlohmann::json& planner_decision(const nlohmann::json& report, const std::string& name) {
+    for (const auto& d : report["planner"])
+        if (d["name"] == name) return d;
+    static const nlohmann::json kNull;
+    ADD_FAILURE() << "no planner decision " << name;
+    return kNull;
+}
+
+TEST(MaterialChoiceThesisRig, LafortuneTruthKeepsASpecularThatBeatsDiffuseOnly) {
+    test::TempDir dir("choice");
+    const ReconstructResult r = reconstruct_thesis_rig(dir.path(), false);
+    const nlohmann::json& s = r.report["specular"];
+    std::printf("energy %.3f noise variances; %s\n", s["energy"]["ratio_to_noise_variance"].get<double>(),
+                s["material"].value("choice", std::string()).c_str());
+    EXPECT_FALSE(s["energy"]["has_specular"].get<bool>()); // below the threshold: the case this covers
+    EXPECT_EQ(planner_decision(r.report, "specular_stages")["value"], "validate");
+    ASSERT_TRUE(s["material"].is_object());
+    EXPECT_EQ(s["material"]["family"], "lafortune");
+    ASSERT_TRUE(s["material"]["diffuse_only"].is_object());
+    double best = std::numeric_limits<double>::infinity();
+    for (const nlohmann::json& cand : s["material"]["candidates"])
+        if (cand["validation_mse"].is_number()) best = std::min(best, cand["validation_mse"].get<double>());
+    EXPECT_LT(best, s["material"]["diffuse_only"]["validation_mse"].get<double>());
+    for (const nlohmann::json& status : s["lobe"]["status"]) EXPECT_TRUE(status == "constrained" || status == "converged") << status;
+    EXPECT_EQ(r.report["bundle"]["has_lobe"], true);
+}
+
+TEST(MaterialChoiceThesisRig, LambertianTruthEndsDiffuseOnlyAndSaysWhy) {
+    test::TempDir dir("choice");
+    const ReconstructResult r = reconstruct_thesis_rig(dir.path(), true);
+    const nlohmann::json& s = r.report["specular"];
+    std::printf("energy %.3f noise variances\n", s["energy"]["ratio_to_noise_variance"].get<double>());
+    EXPECT_EQ(planner_decision(r.report, "specular_stages")["value"], "skip");
+    EXPECT_TRUE(s["lobe"].is_null());
+    EXPECT_EQ(r.report["bundle"]["has_lobe"], false);
+    bool said = false;
+    for (const auto& l : r.report["left_out"]) said = said || l.dump().find("specular fit") != std::string::npos;
+    EXPECT_TRUE(said) << r.report["left_out"].dump();
+}
 
 } // namespace
 } // namespace specula
