@@ -497,9 +497,9 @@ FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& sp
                                                            : "no specular: the specular stages were left out"});
         return f;
     }
-    const SpecularModel& lobe = *f.material;
-    run.plan().add(decide_factorization_grid(lobe, config.factorization_grid_h, config.factorization_grid_d));
-    const factorization::FactorizationResolution res = decided_grid(lobe, config.factorization_grid_h, config.factorization_grid_d);
+    const SpecularModel& model = *f.material;
+    run.plan().add(decide_factorization_grid(model, config.factorization_grid_h, config.factorization_grid_d));
+    const factorization::FactorizationResolution res = decided_grid(model, config.factorization_grid_h, config.factorization_grid_d);
     // On a CPU Vulkan driver (lavapipe) the factorization's kernels run slower than their C++
     // reference (the coated cologne at 512 px: residual terms 35 s on lavapipe, the whole plain
     // factorization 11 s of CPU in C++), as the metric kernels do (evaluation_stage): the
@@ -521,7 +521,7 @@ FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& sp
         fo.grid_h = config.factorization_grid_h;
         fo.grid_d = config.factorization_grid_d;
         fo.param = config.factor_param;
-        return factorization::factorize(lobe, fo, backend, backend == Backend::Vulkan ? run.compute_context() : nullptr);
+        return factorization::factorize(model, fo, backend, backend == Backend::Vulkan ? run.compute_context() : nullptr);
     });
     const factorization::Factorization& cubes = *f.cubes;
     PlanDecision& grid = *run.plan().find("factorization_grid");
@@ -550,7 +550,7 @@ FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& sp
     }
     set_factorization_cost(grid, seconds, what);
     // Error of the first k terms for k = 1..K (the last one is what the bundle renders).
-    for (uint32_t k = 1; k <= cubes.term_count(); ++k) f.per_term.push_back(factorization::direct_relative_rms(lobe, cubes, k, 1u << 16));
+    for (uint32_t k = 1; k <= cubes.term_count(); ++k) f.per_term.push_back(factorization::direct_relative_rms(model, cubes, k, 1u << 16));
     grid.detail["relative_rms_vs_lobe_cubemaps"] =
         std::isfinite(f.per_term.back().cube) ? nlohmann::json(f.per_term.back().cube) : nlohmann::json(nullptr);
     grid.detail["terms"] = cubes.term_count();
