@@ -293,7 +293,7 @@ PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle, std::size_t
     PlanDecision d;
     d.name = "specular_stages";
     d.forced = toggle != Toggle::Auto;
-    const bool validate = toggle == Toggle::Auto && !e.has_specular && validation_frames > 0 && e.ratio > kSpecularValidatedRatio;
+    const bool validate = toggle == Toggle::Auto && !e.has_specular && validation_frames > 0;
     const bool fit = toggle == Toggle::On || (toggle == Toggle::Auto && e.has_specular) || validate;
     d.value = validate ? "validate" : fit ? "fit" : "skip";
     d.skipped = !fit;
@@ -303,14 +303,14 @@ PlanDecision decide_specular(const ResidualEnergy& e, Toggle toggle, std::size_t
     d.detail = {{"mean_square_residual", e.mean_square},
                 {"ratio_to_noise_variance", e.ratio},
                 {"threshold", e.threshold},
-                {"validated_threshold", kSpecularValidatedRatio},
+                {"diffuse_only_margin_db", kDiffuseOnlyMarginDb},
                 {"noise_sigma", e.noise_sigma},
                 {"has_specular", e.has_specular}};
     if (validate)
-        d.reason = "the residuals hold little energy: " + energy + ", but more than " + format_text("%.3g", kSpecularValidatedRatio) +
-                   " and " + std::to_string(validation_frames) +
+        d.reason = "the residuals hold little energy: " + energy + ", but " + std::to_string(validation_frames) +
                    " validation frames can tell: the families are estimated and 'diffuse only' competes with them on the "
-                   "validation frames (near-camera lights leave a real lobe mostly in the albedo of the first solve)";
+                   "validation frames, a family kept only if it beats it by more than " + format_text("%.2g", kDiffuseOnlyMarginDb) +
+                   " dB (near-camera lights leave a real lobe mostly in the albedo of the first solve)";
     else if (toggle == Toggle::Auto)
         d.reason = e.has_specular ? "the residuals hold specular energy: " + energy + "; fit, factorization and specular pass run"
                                   : "the residuals hold no more energy than the noise: " + energy +

@@ -257,9 +257,13 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
                    : s.validation_frames > 0      ? std::numeric_limits<double>::infinity()
                                                   : material_mean_square_error(scored, to_material_samples(train));
     }
-    // "Diffuse only" (its index: families.size()) when it competes (decide_specular "validate").
-    if (s.diffuse_only_mse) error.push_back(*s.diffuse_only_mse);
-    const std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
+    std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
+    // "Diffuse only" (its index: families.size()) when it competes (decide_specular "validate"):
+    // it wins unless the best family beats it by more than kDiffuseOnlyMarginDb.
+    if (s.diffuse_only_mse) {
+        error.push_back(*s.diffuse_only_mse);
+        if (!(psnr_of(error[best]) > psnr_of(*s.diffuse_only_mse) + kDiffuseOnlyMarginDb)) best = families.size();
+    }
     std::string scores;
     for (std::size_t k = 0; k < error.size(); ++k) {
         if (k > 0) scores += ", ";
@@ -279,7 +283,8 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
                                   : "no validation frames (every view has fewer than 4 train frames): mean square error on the "
                                     "train residuals, which favours the more flexible model: ";
     if (run.config.material) s.choice = std::string("forced (--material ") + to_string(*run.config.material) + "); " + basis + scores;
-    else s.choice = std::string(best < families.size() ? to_string(families[best]) : "diffuse only") + " has the least " + basis + scores;
+    else if (best < families.size()) s.choice = std::string(to_string(families[best])) + " has the least " + basis + scores;
+    else s.choice = "diffuse only: no family beats it by more than " + format_text("%.2g", kDiffuseOnlyMarginDb) + " dB on the " + basis + scores;
     return best;
 }
 

@@ -92,7 +92,7 @@ INSTANTIATE_TEST_SUITE_P(Truths, MaterialChoice,
 // threshold 4 that used to leave the specular out. With validation frames the planner lets
 // the held-out error decide: the Lafortune truth keeps a specular (constrained: the rig shows
 // one light-view angle), whose validation error beats "diffuse only"; a Lambertian truth
-// (0.35 noise variances) still ends diffuse only and says why.
+// (0.35 noise variances: the candidates run too) still ends diffuse only and says why.
 ReconstructResult reconstruct_thesis_rig(const fs::path& dir, bool lambertian) {
     synth::SynthOptions so;
     so.size = 128;
