@@ -32,25 +32,33 @@ struct ChoiceCase {
     double tol_eta = 0.02, tol_alpha = 0.05;
 };
 
-class MaterialChoice : public ::testing::TestWithParam<ChoiceCase> {};
-
-TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidationError) {
-    const ChoiceCase& cc = GetParam();
-    test::TempDir dir("choice");
+// The can at 128 px, 12 views, of the given truth and rig, reconstructed without evaluation or
+// refinement; `grid` > 0 forces a small factorization grid where the choice is the test.
+ReconstructResult reconstruct_can(const fs::path& dir, MaterialFamily truth, synth::RigKind rig, bool lambertian,
+                                  std::uint32_t grid = 0) {
     synth::SynthOptions so;
     so.size = 128;
     so.views = 12;
-    so.rig = cc.rig;
+    so.rig = rig;
+    so.lambertian = lambertian;
     const fs::path capture = dir / "can";
-    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("can", false, cc.truth)), capture, so);
-
+    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("can", lambertian, truth)), capture, so);
     ReconstructConfig c;
     c.capture = capture;
     c.out_dir = dir / "out";
     c.evaluate = false;
     c.refine_rounds = 0;
     c.threads = 2;
-    const ReconstructResult r = reconstruct(c);
+    c.factorization_grid_h = c.factorization_grid_d = grid;
+    return reconstruct(c);
+}
+
+class MaterialChoice : public ::testing::TestWithParam<ChoiceCase> {};
+
+TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidationError) {
+    const ChoiceCase& cc = GetParam();
+    test::TempDir dir("choice");
+    const ReconstructResult r = reconstruct_can(dir.path(), cc.truth, cc.rig, /*lambertian=*/false);
     const nlohmann::json& m = r.report["specular"]["material"];
     ASSERT_TRUE(m.is_object()) << r.report["specular"].dump();
     std::printf("%s: %s\n", cc.name.c_str(), m["choice"].get<std::string>().c_str());
@@ -70,7 +78,7 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
     }
     if (cc.truth == MaterialFamily::Coated) {
         const nlohmann::json& fit = r.report["specular"]["coated"];
-        const nlohmann::json truth = nlohmann::json::parse(std::ifstream(capture / "capture.json"))["ground_truth"]["material"];
+        const nlohmann::json truth = nlohmann::json::parse(std::ifstream(dir.path() / "can" / "capture.json"))["ground_truth"]["material"];
         const double eta = fit["eta"], alpha = fit["alpha"], teta = truth["eta"], talpha = truth["alpha"];
         std::printf("  eta %.4f (truth %.4f, %+.2f%%), alpha %.4f (truth %.4f, %+.2f%%), %s\n", eta, teta, 100 * (eta - teta) / teta,
                     alpha, talpha, 100 * (alpha - talpha) / talpha, fit["reason"].get<std::string>().c_str());
@@ -94,21 +102,7 @@ INSTANTIATE_TEST_SUITE_P(Truths, MaterialChoice,
 // one light-view angle), whose validation error beats "diffuse only"; a Lambertian truth
 // (0.35 noise variances: the candidates run too) still ends diffuse only and says why.
 ReconstructResult reconstruct_thesis_rig(const fs::path& dir, bool lambertian) {
-    synth::SynthOptions so;
-    so.size = 128;
-    so.views = 12;
-    so.rig = synth::RigKind::Thesis;
-    so.lambertian = lambertian;
-    const fs::path capture = dir / "can";
-    (void)synth::write_synthetic_capture(synth::to_object(synth::make_preset("can", lambertian, MaterialFamily::Lafortune)), capture, so);
-    ReconstructConfig c;
-    c.capture = capture;
-    c.out_dir = dir / "out";
-    c.evaluate = false;
-    c.refine_rounds = 0;
-    c.threads = 2;
-    c.factorization_grid_h = c.factorization_grid_d = 16; // the choice is the test, not the cube-maps
-    return reconstruct(c);
+    return reconstruct_can(dir, MaterialFamily::Lafortune, synth::RigKind::Thesis, lambertian, /*grid=*/16);
 }
 
 const nlohmann::json& planner_decision(const nlohmann::json& report, const std::string& name) {
