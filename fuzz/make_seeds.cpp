@@ -9,6 +9,7 @@
 #include "core/image.h"
 #include "export/bundle.h"
 #include "gltf_builder.h"
+#include "unit_cube.h"
 
 #include <nlohmann/json.hpp>
 
@@ -33,15 +34,6 @@ Image gradient(int w, int h, int channels) {
     return img;
 }
 
-Mesh cube() {
-    Mesh m;
-    for (int i = 0; i < 8; ++i)
-        m.positions.emplace_back((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f, (i & 4) ? 0.5f : -0.5f);
-    m.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    m.normals = compute_vertex_normals(m.positions, m.triangles);
-    return m;
-}
 
 json frame(const std::string& file, int view, double tz, double lx) {
     return {{"file_path", file},
@@ -85,7 +77,7 @@ int main(int argc, char** argv) {
         write_text_file(out / "capture_json/per_frame.json", k.dump());
 
         // Meshes: a .glb as Specula writes it, and a .gltf with a node transform and 16-bit indices.
-        write_mesh_glb(out / "gltf_mesh/cube.glb", cube());
+        write_mesh_glb(out / "gltf_mesh/cube.glb", test::unit_cube_mesh());
         test::GltfBuilder b;
         const int pos = b.positions({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0});
         const int idx = b.indices_u16({0, 1, 2, 0, 2, 3});

@@ -7,6 +7,7 @@
 #include "core/timer.h"
 #include "gltf_builder.h"
 #include "test_dirs.h"
+#include "unit_cube.h"
 
 #include "expect_error.h"
 
@@ -27,16 +28,7 @@ namespace fs = std::filesystem;
 constexpr int kW = 4; // images are 4 x 3: a swapped w/h would be caught
 constexpr int kH = 3;
 
-Mesh unit_cube_mesh() {
-    // Eight corners of [-0.5, 0.5]^3, twelve triangles (outward winding).
-    Mesh m;
-    for (int i = 0; i < 8; ++i)
-        m.positions.emplace_back((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f, (i & 4) ? 0.5f : -0.5f);
-    m.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    m.normals = compute_vertex_normals(m.positions, m.triangles);
-    return m;
-}
+using test::unit_cube_mesh;
 
 json pose_json(double tz, double tx = 0.0) {
     return json::array({json::array({1, 0, 0, tx}), json::array({0, 1, 0, 0}), json::array({0, 0, 1, tz}),
