@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/image_input.h"
 #include "core/json_guard.h"
 #include "core/memory.h"
 #include "core/parallel.h"
@@ -279,23 +280,14 @@ const std::vector<float>& srgb_table(int bits) {
     return bits == 8 ? t8 : t16;
 }
 
-// Reads the colour channels of an image file. Unlike core's read_image this opens
-// the file with unassociated alpha, so an alpha channel is truly ignored (OIIO
-// would otherwise premultiply PNG colour by alpha), reads only the channels it
-// needs, and decodes sRGB 8/16-bit files through a table.
+// Reads the colour channels of an image file, opened as core's readers open it
+// (open_image_file: alpha unassociated, the EXR header walked first). Unlike core's
+// read_image it reads only the channels it needs and decodes sRGB 8/16-bit files through
+// a table.
 // `expected` (w, h) is checked from the header, before any pixel memory is allocated.
 RgbPixels read_rgb(const fs::path& path, ColorSpace encoding, int max_channels, const std::string& field,
                    const Intrinsics& expected, const char* what) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) throw InputError(path, field, "file not found");
-    if (!fs::is_regular_file(path, ec)) throw InputError(path, field, "not a regular file");
-    OIIO::ImageSpec config;
-    config.attribute("oiio:UnassociatedAlpha", 1);
-    auto in = OIIO::ImageInput::open(path.string(), &config);
-    if (!in) {
-        const std::string why = OIIO::geterror();
-        throw InputError(path, field, "cannot read image" + (why.empty() ? std::string() : " (" + why + ")"));
-    }
+    auto in = open_image_file(path, field);
     const OIIO::ImageSpec& spec = in->spec();
     RgbPixels px;
     px.width = spec.width;

@@ -1,4 +1,5 @@
 #include "core/image.h"
+#include "core/image_input.h"
 
 #include "core/error.h"
 #include "core/file_util.h"
@@ -9,6 +10,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <functional>
 #include <new>
 #include <optional>
 
@@ -26,12 +29,102 @@ float linear_to_srgb(float v) noexcept {
 
 namespace {
 
-std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, const std::string& field) {
+std::uint32_t little_endian_u32(const std::uint8_t* b) {
+    return static_cast<std::uint32_t>(b[0]) | static_cast<std::uint32_t>(b[1]) << 8 |
+           static_cast<std::uint32_t>(b[2]) << 16 | static_cast<std::uint32_t>(b[3]) << 24;
+}
+
+std::string dimension_refusal(std::int64_t width, std::int64_t height, int max_dimension) {
+    return "image is " + std::to_string(width) + " x " + std::to_string(height) +
+           ", above the largest accepted width or height (" + std::to_string(max_dimension) + ")";
+}
+
+constexpr std::uint8_t kExrMagic[4] = {0x76, 0x2F, 0x31, 0x01};
+
+// Reads up to n bytes at an offset into dst; returns how many it read (fewer at the end).
+using ReadAt = std::function<std::size_t(std::uint64_t offset, std::uint8_t* dst, std::size_t n)>;
+
+// OpenEXR's header (the OpenEXR file layout): after the 4-byte magic number and the 4-byte
+// version field come attributes, each a name and a type name (NUL-terminated, at most 31
+// bytes, 255 with the long-names flag 0x400), a 4-byte little-endian size and that many bytes
+// of value; an empty name ends the header. A multi-part file (flag 0x1000) holds one header
+// per part and an empty header after the last. OpenEXR allocates an attribute's declared
+// size before it reads the value: a 485-byte file whose string attribute claimed 1.85 GB
+// made it allocate 1.85 GB (found by fuzz_image_decode, tests/core/hostile_test.cpp keeps
+// it). So the header is walked here first: every attribute must fit in the bytes the file
+// holds (`total`), and the data window within max_dimension, before OpenEXR sees the file.
+void check_exr_header(const ReadAt& read_at, std::uint64_t total, const fs::path& file, const std::string& field,
+                      int max_dimension) {
+    auto refuse = [&](const std::string& why) {
+        throw InputError(file, field, "malformed OpenEXR header: " + why);
+    };
+    std::uint8_t version[8];
+    if (read_at(0, version, sizeof version) < sizeof version) refuse("the file ends inside the version field");
+    const std::uint32_t flags = little_endian_u32(version + 4);
+    if ((flags & 0xFFu) != 2) refuse("version " + std::to_string(flags & 0xFFu) + " (only version 2 exists)");
+    const std::size_t max_name = (flags & 0x400u) != 0 ? 255 : 31;
+    const bool multipart = (flags & 0x1000u) != 0;
+    std::uint64_t pos = sizeof version;
+    auto read_name = [&](const char* what) {
+        std::uint8_t buf[256];
+        const std::size_t got = read_at(pos, buf, max_name + 1);
+        const std::uint8_t* end = std::find(buf, buf + got, std::uint8_t{0});
+        if (end == buf + got)
+            refuse(std::string("the attribute ") + what + " at byte " + std::to_string(pos) + " is unterminated or longer than " +
+                   std::to_string(max_name) + " bytes");
+        std::string s(reinterpret_cast<const char*>(buf), reinterpret_cast<const char*>(end));
+        pos += s.size() + 1;
+        return s;
+    };
+    for (;;) { // one header per part
+        int attributes = 0;
+        for (std::string name = read_name("name"); !name.empty(); name = read_name("name"), ++attributes) {
+            const std::string type = read_name("type name");
+            std::uint8_t size_bytes[4];
+            if (read_at(pos, size_bytes, 4) < 4) refuse("the file ends inside the size of attribute '" + name + "'");
+            pos += 4;
+            const auto size = static_cast<std::int32_t>(little_endian_u32(size_bytes));
+            if (size < 0 || static_cast<std::uint64_t>(size) > total - pos)
+                refuse("attribute '" + name + "' (" + type + ") claims " + std::to_string(size) + " bytes, but the file holds " +
+                       std::to_string(total - pos) + " after it");
+            if (name == "dataWindow" && type == "box2i" && size == 16) {
+                std::uint8_t box[16];
+                if (read_at(pos, box, sizeof box) == sizeof box) {
+                    auto corner = [&](int i) { return static_cast<std::int64_t>(static_cast<std::int32_t>(little_endian_u32(box + 4 * i))); };
+                    const std::int64_t width = corner(2) - corner(0) + 1, height = corner(3) - corner(1) + 1;
+                    if (width > max_dimension || height > max_dimension)
+                        throw InputError(file, field, dimension_refusal(width, height, max_dimension));
+                }
+            }
+            pos += static_cast<std::uint64_t>(size);
+        }
+        if (!multipart || attributes == 0) return;
+    }
+}
+
+} // namespace
+
+std::unique_ptr<OIIO::ImageInput> open_image_file(const fs::path& path, const std::string& field, int max_dimension) {
     std::error_code ec;
     const fs::file_status status = fs::status(path, ec);
     if (!fs::exists(status)) throw InputError(path, field, "file not found");
     // Opening a FIFO or a device could block or never end.
     if (!fs::is_regular_file(status)) throw InputError(path, field, "not a regular file");
+    {
+        std::ifstream file(path, std::ios::binary);
+        const std::uint64_t total = fs::file_size(path, ec);
+        std::uint8_t magic[4] = {};
+        if (file && !ec && file.read(reinterpret_cast<char*>(magic), sizeof magic) &&
+            std::memcmp(magic, kExrMagic, sizeof magic) == 0) {
+            const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
+                file.clear();
+                file.seekg(static_cast<std::streamoff>(offset));
+                file.read(reinterpret_cast<char*>(dst), static_cast<std::streamsize>(n));
+                return static_cast<std::size_t>(std::max<std::streamsize>(file.gcount(), 0));
+            };
+            check_exr_header(read_at, total, path, field, max_dimension);
+        }
+    }
     // Alpha is ignored by contract: ask for unassociated alpha so OIIO does not
     // premultiply the colour channels by it (a PNG pixel with alpha 0 would read black).
     OIIO::ImageSpec config;
@@ -43,6 +136,8 @@ std::unique_ptr<OIIO::ImageInput> open_input(const fs::path& path, const std::st
     }
     return in;
 }
+
+namespace {
 
 ImageFileInfo info_from_spec(const OIIO::ImageSpec& spec) {
     ImageFileInfo info;
@@ -65,15 +160,10 @@ void check_complete(OIIO::ImageInput& in, const fs::path& path, const std::strin
                      "the image decoded only in part (" + in.geterror() + "): the file is truncated or corrupt");
 }
 
-std::string dimension_refusal(int width, int height, int max_dimension) {
-    return "image is " + std::to_string(width) + " x " + std::to_string(height) +
-           ", above the largest accepted width or height (" + std::to_string(max_dimension) + ")";
-}
-
 } // namespace
 
 ImageFileInfo read_image_info(const fs::path& path, const std::string& field) {
-    auto in = open_input(path, field);
+    auto in = open_image_file(path, field);
     ImageFileInfo info = info_from_spec(in->spec());
     in->close();
     return info;
@@ -81,7 +171,7 @@ ImageFileInfo read_image_info(const fs::path& path, const std::string& field) {
 
 Image read_image(const fs::path& path, ColorSpace integer_encoding, const std::string& field, ImageFileInfo* info_out,
                  int max_dimension) {
-    auto in = open_input(path, field);
+    auto in = open_image_file(path, field, max_dimension);
     const OIIO::ImageSpec& spec = in->spec();
     const ImageFileInfo info = info_from_spec(spec);
     if (info.width <= 0 || info.height <= 0 || info.channels <= 0 || spec.depth > 1)
@@ -159,13 +249,12 @@ const char* codec_name(ImageCodec codec) {
 std::optional<ImageCodec> sniff_codec(std::span<const std::uint8_t> bytes) {
     static constexpr std::uint8_t kPng[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
     static constexpr std::uint8_t kJpeg[3] = {0xFF, 0xD8, 0xFF};
-    static constexpr std::uint8_t kExr[4] = {0x76, 0x2F, 0x31, 0x01};
     auto starts = [&](const std::uint8_t* sig, std::size_t n) {
         return bytes.size() >= n && std::memcmp(bytes.data(), sig, n) == 0;
     };
     if (starts(kPng, sizeof kPng)) return ImageCodec::Png;
     if (starts(kJpeg, sizeof kJpeg)) return ImageCodec::Jpeg;
-    if (starts(kExr, sizeof kExr)) return ImageCodec::Exr;
+    if (starts(kExrMagic, sizeof kExrMagic)) return ImageCodec::Exr;
     return std::nullopt;
 }
 
@@ -174,10 +263,20 @@ struct MemoryInput {
     OIIO::Filesystem::IOMemReader proxy;
     std::unique_ptr<OIIO::ImageInput> in;
 
-    MemoryInput(std::span<const std::uint8_t> bytes, const fs::path& file, const std::string& field)
+    MemoryInput(std::span<const std::uint8_t> bytes, const fs::path& file, const std::string& field,
+                int max_dimension = kMaxDecodedImageDimension)
         : proxy(bytes.data(), bytes.size()) {
         const std::optional<ImageCodec> codec = sniff_codec(bytes);
         if (!codec) throw InputError(file, field, "not a PNG, JPEG or OpenEXR image");
+        if (*codec == ImageCodec::Exr) {
+            const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
+                if (offset >= bytes.size()) return 0;
+                const std::size_t count = std::min<std::size_t>(n, bytes.size() - offset);
+                std::memcpy(dst, bytes.data() + offset, count);
+                return count;
+            };
+            check_exr_header(read_at, bytes.size(), file, field, max_dimension);
+        }
         OIIO::ImageSpec config;
         config.attribute("oiio:UnassociatedAlpha", 1); // as open_input: colour never premultiplied by alpha
         // With a config, OIIO's readers take the proxy from it (an argument alone is dropped).
@@ -246,7 +345,7 @@ ImageFileInfo read_image_info(std::span<const std::uint8_t> bytes, const fs::pat
 
 Image decode_image(std::span<const std::uint8_t> bytes, ColorSpace integer_encoding, const fs::path& file,
                    const std::string& field, int max_dimension) {
-    MemoryInput input(bytes, file, field);
+    MemoryInput input(bytes, file, field, max_dimension);
     const OIIO::ImageSpec& spec = input.in->spec();
     const ImageFileInfo info = info_from_spec(spec);
     if (info.width <= 0 || info.height <= 0 || info.channels <= 0 || spec.depth > 1)

@@ -5,6 +5,7 @@
 #include "core/image.h"
 #include "core/json_guard.h"
 #include "core/memory.h"
+#include "expect_error.h"
 #include "test_dirs.h"
 
 #include <gtest/gtest.h>
@@ -12,11 +13,14 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstring>
 #include <future>
+#include <span>
+#include <vector>
 
 namespace specula {
 namespace {
@@ -131,6 +135,69 @@ TEST(ImageGuard, FilesReadOnlyWhenRegularAndWithinTheSizeLimit) {
     });
     ASSERT_EQ(result.wait_for(std::chrono::seconds(20)), std::future_status::ready) << "blocked on a FIFO";
     result.get();
+}
+
+// An OpenEXR file whose header claims more than the file holds. fuzz_image_decode found a
+// 485-byte file whose string attribute `capDate` claimed 1,852,727,656 bytes ("hann" read
+// as a size): OpenEXR allocated that much before reading it. The header is now walked first.
+std::vector<std::uint8_t> exr_with_attribute(std::span<const std::uint8_t> exr, const std::string& name,
+                                             const std::string& type, std::uint32_t claimed_size,
+                                             const std::string& value = {}) {
+    std::string attribute = name + '\0' + type + '\0';
+    for (int i = 0; i < 4; ++i) attribute += static_cast<char>(claimed_size >> (8 * i));
+    attribute += value;
+    std::vector<std::uint8_t> out(exr.size() + attribute.size());
+    const auto after_version = std::copy(exr.begin(), exr.begin() + 8, out.begin()); // magic and version
+    std::copy(exr.begin() + 8, exr.end(), std::copy(attribute.begin(), attribute.end(), after_version));
+    return out;
+}
+
+// Refused by every reader: in memory, from a file, and the file's header alone.
+void expect_refused(std::span<const std::uint8_t> bytes, const std::filesystem::path& dir, const std::string& expected) {
+    const InputError in_memory =
+        test::expect_input_error([&] { (void)decode_image(bytes, ColorSpace::Linear, "m.exr", "images[0]"); });
+    EXPECT_EQ(in_memory.field(), "images[0]");
+    EXPECT_NE(in_memory.message().find(expected), std::string::npos) << in_memory.what();
+    write_text_file(dir / "f.exr", std::string(bytes.begin(), bytes.end()));
+    for (const InputError& e : {test::expect_input_error([&] { (void)read_image(dir / "f.exr", ColorSpace::Linear, "f"); }),
+                                test::expect_input_error([&] { (void)read_image_info(dir / "f.exr", "f"); })}) {
+        EXPECT_EQ(e.field(), "f");
+        EXPECT_NE(e.message().find(expected), std::string::npos) << e.what();
+    }
+}
+
+TEST(ImageGuard, OpenExrHeadersAreCheckedAgainstTheBytesTheFileHolds) {
+    test::TempDir dir("hostile");
+    const Image img(3, 3, 3, 0.25f);
+    const std::vector<std::uint8_t> exr = encode_image(img, ImageCodec::Exr, ColorSpace::Linear);
+    // A well-formed extra attribute is walked past: the header reads (the pixels would not,
+    // their offsets in the file having moved).
+    const std::string date = "2026:12:02 04:29:02";
+    const std::vector<std::uint8_t> dated =
+        exr_with_attribute(exr, "capDate", "string", static_cast<std::uint32_t>(date.size()), date);
+    const ImageFileInfo info = read_image_info(dated, "m.exr", "images[0]");
+    EXPECT_EQ(info.width, 3);
+    EXPECT_EQ(info.height, 3);
+    EXPECT_EQ(decode_image(exr, ColorSpace::Linear, "m.exr", "images[0]").pixels, img.pixels);
+
+    // The fuzz finding's claim: refused from the header, naming the attribute.
+    expect_refused(exr_with_attribute(exr, "capDate", "string", 1'852'727'656u), dir.path(),
+                   "malformed OpenEXR header: attribute 'capDate' (string) claims 1852727656 bytes, but the file holds");
+    // A negative size, a name without its terminating NUL, and a header cut short.
+    expect_refused(exr_with_attribute(exr, "capDate", "string", 0xFFFFFFF0u), dir.path(), "claims -16 bytes");
+    expect_refused(exr_with_attribute(exr, std::string(40, 'n'), "string", 4), dir.path(),
+                   "the attribute name at byte 8 is unterminated or longer than 31 bytes");
+    expect_refused(std::span(exr).first(30), dir.path(), "malformed OpenEXR header");
+
+    // A data window beyond the limit is refused from the header, before OpenEXR reads it.
+    std::vector<std::uint8_t> wide = exr;
+    const std::string key = "dataWindow";
+    const auto at = std::search(wide.begin(), wide.end(), key.begin(), key.end());
+    ASSERT_NE(at, wide.end());
+    const std::size_t xmax = static_cast<std::size_t>(at - wide.begin()) + key.size() + 1 + 6 + 4 + 8;
+    const std::uint32_t huge = 99'999;
+    for (int i = 0; i < 4; ++i) wide[xmax + i] = static_cast<std::uint8_t>(huge >> (8 * i));
+    expect_refused(wide, dir.path(), "image is 100000 x 3, above the largest accepted width or height (16384)");
 }
 
 } // namespace
