@@ -75,4 +75,19 @@ std::string read_text_file(const fs::path& path, const std::string& field) {
     return ss.str();
 }
 
+std::string path_relative_to(const fs::path& target, const fs::path& from) {
+    const fs::path t = fs::absolute(target).lexically_normal();
+    const fs::path rel = t.lexically_relative(fs::absolute(from).lexically_normal());
+    if (rel.empty()) return folder_name(t); // no relative path between them (another root)
+    std::string s = rel.generic_string();
+    if (s.size() > 1 && s.back() == '/') s.pop_back();
+    return s;
+}
+
+std::string folder_name(const fs::path& folder) {
+    fs::path p = fs::absolute(folder).lexically_normal();
+    if (p.filename().empty()) p = p.parent_path(); // a trailing '/'
+    return p.filename().string();
+}
+
 } // namespace specula

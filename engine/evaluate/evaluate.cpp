@@ -1,6 +1,7 @@
 #include "evaluate/evaluate.h"
 
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/log.h"
 #include "core/timer.h"
 #include "evaluate/bundle_render.h"
@@ -264,10 +265,10 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     return result;
 }
 
-nlohmann::json to_json(const EvaluationResult& r) {
+nlohmann::json to_json(const EvaluationResult& r, const std::filesystem::path& folder) {
     nlohmann::json j;
     j["bundle"] = r.bundle_name;
-    j["capture"] = r.capture_dir;
+    j["capture"] = path_relative_to(r.capture_dir, folder);
     j["settings"] = settings_json(r);
     j["display_encoding"] = r.display_encoding;
     if (r.train_frames > 0)

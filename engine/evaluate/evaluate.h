@@ -31,7 +31,7 @@
 ///
 ///   Capture cap = load_capture(dir);
 ///   EvaluationResult r = evaluate(ctx, read_bundle(path), cap, {.sheet_dir = "sheets"});
-///   std::cout << format_summary(r);  write json: to_json(r)
+///   std::cout << format_summary(r);  write json: to_json(r, folder)
 #include "capture/capture.h"
 #include "core/backend.h"
 #include "export/bundle.h"
@@ -139,8 +139,9 @@ struct EvaluationResult {
 /// are finite. Each aggregate holds metrics_summary.h's keys (linear values) and beside them
 /// q1, rms, rms_percent and psnr with the suffixes _display and _linear (the latter equal to
 /// the unsuffixed keys) and display_encoding; each frame's masked and full hold rms,
-/// rms_percent and psnr with both suffixes.
-[[nodiscard]] nlohmann::json to_json(const EvaluationResult& result);
+/// rms_percent and psnr with both suffixes. `capture` is the capture's folder relative to
+/// `folder`, the folder the JSON is written in (no machine path: core/file_util.h).
+[[nodiscard]] nlohmann::json to_json(const EvaluationResult& result, const std::filesystem::path& folder);
 
 /// A plain-text table of the aggregates (one row per split and pixel set: Q1 and PSNR on display
 /// and linear values, display first for sRGB captures; the other measures linear) and the timings.

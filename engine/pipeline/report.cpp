@@ -290,7 +290,7 @@ json factorization_json(const PipelineRun& run, const FactorizationStage& f) {
 
 json evaluation_json(const PipelineRun& run, const std::optional<evaluate::EvaluationResult>& ev) {
     if (!ev) return nullptr;
-    json j = evaluate::to_json(*ev);
+    json j = evaluate::to_json(*ev, run.config.out_dir);
     j.erase("frames"); // per frame: evaluation.json
     j["file"] = "evaluation.json";
     // Sheets as paths relative to the output folder (the report may move with it).
@@ -311,7 +311,7 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
     const AlbedoTextureStats& ts = in.texture.stats;
     return {{"specula_version", kVersion},
             {"capture",
-             {{"path", fs::absolute(in.capture.desc.dir).string()},
+             {{"path", path_relative_to(in.capture.desc.dir, run.config.out_dir)}, // no machine path
               {"views", in.capture.views.size()},
               {"train_frames", in.capture.frame_count(Split::Train)},
               {"test_frames", in.capture.frame_count(Split::Test)},

@@ -586,7 +586,7 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         material.status = factorization.status;
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
-        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", fs::absolute(capture.desc.dir).string()}};
+        b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", folder_name(capture.desc.dir)}}; // no machine path
         write_bundle(run.config.out_dir / "object.glb", b);
         return b;
     });
@@ -618,7 +618,7 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
     log::info(evaluate::format_summary(ev));
     // Sheets relative to the output folder, as in report.json: the run writes into a staging
     // folder that is renamed into place at the end (core/output_dir.h).
-    nlohmann::json ej = evaluate::to_json(ev);
+    nlohmann::json ej = evaluate::to_json(ev, config.out_dir);
     nlohmann::json sheets = nlohmann::json::array();
     for (const fs::path& sp : ev.sheets) sheets.push_back(fs::relative(sp, config.out_dir).generic_string());
     ej["sheets"] = std::move(sheets);

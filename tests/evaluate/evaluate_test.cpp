@@ -102,7 +102,7 @@ TEST_F(EvaluateTest, TruthBundleScoresNearPerfect) {
 
 TEST_F(EvaluateTest, JsonHasEverySplitAndNoNaN) {
     const SphereCapture& s = sphere();
-    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, s.capture));
+    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, s.capture), ".");
     for (const char* split : {"train", "test"})
         for (const char* set : {"masked", "full"}) {
             ASSERT_TRUE(j.contains(split) && j[split].contains(set)) << split << "." << set;
@@ -141,7 +141,7 @@ TEST_F(EvaluateTest, SplitWithoutFramesIsAbsent) {
     const SphereCapture& s = sphere();
     Capture train_only = s.capture;
     for (FrameDesc& f : train_only.desc.frames) f.split = Split::Train;
-    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, train_only, {.max_frames_per_split = 3}));
+    const nlohmann::json j = to_json(evaluate(ctx(), s.truth, train_only, {.max_frames_per_split = 3}), ".");
     EXPECT_TRUE(j.contains("train"));
     EXPECT_FALSE(j.contains("test"));
     EXPECT_EQ(j["train"]["masked"]["frames"], 3);

@@ -1,6 +1,7 @@
 // The pipeline end to end on small synthetic captures: outputs exist, the report is
 // complete and honest about what it left out, and both backends agree.
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/image.h"
 #include "export/bundle.h"
 #include "pipeline/reconstruct.h"
@@ -94,6 +95,13 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
             EXPECT_LE(m["q1"].get<double>(), 100.0);
             EXPECT_GT(m["psnr"].get<double>(), 20.0);
         }
+    // No machine path in what travels with the result (issue 20): the capture is named
+    // relative to the output folder, and by its folder's name alone in the bundle.
+    EXPECT_EQ(saved["capture"]["path"], "../" + c.capture.filename().string());
+    EXPECT_EQ(bundle.info["capture"], c.capture.filename().string());
+    for (const char* file : {"object.glb", "report.json", "evaluation.json", "report.html"})
+        if (fs::exists(c.out_dir / file))
+            EXPECT_EQ(read_text_file(c.out_dir / file).find(dir.path().string()), std::string::npos) << file;
     const Image albedo = read_image(c.out_dir / "albedo.exr", ColorSpace::Linear);
     ASSERT_EQ(bundle.albedo.pixels.size(), albedo.pixels.size());
     for (std::size_t i = 0; i < albedo.pixels.size(); ++i) ASSERT_EQ(bundle.albedo.pixels[i], albedo.pixels[i]);

@@ -92,7 +92,7 @@ void run_evaluate(const EvaluateArgs& a) {
         for (auto& s : r.sheets) s = sheets->path() / s.filename(); // where they are now
     }
     if (!a.json.empty()) {
-        nlohmann::json j = evaluate::to_json(r);
+        nlohmann::json j = evaluate::to_json(r, std::filesystem::path(a.json).parent_path());
         j["timings"]["capture_load_s"] = capture.load_seconds;
         write_text_file(a.json, j.dump(2) + "\n");
         log::info("wrote " + a.json);
