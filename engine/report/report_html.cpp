@@ -61,8 +61,17 @@ std::string data_uri(const fs::path& png) {
 
 namespace {
 
-// A JSON number (or null / missing) as text.
+// An integer with thousands separators: 1,145,730 (counts printed with %g came out as 1.14573e+06).
+std::string grouped(std::int64_t v) {
+    std::string digits = std::to_string(v < 0 ? -static_cast<std::uint64_t>(v) : static_cast<std::uint64_t>(v));
+    for (int i = static_cast<int>(digits.size()) - 3; i > 0; i -= 3) digits.insert(static_cast<std::size_t>(i), ",");
+    return (v < 0 ? "-" : "") + digits;
+}
+
+// A JSON number (or null / missing) as text; JSON integers (counts) whole, grouped by thousands.
 std::string num(const json& j, const char* format = "%.4g") {
+    if (j.is_number_unsigned()) return grouped(static_cast<std::int64_t>(std::min<std::uint64_t>(j.get<std::uint64_t>(), INT64_MAX)));
+    if (j.is_number_integer()) return grouped(j.get<std::int64_t>());
     if (j.is_number()) return format_text(format, j.get<double>());
     if (j.is_boolean()) return j.get<bool>() ? "yes" : "no";
     if (j.is_string()) return html_escape(j.get<std::string>());
@@ -321,14 +330,22 @@ std::string sheets_section(const json& r, const ReportHtmlOptions& o) {
 } // namespace
 
 std::string svg_bar_chart(std::span<const Bar> bars, std::string_view unit, int width) {
-    const int row_h = 20, label_w = 150, value_w = 80;
+    // The labels' column fits the longest label (about 7 px a character at 12 px sans-serif;
+    // a fixed 150 px cut "residual samples (joint round 1)" off on the left), and the chart
+    // widens to keep 160 px for the bars; the viewBox lets it shrink with the page.
+    std::size_t longest = 0;
+    for (const Bar& b : bars) longest = std::max(longest, b.label.size());
+    const int row_h = 20, value_w = 80;
+    const int label_w = std::max(150, static_cast<int>(longest) * 7 + 12);
+    width = std::max(width, label_w + value_w + 160);
     const int height = row_h * static_cast<int>(bars.size()) + 10;
     double vmax = 0.0;
     for (const Bar& b : bars)
         if (std::isfinite(b.value)) vmax = std::max(vmax, b.value);
     const double scale = vmax > 0.0 ? (width - label_w - value_w) / vmax : 0.0;
     std::string out = "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + std::to_string(width) + "\" height=\"" +
-                      std::to_string(height) + "\" role=\"img\" font-family=\"sans-serif\" font-size=\"12\">\n";
+                      std::to_string(height) + "\" viewBox=\"0 0 " + std::to_string(width) + " " + std::to_string(height) +
+                      "\" role=\"img\" font-family=\"sans-serif\" font-size=\"12\">\n";
     int y = 5;
     for (const Bar& b : bars) {
         const double w = std::isfinite(b.value) ? std::max(1.0, b.value * scale) : 0.0;
@@ -347,12 +364,15 @@ std::string_view report_css() {
     return "body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}"
            "table{border-collapse:collapse;margin:0.5em 0 1em}td,th{border:1px solid #ccc;padding:3px 8px;"
            "vertical-align:top;text-align:left}th{background:#eef}td small{color:#555}code{background:#f4f4f4}"
-           ".skip{color:#a33;font-weight:bold}figure{margin:1em 0}img{max-width:100%;border:1px solid #ccc}"
-           "nav a{margin-right:1em}h2{border-bottom:1px solid #ddd;margin-top:1.6em}";
+           ".skip{color:#555;font-style:italic}figure{margin:1em 0}img{max-width:100%;border:1px solid #ccc}"
+           "nav a{margin-right:1em}h2{border-bottom:1px solid #ddd;margin-top:1.6em}"
+           // Narrow screens: a wide table scrolls in its own box, charts shrink to fit.
+           "table{display:block;overflow-x:auto;max-width:100%}svg{max-width:100%;height:auto}";
 }
 
 std::string report_html(const json& r, const ReportHtmlOptions& o) {
-    std::string out = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Specula report</title>\n"
+    std::string out = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+                      "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>Specula report</title>\n"
                       "<style>" + std::string(report_css()) + "</style>\n</head>\n<body>\n";
     out += "<h1>Specula reconstruction report</h1>\n";
     out += "<p>Capture <code>" + str(at(r, {"capture", "path"})) + "</code>: " + num(at(r, {"capture", "views"}), "%g") +

@@ -35,7 +35,8 @@ struct Bar {
     double value = 0.0;
 };
 /// A horizontal bar chart as an inline <svg> element: one bar per entry, the value
-/// printed after it with `unit`.
+/// printed after it with `unit`. `width` is the least width in px: the chart widens until
+/// the longest label fits, and scales down with the page (viewBox).
 [[nodiscard]] std::string svg_bar_chart(std::span<const Bar> bars, std::string_view unit, int width = 640);
 
 struct ReportHtmlOptions {

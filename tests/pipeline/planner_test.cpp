@@ -214,6 +214,27 @@ TEST(ReportHtml, ShowsPlannerLeftOutAndBothPixelSetsWithEscapedStrings) {
     EXPECT_NE(html.find("<td>full</td>"), std::string::npos);
     EXPECT_NE(html.find("<svg"), std::string::npos);
     EXPECT_EQ(html.find("http://"), html.find("http://www.w3.org/2000/svg")); // no external asset
+    EXPECT_NE(html.find("name=\"viewport\""), std::string::npos);               // readable on a phone
+}
+
+// Issue 20's report polish: counts whole with thousands separators (not 1.14573e+06), and a
+// bar chart whose labels' column fits its longest label.
+TEST(ReportHtml, CountsAreGroupedAndChartLabelsFit) {
+    const json r = {{"capture", {{"path", "cap"}, {"views", 12}, {"train_frames", 1145730}, {"test_frames", 7}}}};
+    const std::string html = report::report_html(r);
+    EXPECT_NE(html.find("1,145,730 train"), std::string::npos) << html.substr(0, 2000);
+    EXPECT_NE(html.find("12 views"), std::string::npos);
+    const std::string label = "residual samples (lafortune, validation split) (joint round 1)";
+    const std::vector<report::Bar> bars{{label, 2.5}, {"load", 0.5}};
+    const std::string svg = report::svg_bar_chart(bars, "s");
+    // The label is right-aligned at x = label_w - 6: its start, about 7 px a character to
+    // its left, stays inside the chart.
+    const std::size_t at = svg.find("text-anchor=\"end\">" + label);
+    ASSERT_NE(at, std::string::npos);
+    const std::size_t x = svg.rfind("<text x=\"", at);
+    const int right = std::stoi(svg.substr(x + 9));
+    EXPECT_GE(right - 7 * static_cast<int>(label.size()), 0) << svg.substr(x, 120);
+    EXPECT_NE(svg.find("viewBox=\"0 0 "), std::string::npos);
 }
 
 // The quality table shows Q1 and PSNR on display and linear values (evaluate.h), display
