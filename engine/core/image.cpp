@@ -258,9 +258,32 @@ std::optional<ImageCodec> sniff_codec(std::span<const std::uint8_t> bytes) {
     return std::nullopt;
 }
 
+// OpenImageIO 2.4's IOMemReader copies from `offset` without checking that it is not
+// negative (`size + size_t(offset)` wraps around): an OpenEXR file whose chunk offset table
+// holds -1 made it read before the buffer (found by fuzz_image_decode; AddressSanitizer:
+// heap-buffer-overflow in IOMemReader::pread). This reader refuses positions outside the bytes.
+class BoundedMemReader final : public OIIO::Filesystem::IOMemReader {
+public:
+    using IOMemReader::IOMemReader;
+    bool seek(std::int64_t offset) override {
+        if (offset < 0 || offset > static_cast<std::int64_t>(size())) return false;
+        m_pos = offset;
+        return true;
+    }
+    std::size_t read(void* buf, std::size_t n) override {
+        const std::size_t got = pread(buf, n, m_pos);
+        m_pos += static_cast<std::int64_t>(got);
+        return got;
+    }
+    std::size_t pread(void* buf, std::size_t n, std::int64_t offset) override {
+        if (offset < 0 || offset >= static_cast<std::int64_t>(size())) return 0;
+        return IOMemReader::pread(buf, std::min<std::size_t>(n, size() - static_cast<std::size_t>(offset)), offset);
+    }
+};
+
 // An ImageInput over bytes that must outlive it (the proxy keeps a pointer).
 struct MemoryInput {
-    OIIO::Filesystem::IOMemReader proxy;
+    BoundedMemReader proxy;
     std::unique_ptr<OIIO::ImageInput> in;
 
     MemoryInput(std::span<const std::uint8_t> bytes, const fs::path& file, const std::string& field,

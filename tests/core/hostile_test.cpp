@@ -200,5 +200,27 @@ TEST(ImageGuard, OpenExrHeadersAreCheckedAgainstTheBytesTheFileHolds) {
     expect_refused(wide, dir.path(), "image is 100000 x 3, above the largest accepted width or height (16384)");
 }
 
+// The second finding of fuzz_image_decode: an OpenEXR file whose chunk offset table holds -1
+// made OpenImageIO's in-memory reader copy from before its buffer (a heap-buffer-overflow that
+// only the sanitizer build shows: tools/run-sanitized-tests.sh runs this test). Refused now.
+TEST(ImageGuard, AnOpenExrChunkOffsetBeforeTheFileIsRefused) {
+    const std::vector<std::uint8_t> exr = encode_image(Image(3, 3, 3, 0.5f), ImageCodec::Exr, ColorSpace::Linear);
+    // The offset table follows the header: attributes (name, type, 4-byte size, value) up to an
+    // empty name. A 3-row zip-compressed image is one chunk, so the table is one 8-byte offset.
+    std::size_t pos = 8;
+    while (exr.at(pos) != 0) {
+        pos = static_cast<std::size_t>(std::find(exr.begin() + static_cast<std::ptrdiff_t>(pos), exr.end(), 0) - exr.begin()) + 1;
+        pos = static_cast<std::size_t>(std::find(exr.begin() + static_cast<std::ptrdiff_t>(pos), exr.end(), 0) - exr.begin()) + 1;
+        const std::uint32_t size = exr.at(pos) | exr.at(pos + 1) << 8 | exr.at(pos + 2) << 16 | static_cast<std::uint32_t>(exr.at(pos + 3)) << 24;
+        pos += 4 + size;
+    }
+    std::vector<std::uint8_t> broken = exr;
+    ASSERT_LE(pos + 1 + 8, broken.size());
+    std::fill(broken.begin() + static_cast<std::ptrdiff_t>(pos + 1), broken.begin() + static_cast<std::ptrdiff_t>(pos + 9), 0xFF);
+    EXPECT_NO_THROW((void)decode_image(exr, ColorSpace::Linear, "m.exr", "images[0]"));
+    const InputError e = test::expect_input_error([&] { (void)decode_image(broken, ColorSpace::Linear, "m.exr", "images[0]"); });
+    EXPECT_EQ(e.field(), "images[0]");
+}
+
 } // namespace
 } // namespace specula
