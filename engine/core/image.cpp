@@ -41,8 +41,38 @@ std::string dimension_refusal(std::int64_t width, std::int64_t height, int max_d
 
 constexpr std::uint8_t kExrMagic[4] = {0x76, 0x2F, 0x31, 0x01};
 
+// The value size OpenEXR reads for its fixed-size attribute types, whatever size the file
+// declares (0: a type whose reader uses the declared size: string, stringvector, opaque).
+std::size_t exr_fixed_size(const std::string& type) {
+    static const std::pair<const char*, std::size_t> kSizes[] = {
+        {"box2i", 16}, {"box2f", 16}, {"v2i", 8},  {"v2f", 8},          {"v2d", 16},     {"v3i", 12},
+        {"v3f", 12},   {"v3d", 24},   {"int", 4},  {"float", 4},        {"double", 8},   {"compression", 1},
+        {"lineOrder", 1}, {"envmap", 1}, {"deepImageState", 1}, {"m33f", 36}, {"m33d", 72}, {"m44f", 64},
+        {"m44d", 128}, {"chromaticities", 32}, {"keycode", 28}, {"timecode", 8}, {"rational", 8}, {"tiledesc", 9}};
+    for (const auto& [name, size] : kSizes)
+        if (type == name) return size;
+    return 0;
+}
+
 // Reads up to n bytes at an offset into dst; returns how many it read (fewer at the end).
 using ReadAt = std::function<std::size_t(std::uint64_t offset, std::uint8_t* dst, std::size_t n)>;
+
+// A channel list (chlist) as OpenEXR reads it: entries of a NUL-terminated name and 16 bytes
+// (pixel type, linear flag, 3 reserved, x and y sampling) up to an empty name, which must be
+// the last of the `size` bytes the attribute declares.
+template <class Refuse>
+void check_exr_channel_list(const ReadAt& read_at, std::uint64_t at, std::size_t size, const std::string& name,
+                            const Refuse& refuse) {
+    std::vector<std::uint8_t> value(size);
+    if (read_at(at, value.data(), size) != size) refuse("the file ends inside attribute '" + name + "'");
+    std::size_t p = 0;
+    while (p < size && value[p] != 0) {
+        const auto end = std::find(value.begin() + static_cast<std::ptrdiff_t>(p), value.end(), std::uint8_t{0});
+        p = static_cast<std::size_t>(end - value.begin()) + 1 + 16; // the name, its NUL, the 16 bytes
+    }
+    if (p + 1 != size)
+        refuse("the channel list '" + name + "' does not end where its declared size (" + std::to_string(size) + " bytes) ends");
+}
 
 // OpenEXR's header (the OpenEXR file layout): after the 4-byte magic number and the 4-byte
 // version field come attributes, each a name and a type name (NUL-terminated, at most 31
@@ -53,6 +83,11 @@ using ReadAt = std::function<std::size_t(std::uint64_t offset, std::uint8_t* dst
 // made it allocate 1.85 GB (found by fuzz_image_decode, tests/core/hostile_test.cpp keeps
 // it). So the header is walked here first: every attribute must fit in the bytes the file
 // holds (`total`), and the data window within max_dimension, before OpenEXR sees the file.
+// OpenEXR reads a fixed-size type's value (box2i: 16 bytes) and a channel list (entries up to
+// an empty name) by their content, not by the declared size: a size that disagrees would put
+// its reading and this walk at different places in the file (a fuzz input whose channel list
+// ran one byte past its size hid a data window 10,682,372 pixels wide from the walk, and
+// OpenEXR allocated and cleared a buffer for it for a minute). Such sizes are refused.
 void check_exr_header(const ReadAt& read_at, std::uint64_t total, const fs::path& file, const std::string& field,
                       int max_dimension) {
     auto refuse = [&](const std::string& why) {
@@ -87,7 +122,12 @@ void check_exr_header(const ReadAt& read_at, std::uint64_t total, const fs::path
             if (size < 0 || static_cast<std::uint64_t>(size) > total - pos)
                 refuse("attribute '" + name + "' (" + type + ") claims " + std::to_string(size) + " bytes, but the file holds " +
                        std::to_string(total - pos) + " after it");
-            if (name == "dataWindow" && type == "box2i" && size == 16) {
+            const std::size_t fixed = exr_fixed_size(type);
+            if (fixed != 0 && static_cast<std::size_t>(size) != fixed)
+                refuse("attribute '" + name + "' (" + type + ") declares " + std::to_string(size) + " bytes; a " + type +
+                       " holds " + std::to_string(fixed));
+            if (type == "chlist") check_exr_channel_list(read_at, pos, static_cast<std::size_t>(size), name, refuse);
+            if (name == "dataWindow" && type == "box2i") {
                 std::uint8_t box[16];
                 if (read_at(pos, box, sizeof box) == sizeof box) {
                     auto corner = [&](int i) { return static_cast<std::int64_t>(static_cast<std::int32_t>(little_endian_u32(box + 4 * i))); };

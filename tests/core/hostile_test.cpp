@@ -198,6 +198,26 @@ TEST(ImageGuard, OpenExrHeadersAreCheckedAgainstTheBytesTheFileHolds) {
     const std::uint32_t huge = 99'999;
     for (int i = 0; i < 4; ++i) wide[xmax + i] = static_cast<std::uint8_t>(huge >> (8 * i));
     expect_refused(wide, dir.path(), "image is 100000 x 3, above the largest accepted width or height (16384)");
+
+    // Sizes that disagree with what OpenEXR reads: OpenEXR reads a box2i's 16 bytes and a
+    // channel list up to its empty name whatever the size says, so its reading and the walk
+    // would part (the third finding: a channel list one byte longer than its size hid a data
+    // window 10,682,372 pixels wide, which OpenEXR spent a minute allocating for).
+    auto with_size = [&](const std::string& attribute, std::int32_t delta) {
+        std::vector<std::uint8_t> bytes = exr;
+        const auto found = std::search(bytes.begin(), bytes.end(), attribute.begin(), attribute.end());
+        EXPECT_NE(found, bytes.end()) << attribute;
+        const std::size_t at = static_cast<std::size_t>(found - bytes.begin()) + attribute.size() + 1; // after the NUL
+        std::int32_t size = 0;
+        std::memcpy(&size, bytes.data() + at, 4);
+        size += delta;
+        std::memcpy(bytes.data() + at, &size, 4);
+        return bytes;
+    };
+    expect_refused(with_size(std::string("dataWindow") + '\0' + "box2i", -4), dir.path(),
+                   "attribute 'dataWindow' (box2i) declares 12 bytes; a box2i holds 16");
+    expect_refused(with_size(std::string("channels") + '\0' + "chlist", -1), dir.path(),
+                   "the channel list 'channels' does not end where its declared size");
 }
 
 // The second finding of fuzz_image_decode: an OpenEXR file whose chunk offset table holds -1
