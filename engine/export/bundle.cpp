@@ -12,6 +12,7 @@
 
 #include "capture/gltf_io.h"
 #include "core/error.h"
+#include "core/image.h"
 
 #include <tiny_gltf.h>
 
@@ -21,6 +22,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <optional>
 #include <tuple>
 
 namespace specula {
@@ -143,6 +145,35 @@ CubeMap read_cube(const GltfFile& f, const json& ext, const char* key, const std
     return cube;
 }
 
+/// A name for a file beside the bundle: no folder, no "." or "..", no NUL.
+bool is_plain_file_name(const std::string& name) {
+    return !name.empty() && name != "." && name != ".." && name.find('/') == std::string::npos &&
+           name.find('\0') == std::string::npos;
+}
+
+/// The float albedo that `albedo.uri` names, beside the .glb (`af`: the field), or nothing
+/// when the file is not there.
+std::optional<Image> read_float_albedo_file(const GltfFile& f, const json& a, const std::string& af, std::size_t w,
+                                            std::size_t h, std::size_t c) {
+    const json& uri = a["uri"];
+    if (!uri.is_string() || !is_plain_file_name(uri.get<std::string>()))
+        f.fail(af + ".uri", "not a plain file name beside the bundle");
+    const fs::path file = f.path().parent_path() / uri.get<std::string>();
+    std::error_code ec;
+    if (!fs::exists(fs::symlink_status(file, ec))) return std::nullopt;
+    if (fs::is_symlink(fs::symlink_status(file, ec))) f.fail(af + ".uri", file.string() + " is a symbolic link");
+    ImageFileInfo info;
+    Image image = read_image(file, ColorSpace::Linear, af + ".uri", &info); // a regular file, the header checked first
+    if (static_cast<std::size_t>(image.width) != w || static_cast<std::size_t>(image.height) != h)
+        f.fail(af + ".uri", file.string() + " is " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                                " but the extension says " + std::to_string(w) + " x " + std::to_string(h));
+    if (static_cast<std::size_t>(image.channels) != c)
+        f.fail(af + ".uri", file.string() + " has " + std::to_string(image.channels) + " channel(s), the extension " +
+                                std::to_string(c));
+    if (!info.is_float) f.fail(af + ".uri", file.string() + " is not a float image (the albedo is linear float)");
+    return image;
+}
+
 /// The base colour texture of the first material a primitive uses, decoded to linear RGB.
 Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     const tinygltf::Model& model = f.model();
@@ -239,7 +270,7 @@ std::vector<glm::vec2> corner_uvs(const Mesh& mesh) {
     return out;
 }
 
-void write_bundle(const fs::path& path, const Bundle& bundle) {
+void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteOptions& options) {
     const Mesh& mesh = bundle.mesh;
     const std::size_t n = mesh.positions.size();
     if (n == 0 || mesh.triangles.empty()) throw InputError(path, "mesh", "refusing to write an empty mesh");
@@ -306,8 +337,15 @@ void write_bundle(const fs::path& path, const Bundle& bundle) {
                          {"tint", vec3_json(coated->tint)},
                          {"status", mat.status}};
     }
-    ext["albedo"] = {{"bufferView", glb.add_view(albedo.pixels.data(), albedo.pixels.size() * sizeof(float))},
-                     {"width", albedo.width}, {"height", albedo.height}, {"channels", albedo.channels}};
+    ext["albedo"] = {{"width", albedo.width}, {"height", albedo.height}, {"channels", albedo.channels}};
+    if (options.float_albedo_file.empty()) {
+        ext["albedo"]["bufferView"] = glb.add_view(albedo.pixels.data(), albedo.pixels.size() * sizeof(float));
+    } else {
+        if (!is_plain_file_name(options.float_albedo_file))
+            throw InputError(path, "float_albedo_file", "\"" + options.float_albedo_file + "\" is not a plain file name");
+        write_image(path.parent_path() / options.float_albedo_file, albedo, ColorSpace::Linear); // OpenEXR, float32
+        ext["albedo"]["uri"] = options.float_albedo_file;
+    }
     const auto cube_json = [&](const CubeMap& c) {
         return json{{"bufferView", glb.add_view(c.texels.data(), c.texels.size() * sizeof(glm::vec3))}, {"resolution", c.resolution}};
     };
@@ -504,14 +542,24 @@ Bundle read_bundle(const fs::path& path) {
         b.albedo.width = static_cast<int>(w);
         b.albedo.height = static_cast<int>(h);
         b.albedo.channels = static_cast<int>(c);
-        b.albedo.pixels = read_float_view(f, get_index(f, a, "bufferView", af), w * h * c, af + ".bufferView");
+        if (a.contains("uri") == a.contains("bufferView")) f.fail(af, "needs one of bufferView and uri");
+        if (a.contains("bufferView")) {
+            b.albedo.pixels = read_float_view(f, get_index(f, a, "bufferView", af), w * h * c, af + ".bufferView");
+        } else if (std::optional<Image> file = read_float_albedo_file(f, a, af, w, h, c)) {
+            b.albedo = std::move(*file);
+        } else {
+            b.albedo = read_base_color(f, b.warnings);
+            b.warnings.push_back(af + ".uri: " + a["uri"].get<std::string>() + " is not beside " + f.path().string() +
+                                 ": the albedo is decoded from the 8-bit sRGB base colour texture (quantized; keep the "
+                                 "file beside the bundle, or write the bundle with --embed-float-albedo)");
+        }
         // A NaN or infinite albedo would render as NaN (or black) without a word: refused, naming the texel.
         const auto bad = std::find_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); });
         if (bad != b.albedo.pixels.end()) {
             const std::size_t i = static_cast<std::size_t>(bad - b.albedo.pixels.begin());
             const std::size_t count = static_cast<std::size_t>(
                 std::count_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); }));
-            f.fail(af + ".bufferView", std::to_string(count) + " albedo value(s) are not finite (first: texel (" +
+            f.fail(af + (a.contains("uri") ? ".uri" : ".bufferView"), std::to_string(count) + " albedo value(s) are not finite (first: texel (" +
                                            std::to_string(i / c % w) + ", " + std::to_string(i / c / w) + "), channel " +
                                            std::to_string(i % c) + " = " + std::to_string(*bad) +
                                            "): an albedo is a finite reflectance");

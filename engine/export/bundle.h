@@ -52,15 +52,27 @@ struct Bundle {
 /// Throws Error when the mesh has no texcoords.
 [[nodiscard]] std::vector<glm::vec2> corner_uvs(const Mesh& mesh);
 
-/// Writes the .glb atomically. Throws InputError naming the file (and the bundle field)
-/// on failure: inconsistent sizes, non-finite lobe, coated parameters outside the bounds of
-/// shared/coated.h (invalid_parameters), warped cube-maps without a Lafortune lobe, a file
-/// too large for a .glb.
-void write_bundle(const std::filesystem::path& path, const Bundle& bundle);
+/// Where write_bundle puts the linear float albedo (the extension's `albedo`).
+struct BundleWriteOptions {
+    /// Empty: inside the .glb (a float32 bufferView: one file, 12 bytes a texel, three
+    /// quarters of a reconstruction's bundle). Otherwise a file name: the albedo is written
+    /// beside the .glb as OpenEXR (32-bit float, exact) and the extension names it
+    /// (`albedo.uri`), which keeps the .glb lean for ordinary viewers.
+    std::string float_albedo_file;
+};
+
+/// Writes the .glb atomically (and the float albedo file, when the options name one).
+/// Throws InputError naming the file (and the bundle field) on failure: inconsistent sizes,
+/// non-finite lobe, coated parameters outside the bounds of shared/coated.h
+/// (invalid_parameters), warped cube-maps without a Lafortune lobe, a file too large for a
+/// .glb, a float albedo file name that is not a plain file name.
+void write_bundle(const std::filesystem::path& path, const Bundle& bundle, const BundleWriteOptions& options = {});
 
 /// Reads a bundle written by write_bundle (or any glTF with the extension). A .glb
 /// without the extension is read as a diffuse-only bundle from its base colour texture
-/// (sRGB 8-bit) with a warning. Throws InputError naming the file and the field (an unknown
+/// (sRGB 8-bit) with a warning. A float albedo named by `albedo.uri` is read from that file
+/// beside the .glb (a plain file name, a regular file, its size the extension's); when the
+/// file is not there, the albedo comes from the 8-bit base colour texture, with a warning. Throws InputError naming the file and the field (an unknown
 /// "model", a coated parameter missing or out of range: e.g.
 /// materials[0].extensions.SPECULA_lafortune.coated.eta).
 [[nodiscard]] Bundle read_bundle(const std::filesystem::path& path);

@@ -85,6 +85,9 @@ struct ReconstructConfig {
     /// renderer draws) instead of the analytic lobe (the reference) when there are cube-maps.
     bool evaluate_factorized = false;
     bool write_sheets = true;            ///< evaluation sheets in out_dir/sheets
+    /// The linear float albedo inside object.glb (12 bytes a texel) instead of beside it as
+    /// albedo.exr, which the bundle then names (export/bundle.h BundleWriteOptions).
+    bool embed_float_albedo = false;
     bool write_html = true;              ///< out_dir/report.html
     /// Time small probes so the report can estimate what skipped work would have cost
     /// (occlusion rays on a subset of pairs, the fit on a subsample).

@@ -587,7 +587,10 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
         b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", folder_name(capture.desc.dir)}}; // no machine path
-        write_bundle(run.config.out_dir / "object.glb", b);
+        // The float albedo beside the bundle by default: albedo.exr, which the albedo texture
+        // stage wrote already with the same texels (write_bundle writes it again, exactly).
+        write_bundle(run.config.out_dir / "object.glb", b,
+                     {.float_albedo_file = run.config.embed_float_albedo ? std::string() : std::string("albedo.exr")});
         return b;
     });
 }

@@ -325,8 +325,9 @@ TEST_F(EvaluateTest, CoatedBundleIsRenderedAsItIs) {
         EXPECT_TRUE(a.info.specular_pass);
         EXPECT_EQ(a.mask, d.mask);
         EXPECT_EQ(a.color.pixels, d.color.pixels) << render::specular_path_name(path);
-        if (path == render::SpecularPath::Analytic)
+        if (path == render::SpecularPath::Analytic) {
             EXPECT_NE(a.color.pixels, lafortune.render(fd.camera(), fd.light, {}).color.pixels);
+        }
     }
     const EvaluationResult r = evaluate(ctx(), b, s.capture, {});
     for (const std::string& w : r.warnings) EXPECT_EQ(w.find("no specular"), std::string::npos) << w;

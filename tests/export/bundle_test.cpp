@@ -5,6 +5,7 @@
 #include "../capture/gltf_builder.h"
 #include "../capture/png_bytes.h"
 #include "bundle_fixtures.h"
+#include "expect_error.h"
 #include "legacy_bundles.h"
 #include "test_dirs.h"
 
@@ -257,6 +258,40 @@ TEST(Bundle, WithoutLobeOrCubeMaps) {
     EXPECT_FALSE(r.material.factorized.has_value());
     EXPECT_TRUE(same_bits(r.albedo.pixels, p.albedo.pixels));
     EXPECT_TRUE(r.warnings.empty());
+}
+
+// Issue 20's leaner bundle: the float albedo beside the .glb (what reconstruct writes by
+// default), read back exactly; without the file, the 8-bit base colour with a warning;
+// a file of another size or a name with a folder is refused naming albedo.uri.
+TEST(Bundle, FloatAlbedoBesideTheGlbReadsBackExactlyOrFallsBackWithAWarning) {
+    const test::BundlePieces p = test::make_pieces();
+    TempDir dir("bundle");
+    const Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    write_bundle(dir / "inside.glb", b);
+    write_bundle(dir / "lean.glb", b, {.float_albedo_file = "lean_albedo.exr"});
+    const json ext = test::glb_json(dir / "lean.glb")["materials"][0]["extensions"]["SPECULA_lafortune"];
+    EXPECT_EQ(ext["albedo"]["uri"], "lean_albedo.exr");
+    EXPECT_FALSE(ext["albedo"].contains("bufferView"));
+    const std::uintmax_t float_bytes = p.albedo.pixels.size() * sizeof(float);
+    EXPECT_LE(std::filesystem::file_size(dir / "lean.glb") + float_bytes, std::filesystem::file_size(dir / "inside.glb") + 8);
+    const Bundle r = read_bundle(dir / "lean.glb");
+    EXPECT_TRUE(same_bits(r.albedo.pixels, p.albedo.pixels));
+    EXPECT_TRUE(r.warnings.empty());
+
+    // Without the file: the base colour PNG, within its 8-bit sRGB step, and a warning.
+    std::filesystem::rename(dir / "lean_albedo.exr", dir / "elsewhere.exr");
+    const Bundle fallback = read_bundle(dir / "lean.glb");
+    ASSERT_EQ(fallback.albedo.pixels.size(), p.albedo.pixels.size());
+    for (std::size_t i = 0; i < p.albedo.pixels.size(); ++i)
+        ASSERT_NEAR(fallback.albedo.pixels[i], std::clamp(p.albedo.pixels[i], 0.0f, 1.0f), 0.01f) << i;
+    ASSERT_EQ(fallback.warnings.size(), 1u);
+    EXPECT_NE(fallback.warnings[0].find("lean_albedo.exr is not beside"), std::string::npos) << fallback.warnings[0];
+
+    // A file of another size is refused, naming the field.
+    write_image(dir / "lean_albedo.exr", Image(p.albedo.width + 1, p.albedo.height, 3, 0.5f), ColorSpace::Linear);
+    const InputError e = test::expect_input_error([&] { (void)read_bundle(dir / "lean.glb"); });
+    EXPECT_NE(e.field().find("albedo.uri"), std::string::npos) << e.what();
+    EXPECT_THROW(write_bundle(dir / "x.glb", b, {.float_albedo_file = "../x.exr"}), InputError);
 }
 
 TEST(Bundle, ForeignGlbWithoutMaterialIsRefusedNamingTheField) {

@@ -99,9 +99,11 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     // relative to the output folder, and by its folder's name alone in the bundle.
     EXPECT_EQ(saved["capture"]["path"], "../" + c.capture.filename().string());
     EXPECT_EQ(bundle.info["capture"], c.capture.filename().string());
-    for (const char* file : {"object.glb", "report.json", "evaluation.json", "report.html"})
-        if (fs::exists(c.out_dir / file))
+    for (const char* file : {"object.glb", "report.json", "evaluation.json", "report.html"}) {
+        if (fs::exists(c.out_dir / file)) {
             EXPECT_EQ(read_text_file(c.out_dir / file).find(dir.path().string()), std::string::npos) << file;
+        }
+    }
     const Image albedo = read_image(c.out_dir / "albedo.exr", ColorSpace::Linear);
     ASSERT_EQ(bundle.albedo.pixels.size(), albedo.pixels.size());
     for (std::size_t i = 0; i < albedo.pixels.size(); ++i) ASSERT_EQ(bundle.albedo.pixels[i], albedo.pixels[i]);

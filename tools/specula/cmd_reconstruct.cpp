@@ -80,7 +80,8 @@ void add_reconstruct_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "reconstruct",
         "Reconstruct a capture: the albedo texture and the specular lobe. Writes OUT/object.glb (the bundle),\n"
-        "OUT/albedo.exr (linear), OUT/albedo.png (sRGB), OUT/evaluation.json and OUT/sheets/ (every frame\n"
+        "OUT/albedo.exr (linear; the bundle's float albedo, which Specula's tools read beside object.glb),\n"
+        "OUT/albedo.png (sRGB), OUT/evaluation.json and OUT/sheets/ (every frame\n"
         "re-rendered and compared), OUT/report.html (one self-contained page) and OUT/report.json (the planner's\n"
         "decisions, stage times, GPU dispatch times, counts, quality figures, the lobe, and what was left out\n"
         "for this scene and why). Every planner decision can be forced: --occlusion-rays, --mode, --specular,\n"
@@ -180,6 +181,9 @@ void add_reconstruct_command(CLI::App& app) {
         ->check(CLI::IsMember({"auto", "gshd", "mirrored", "warped"}))
         ->capture_default_str();
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
+    cmd->add_flag("--embed-float-albedo", args->config.embed_float_albedo,
+                  "Put the linear float albedo inside object.glb (12 bytes a texel) instead of naming OUT/albedo.exr\n"
+                  "beside it; without albedo.exr beside it, Specula's tools fall back to the 8-bit base colour");
     cmd->add_option("--threads", args->config.threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
     cmd->add_flag("--no-evaluate{false}", args->config.evaluate,
                   "Skip the self-evaluation (re-rendering every frame from object.glb and comparing)");
