@@ -63,6 +63,7 @@ using ReadAt = std::function<std::size_t(std::uint64_t offset, std::uint8_t* dst
 template <class Refuse>
 void check_exr_channel_list(const ReadAt& read_at, std::uint64_t at, std::size_t size, const std::string& name,
                             const Refuse& refuse) {
+    if (size == 0) refuse("the channel list '" + name + "' is empty (not even its terminating NUL)");
     std::vector<std::uint8_t> value(size);
     if (read_at(at, value.data(), size) != size) refuse("the file ends inside attribute '" + name + "'");
     std::size_t p = 0;
@@ -333,7 +334,7 @@ struct MemoryInput {
         if (!codec) throw InputError(file, field, "not a PNG, JPEG or OpenEXR image");
         if (*codec == ImageCodec::Exr) {
             const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
-                if (offset >= bytes.size()) return 0;
+                if (offset >= bytes.size() || n == 0) return 0;
                 const std::size_t count = std::min<std::size_t>(n, bytes.size() - offset);
                 std::memcpy(dst, bytes.data() + offset, count);
                 return count;

@@ -203,21 +203,24 @@ TEST(ImageGuard, OpenExrHeadersAreCheckedAgainstTheBytesTheFileHolds) {
     // channel list up to its empty name whatever the size says, so its reading and the walk
     // would part (the third finding: a channel list one byte longer than its size hid a data
     // window 10,682,372 pixels wide, which OpenEXR spent a minute allocating for).
-    auto with_size = [&](const std::string& attribute, std::int32_t delta) {
+    auto with_size = [&](const std::string& attribute, auto new_size) {
         std::vector<std::uint8_t> bytes = exr;
         const auto found = std::search(bytes.begin(), bytes.end(), attribute.begin(), attribute.end());
         EXPECT_NE(found, bytes.end()) << attribute;
         const std::size_t at = static_cast<std::size_t>(found - bytes.begin()) + attribute.size() + 1; // after the NUL
         std::int32_t size = 0;
         std::memcpy(&size, bytes.data() + at, 4);
-        size += delta;
+        size = new_size(size);
         std::memcpy(bytes.data() + at, &size, 4);
         return bytes;
     };
-    expect_refused(with_size(std::string("dataWindow") + '\0' + "box2i", -4), dir.path(),
+    const std::string window = std::string("dataWindow") + '\0' + "box2i", channels = std::string("channels") + '\0' + "chlist";
+    expect_refused(with_size(window, [](std::int32_t s) { return s - 4; }), dir.path(),
                    "attribute 'dataWindow' (box2i) declares 12 bytes; a box2i holds 16");
-    expect_refused(with_size(std::string("channels") + '\0' + "chlist", -1), dir.path(),
+    expect_refused(with_size(channels, [](std::int32_t s) { return s - 1; }), dir.path(),
                    "the channel list 'channels' does not end where its declared size");
+    // The fourth finding, in the walk itself: a channel list of size 0 (UBSan: memcpy to null).
+    expect_refused(with_size(channels, [](std::int32_t) { return 0; }), dir.path(), "the channel list 'channels' is empty");
 }
 
 // The second finding of fuzz_image_decode: an OpenEXR file whose chunk offset table holds -1
