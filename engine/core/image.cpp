@@ -8,6 +8,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -143,6 +144,31 @@ void check_exr_header(const ReadAt& read_at, std::uint64_t total, const fs::path
     }
 }
 
+constexpr std::uint8_t kPngMagic[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
+
+// PNG's chunks (PNG specification, section 5.3): a 4-byte big-endian length (at most 2^31 - 1),
+// a 4-byte type, the data, a 4-byte CRC; IEND ends the file. libpng and OpenImageIO allocate
+// for what a chunk claims: a 246-byte file whose tEXt chunk claimed 1,870,069,780 bytes took
+// 2 GB of memory (found by fuzz_image_decode). So every chunk up to IEND must fit in the bytes
+// the file holds before a decoder sees it.
+void check_png_chunks(const ReadAt& read_at, std::uint64_t total, const fs::path& file, const std::string& field) {
+    std::uint64_t pos = sizeof kPngMagic;
+    std::uint8_t head[8];
+    while (read_at(pos, head, sizeof head) == sizeof head) {
+        const std::uint32_t length = static_cast<std::uint32_t>(head[0]) << 24 | static_cast<std::uint32_t>(head[1]) << 16 |
+                                     static_cast<std::uint32_t>(head[2]) << 8 | head[3];
+        std::string type;
+        for (int i = 4; i < 8; ++i) type += std::isprint(head[i]) != 0 ? static_cast<char>(head[i]) : '?';
+        const std::uint64_t left = total - pos - sizeof head;
+        if (length > 0x7FFFFFFFu || std::uint64_t{length} + 4 > left)
+            throw InputError(file, field, "malformed PNG: chunk '" + type + "' at byte " + std::to_string(pos) + " claims " +
+                                              std::to_string(length) + " bytes, but the file holds " + std::to_string(left) +
+                                              " after it (truncated or corrupt)");
+        if (type == "IEND") return;
+        pos += sizeof head + length + 4;
+    }
+}
+
 } // namespace
 
 std::unique_ptr<OIIO::ImageInput> open_image_file(const fs::path& path, const std::string& field, int max_dimension) {
@@ -154,16 +180,16 @@ std::unique_ptr<OIIO::ImageInput> open_image_file(const fs::path& path, const st
     {
         std::ifstream file(path, std::ios::binary);
         const std::uint64_t total = fs::file_size(path, ec);
-        std::uint8_t magic[4] = {};
-        if (file && !ec && file.read(reinterpret_cast<char*>(magic), sizeof magic) &&
-            std::memcmp(magic, kExrMagic, sizeof magic) == 0) {
-            const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
-                file.clear();
-                file.seekg(static_cast<std::streamoff>(offset));
-                file.read(reinterpret_cast<char*>(dst), static_cast<std::streamsize>(n));
-                return static_cast<std::size_t>(std::max<std::streamsize>(file.gcount(), 0));
-            };
-            check_exr_header(read_at, total, path, field, max_dimension);
+        std::uint8_t magic[8] = {};
+        const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
+            file.clear();
+            file.seekg(static_cast<std::streamoff>(offset));
+            file.read(reinterpret_cast<char*>(dst), static_cast<std::streamsize>(n));
+            return static_cast<std::size_t>(std::max<std::streamsize>(file.gcount(), 0));
+        };
+        if (file && !ec && read_at(0, magic, sizeof magic) == sizeof magic) {
+            if (std::memcmp(magic, kExrMagic, sizeof kExrMagic) == 0) check_exr_header(read_at, total, path, field, max_dimension);
+            if (std::memcmp(magic, kPngMagic, sizeof kPngMagic) == 0) check_png_chunks(read_at, total, path, field);
         }
     }
     // Alpha is ignored by contract: ask for unassociated alpha so OIIO does not
@@ -288,12 +314,11 @@ const char* codec_name(ImageCodec codec) {
 // The format from the first bytes (the signatures of the PNG specification section 5.2,
 // JPEG's SOI marker FF D8 FF, and OpenEXR's magic number 20000630 little-endian).
 std::optional<ImageCodec> sniff_codec(std::span<const std::uint8_t> bytes) {
-    static constexpr std::uint8_t kPng[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
     static constexpr std::uint8_t kJpeg[3] = {0xFF, 0xD8, 0xFF};
     auto starts = [&](const std::uint8_t* sig, std::size_t n) {
         return bytes.size() >= n && std::memcmp(bytes.data(), sig, n) == 0;
     };
-    if (starts(kPng, sizeof kPng)) return ImageCodec::Png;
+    if (starts(kPngMagic, sizeof kPngMagic)) return ImageCodec::Png;
     if (starts(kJpeg, sizeof kJpeg)) return ImageCodec::Jpeg;
     if (starts(kExrMagic, sizeof kExrMagic)) return ImageCodec::Exr;
     return std::nullopt;
@@ -332,15 +357,14 @@ struct MemoryInput {
         : proxy(bytes.data(), bytes.size()) {
         const std::optional<ImageCodec> codec = sniff_codec(bytes);
         if (!codec) throw InputError(file, field, "not a PNG, JPEG or OpenEXR image");
-        if (*codec == ImageCodec::Exr) {
-            const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
-                if (offset >= bytes.size() || n == 0) return 0;
-                const std::size_t count = std::min<std::size_t>(n, bytes.size() - offset);
-                std::memcpy(dst, bytes.data() + offset, count);
-                return count;
-            };
-            check_exr_header(read_at, bytes.size(), file, field, max_dimension);
-        }
+        const ReadAt read_at = [&](std::uint64_t offset, std::uint8_t* dst, std::size_t n) -> std::size_t {
+            if (offset >= bytes.size() || n == 0) return 0;
+            const std::size_t count = std::min<std::size_t>(n, bytes.size() - offset);
+            std::memcpy(dst, bytes.data() + offset, count);
+            return count;
+        };
+        if (*codec == ImageCodec::Exr) check_exr_header(read_at, bytes.size(), file, field, max_dimension);
+        if (*codec == ImageCodec::Png) check_png_chunks(read_at, bytes.size(), file, field);
         OIIO::ImageSpec config;
         config.attribute("oiio:UnassociatedAlpha", 1); // as open_input: colour never premultiplied by alpha
         // With a config, OIIO's readers take the proxy from it (an argument alone is dropped).

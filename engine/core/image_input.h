@@ -16,7 +16,8 @@ namespace specula {
 /// PNG colour by alpha). Checked first: the file exists and is a regular file (a FIFO would
 /// block); an OpenEXR file's header is walked, and every attribute must fit in the bytes the
 /// file holds and its data window within `max_dimension`, since OpenEXR allocates what the
-/// header claims before reading it. Throws InputError(path, field, ...).
+/// header claims before reading it; a PNG file's chunks must fit in it likewise. Throws
+/// InputError(path, field, ...).
 [[nodiscard]] std::unique_ptr<OIIO::ImageInput> open_image_file(const std::filesystem::path& path,
                                                                  const std::string& field,
                                                                  int max_dimension = kMaxDecodedImageDimension);

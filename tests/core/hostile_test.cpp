@@ -223,6 +223,26 @@ TEST(ImageGuard, OpenExrHeadersAreCheckedAgainstTheBytesTheFileHolds) {
     expect_refused(with_size(channels, [](std::int32_t) { return 0; }), dir.path(), "the channel list 'channels' is empty");
 }
 
+// The fifth finding of fuzz_image_decode: a 246-byte PNG whose tEXt chunk claimed 1,870,069,780
+// bytes took 2 GB of memory in libpng and OpenImageIO. PNG chunks are walked first now.
+TEST(ImageGuard, PngChunksMustFitInTheFile) {
+    const std::vector<std::uint8_t> png = encode_image(Image(4, 3, 3, 0.5f), ImageCodec::Png, ColorSpace::Srgb);
+    std::vector<std::uint8_t> claiming(png.begin(), png.begin() + 33); // the signature and IHDR
+    for (const char b : std::string("\x6F\x77\x1B\x14tEXtab")) claiming.push_back(static_cast<std::uint8_t>(b));
+    claiming.insert(claiming.end(), png.begin() + 33, png.end());
+    const test::TempDir dir("hostile");
+    EXPECT_NO_THROW((void)decode_image(png, ColorSpace::Srgb, "m.png", "images[0]"));
+    for (const auto& [bytes, expected] :
+         {std::pair{claiming, std::string("malformed PNG: chunk 'tEXt' at byte 33 claims 1870076692 bytes")},
+          std::pair{std::vector<std::uint8_t>(png.begin(), png.end() - 20), std::string("(truncated or corrupt)")}}) {
+        const InputError e = test::expect_input_error([&] { (void)decode_image(bytes, ColorSpace::Srgb, "m.png", "images[0]"); });
+        EXPECT_NE(e.message().find(expected), std::string::npos) << e.what();
+        write_text_file(dir / "f.png", std::string(bytes.begin(), bytes.end()));
+        const InputError f = test::expect_input_error([&] { (void)read_image_info(dir / "f.png", "f"); });
+        EXPECT_NE(f.message().find(expected), std::string::npos) << f.what();
+    }
+}
+
 // The second finding of fuzz_image_decode: an OpenEXR file whose chunk offset table holds -1
 // made OpenImageIO's in-memory reader copy from before its buffer (a heap-buffer-overflow that
 // only the sanitizer build shows: tools/run-sanitized-tests.sh runs this test). Refused now.
