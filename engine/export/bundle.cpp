@@ -217,6 +217,47 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     return albedo;
 }
 
+/// The extension's linear float albedo: from its bufferView, or from the file `uri` names
+/// beside the .glb, or (that file missing) from the 8-bit base colour texture with a warning.
+Image read_albedo(const GltfFile& f, const json& ext, const std::string& ext_field, std::vector<std::string>& warnings) {
+    const std::string af = ext_field + ".albedo";
+    if (!ext.contains("albedo")) f.fail(af, "missing");
+    const json& a = ext["albedo"];
+    const std::size_t w = get_index(f, a, "width", af), h = get_index(f, a, "height", af);
+    const std::size_t c = a.contains("channels") ? get_index(f, a, "channels", af) : 3;
+    if (w == 0 || h == 0 || w > 65536 || h > 65536) f.fail(af, "width/height out of range");
+    if (c < 1 || c > 4) f.fail(af + ".channels", "must be 1 to 4");
+    if (a.contains("uri") == a.contains("bufferView")) f.fail(af, "needs one of bufferView and uri");
+    Image albedo;
+    if (a.contains("bufferView")) {
+        albedo.width = static_cast<int>(w);
+        albedo.height = static_cast<int>(h);
+        albedo.channels = static_cast<int>(c);
+        albedo.pixels = read_float_view(f, get_index(f, a, "bufferView", af), w * h * c, af + ".bufferView");
+    } else if (std::optional<Image> file = read_float_albedo_file(f, a, af, w, h, c)) {
+        albedo = std::move(*file);
+    } else {
+        albedo = read_base_color(f, warnings);
+        warnings.push_back(af + ".uri: " + a["uri"].get<std::string>() + " is not beside " + f.path().string() +
+                           ": the albedo is decoded from the 8-bit sRGB base colour texture (quantized; keep the "
+                           "file beside the bundle, or write the bundle with --embed-float-albedo)");
+    }
+    // A NaN or infinite albedo would render as NaN (or black) without a word: refused, naming the texel.
+    const auto finite = [](float v) { return std::isfinite(v); };
+    const auto bad = std::find_if_not(albedo.pixels.begin(), albedo.pixels.end(), finite);
+    if (bad != albedo.pixels.end()) {
+        const auto i = static_cast<std::size_t>(bad - albedo.pixels.begin());
+        const auto ch = static_cast<std::size_t>(albedo.channels), width = static_cast<std::size_t>(albedo.width);
+        const auto count = static_cast<std::size_t>(std::count_if(albedo.pixels.begin(), albedo.pixels.end(),
+                                                                  [&](float v) { return !finite(v); }));
+        f.fail(af + (a.contains("uri") ? ".uri" : ".bufferView"),
+               std::to_string(count) + " albedo value(s) are not finite (first: texel (" + std::to_string(i / ch % width) +
+                   ", " + std::to_string(i / ch / width) + "), channel " + std::to_string(i % ch) + " = " +
+                   std::to_string(*bad) + "): an albedo is a finite reflectance");
+    }
+    return albedo;
+}
+
 } // namespace
 
 // -------------------------------------------------------------------------------------------------
@@ -531,40 +572,7 @@ Bundle read_bundle(const fs::path& path) {
             }
         }
     }
-    {
-        const std::string af = ext_field + ".albedo";
-        if (!ext->contains("albedo")) f.fail(af, "missing");
-        const json& a = (*ext)["albedo"];
-        const std::size_t w = get_index(f, a, "width", af), h = get_index(f, a, "height", af);
-        const std::size_t c = a.contains("channels") ? get_index(f, a, "channels", af) : 3;
-        if (w == 0 || h == 0 || w > 65536 || h > 65536) f.fail(af, "width/height out of range");
-        if (c < 1 || c > 4) f.fail(af + ".channels", "must be 1 to 4");
-        b.albedo.width = static_cast<int>(w);
-        b.albedo.height = static_cast<int>(h);
-        b.albedo.channels = static_cast<int>(c);
-        if (a.contains("uri") == a.contains("bufferView")) f.fail(af, "needs one of bufferView and uri");
-        if (a.contains("bufferView")) {
-            b.albedo.pixels = read_float_view(f, get_index(f, a, "bufferView", af), w * h * c, af + ".bufferView");
-        } else if (std::optional<Image> file = read_float_albedo_file(f, a, af, w, h, c)) {
-            b.albedo = std::move(*file);
-        } else {
-            b.albedo = read_base_color(f, b.warnings);
-            b.warnings.push_back(af + ".uri: " + a["uri"].get<std::string>() + " is not beside " + f.path().string() +
-                                 ": the albedo is decoded from the 8-bit sRGB base colour texture (quantized; keep the "
-                                 "file beside the bundle, or write the bundle with --embed-float-albedo)");
-        }
-        // A NaN or infinite albedo would render as NaN (or black) without a word: refused, naming the texel.
-        const auto bad = std::find_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); });
-        if (bad != b.albedo.pixels.end()) {
-            const std::size_t i = static_cast<std::size_t>(bad - b.albedo.pixels.begin());
-            const std::size_t count = static_cast<std::size_t>(
-                std::count_if(b.albedo.pixels.begin(), b.albedo.pixels.end(), [](float v) { return !std::isfinite(v); }));
-            f.fail(af + (a.contains("uri") ? ".uri" : ".bufferView"), std::to_string(count) + " albedo value(s) are not finite (first: texel (" +
-                                           std::to_string(i / c % w) + ", " + std::to_string(i / c / w) + "), channel " +
-                                           std::to_string(i % c) + " = " + std::to_string(*bad) +
-                                           "): an albedo is a finite reflectance");
-        }
-    }
+    b.albedo = read_albedo(f, *ext, ext_field, b.warnings);
     if (ext->contains("cubeG") != ext->contains("cubeH"))
         f.fail(ext_field + (ext->contains("cubeG") ? ".cubeH" : ".cubeG"), "missing: G and H go together");
     if (ext->contains("cubeG")) {
