@@ -59,9 +59,6 @@ void lambert_validate(const LambertInputs& in) {
                 throw Error("lambert_solve: view " + std::to_string(v) + ": surface map is " + std::to_string(m.width) + "x" +
                             std::to_string(m.height) + ", image " + std::to_string(k.w) + "x" + std::to_string(k.h));
         }
-        if (view.frames.size() > shared::kLambertMaxFramesPerView)
-            throw Error("lambert_solve: view " + std::to_string(v) + " has " + std::to_string(view.frames.size()) +
-                        " train frames, more than the " + std::to_string(shared::kLambertMaxFramesPerView) + " supported");
         const Intrinsics& k = view.camera.intrinsics;
         for (std::uint32_t f : view.frames) {
             if (f >= in.images.size()) throw Error("lambert_solve: view " + std::to_string(v) + " names frame " + std::to_string(f) + " out of range");

@@ -9,16 +9,20 @@
 //   LambertOutputs out = lambert_solve(in, {.mode = LambertMode::Photometric}, Backend::Vulkan, &ctx);
 //   out.albedo(p)   // rho (linear RGB) of the chosen combination
 //
-// Two steps: the pair step solves every (particle, view) pair (the view's frames only),
-// the combine step chooses the best view and the robust mean per particle.
+// Three steps: the gather step reads every (particle, view, train frame) sample into a
+// record, the pair step solves every (particle, view) pair from its records (the view's
+// frames only, any number of them), the combine step chooses the best view and the robust
+// mean per particle.
 //
 // Memory (Vulkan): the images of a capture do not fit one storage binding (120 frames
 // of 512^2 RGBA float = 480 MiB; lavapipe allows 128 MiB per binding). Images are kept
 // as RGBA32 (rgb float, flags in the 4th word: exact, so the GPU reads what the reference
-// reads) and VIEWS ARE BATCHED: consecutive views whose pixels fit maxStorageBufferRange
-// go in one buffer, one dispatch per batch over that batch's pairs; pair results persist
-// across batches, then one combine dispatch. Pair results are chunked by particle range
-// the same way when they exceed one binding.
+// reads) and FRAMES ARE BATCHED (diffuse/view_batches.h): consecutive frames, in view order,
+// whose pixels fit maxStorageBufferRange go in one buffer (a view with more is split over
+// batches), one gather dispatch per batch writes the records of that batch's frames; the
+// records (16 bytes per pair and frame of its view) persist across batches, then one pair
+// and one combine dispatch. Particles are chunked so that a chunk's records and pair results
+// each fit one binding.
 #include "capture/capture.h"
 #include "core/backend.h"
 #include "material/material.h"
@@ -92,7 +96,7 @@ struct LambertInputs {
 [[nodiscard]] LambertInputs lambert_inputs(const Capture& capture, std::span<const Particle> particles,
                                            const Visibility& visibility);
 
-/// Throws Error when the inputs are inconsistent (sizes, frames per view > 16, images missing).
+/// Throws Error when the inputs are inconsistent (sizes, images missing). Any number of frames per view.
 void lambert_validate(const LambertInputs& in);
 
 using LambertParticleResult = shared::LambertParticleResult;

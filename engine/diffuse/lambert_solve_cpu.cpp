@@ -1,5 +1,6 @@
 // Reference of the Lambert solve: the method of shared/lambert.h, step for step as
-// shaders/diffuse/lambert_solve.comp and lambert_solve_combine.comp do it, with the shared
+// shaders/diffuse/lambert_gather.comp, lambert_solve.comp and lambert_solve_combine.comp do it
+// (the gather step's records are this pair step's `samples`), with the shared
 // helpers instantiated in double (shared::f64) and every sum accumulated in double.
 // Results are rounded to the float layouts the GPU writes.
 #include "diffuse/lambert_solve.h"
@@ -239,8 +240,14 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         }
         r.albedo = glm::vec4(glm::vec3(rho), r.albedo.w);
     }
-    r.counts0 = shared::lambert_pack4(static_cast<std::uint32_t>(kept), shadow, clipped, missing);
-    r.counts1 = shared::lambert_pack4(grazing, highlight, static_cast<std::uint32_t>(view.frames.size()), low);
+    r.used = static_cast<std::uint32_t>(kept);
+    r.shadow = shadow;
+    r.clipped = clipped;
+    r.missing = missing;
+    r.grazing = grazing;
+    r.highlight = highlight;
+    r.frames = static_cast<std::uint32_t>(view.frames.size());
+    r.low = low;
     return r;
 }
 
@@ -254,14 +261,14 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
     r.views = static_cast<std::uint32_t>(pairs.size());
     std::vector<std::pair<double, std::uint32_t>> lum; // (luminance, used samples), in view order
     for (const auto& p : pairs) {
-        r.rejected_shadow += shared::lambert_byte(p.counts0, 1u);
-        r.rejected_clipped += shared::lambert_byte(p.counts0, 2u);
-        r.rejected_missing += shared::lambert_byte(p.counts0, 3u);
-        r.rejected_grazing += shared::lambert_byte(p.counts1, 0u);
-        r.rejected_highlight += shared::lambert_byte(p.counts1, 1u);
-        r.rejected_low += shared::lambert_byte(p.counts1, 3u);
+        r.rejected_shadow += p.shadow;
+        r.rejected_clipped += p.clipped;
+        r.rejected_missing += p.missing;
+        r.rejected_grazing += p.grazing;
+        r.rejected_highlight += p.highlight;
+        r.rejected_low += p.low;
         if (p.status & shared::kLambertPairHasSample)
-            lum.push_back({double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z), shared::lambert_byte(p.counts0, 0u)});
+            lum.push_back({double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z), p.used});
     }
     if (pairs.empty()) {
         r.status = shared::kLambertNotSeen;
@@ -280,7 +287,7 @@ LambertParticleResult lambert_combine_cpu(std::span<const shared::LambertPairRes
     for (const auto& p : pairs) {
         if (!(p.status & shared::kLambertPairHasSample)) continue;
         const double l = double(p.albedo.x) + double(p.albedo.y) + double(p.albedo.z);
-        const std::uint32_t used = shared::lambert_byte(p.counts0, 0u);
+        const std::uint32_t used = p.used;
         if (f64::lambert_view_outlier(l, ref, static_cast<double>(o.view_tau), static_cast<double>(o.view_abs))) {
             r.rejected_view += used;
             r.status |= shared::kLambertViewsRejected;

@@ -1,11 +1,12 @@
 // Vulkan side of the residual samples (memory plan in residuals.h):
 //  1. particles, `lit` masks and rho/pi per particle are uploaded once;
-//  2. views are cut into batches whose images fit one binding (RGBA32: rgb floats and the
-//     flags word, exactly as the diffuse solve packs them, lambert_solve_vk.cpp);
-//  3. per batch: the host lists the (particle, view) pairs (view-major, as the reference)
-//     and their slots (one per lit frame), cuts them into chunks whose slots fit one
-//     binding, and per chunk dispatches residuals.comp, downloads the slots and keeps the
-//     used samples in slot order.
+//  2. the train frames are cut into batches whose images fit one binding (RGBA32: rgb floats
+//     and the flags word, exactly as the diffuse solve packs them; a view may span batches,
+//     diffuse/view_batches.h);
+//  3. per batch: the host lists the (particle, view segment) pairs and their slots (one per
+//     lit frame), cuts them into chunks whose slots fit one binding, and per chunk dispatches
+//     residuals.comp and downloads the slots into their view's list; a complete view's list
+//     keeps its used samples in the reference's order (view, particle, frame).
 #include "specular/residuals.h"
 
 #include "diffuse/view_batches.h"
@@ -23,6 +24,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <list>
 
 namespace specula {
 
@@ -63,8 +65,6 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
         throw gpu::LimitError("residual_samples: " + std::to_string(count) +
                               " particles (or their lit masks) exceed one storage binding; particle chunking is not implemented");
     const std::uint64_t max_slots = limit / sizeof(ResidualSample);
-    if (max_slots < shared::kLambertMaxFramesPerView)
-        throw gpu::LimitError("residual_samples: the binding limit holds fewer slots than one pair needs");
 
     // Per particle: rho/pi (w = 1 when the particle has a diffuse solution).
     std::vector<glm::vec4> rpi(count, glm::vec4(0.0f));
@@ -88,83 +88,131 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
     bool timed = true;
     PackedViewBatch packed;
     std::vector<ResidualSample> slots;
+    // The samples of a view come out in the reference's order (view, particle, frame) even when
+    // its frames span batches: each segment's slots land in the view's own list at the place
+    // of their frames, and a view's list is kept (counted, used samples appended) once its
+    // last segment is done. Views end in order, so at most two lists are open.
+    struct OpenView {
+        std::uint32_t view = 0;
+        std::vector<ResidualSample> slots;      // lit (particle, frame) slots of the view, reference order
+        std::vector<std::uint64_t> pair_first;  // per particle: its first slot in `slots`
+        std::vector<std::uint32_t> lit_before;  // per particle: its lit frames in the segments done so far
+    };
+    std::list<OpenView> open; // a list: the keys point into its elements
+    const auto keep_view = [&](OpenView& ov) {
+        for (const ResidualSample& s : ov.slots) {
+            switch (s.status) {
+            case shared::kResidualUsed: out.samples.push_back(s); ++cnt.used; break;
+            case shared::kResidualGrazing: ++cnt.dropped_grazing; break;
+            case shared::kResidualMissing: ++cnt.dropped_missing; break;
+            case shared::kResidualClipped: ++cnt.dropped_clipped; break;
+            default: throw Error("residual_samples: the kernel wrote an unknown status " + std::to_string(s.status));
+            }
+        }
+    };
+    const auto open_view = [&](std::uint32_t v) -> OpenView& {
+        for (OpenView& ov : open)
+            if (ov.view == v) return ov;
+        OpenView ov;
+        ov.view = v;
+        ov.pair_first.assign(count, 0);
+        ov.lit_before.assign(count, 0);
+        std::uint64_t total = 0;
+        for (std::uint32_t p = 0; p < count; ++p) {
+            ov.pair_first[p] = total;
+            if (!vis.sees(p, v) || rpi[p].w == 0.0f) continue;
+            for (std::uint32_t f : in.views[v].frames) total += vis.lights(p, f) ? 1u : 0u;
+        }
+        ov.slots.resize(total);
+        open.push_back(std::move(ov));
+        return open.back();
+    };
     for (const ViewBatch& b : batches) {
-        // Pairs of the batch, view-major (the reference's order), with their slot counts.
+        // Pairs of the batch's segments, in segment order then particle order, with their slot
+        // counts and where their slots go in their view's list.
         std::vector<shared::LambertPairKey> keys;
         std::vector<std::uint64_t> key_slots; // first slot of key i within the batch; back() = total
+        std::vector<std::pair<OpenView*, std::uint64_t>> key_dest; // key i's view list and first slot there
         key_slots.push_back(0);
-        for (std::uint32_t v = b.first; v < b.last; ++v) {
-            const LambertView& lv = in.views[v];
-            if (lv.frames.empty()) continue;
+        for (std::uint32_t si = 0; si < b.segments.size(); ++si) {
+            const ViewSegment& seg = b.segments[si];
+            const LambertView& lv = in.views[seg.view];
+            OpenView& ov = open_view(seg.view);
+            const std::size_t n_frames = seg.frame_last - seg.frame_first;
             for (std::uint32_t p = 0; p < count; ++p) {
-                if (!vis.sees(p, v)) continue;
-                cnt.candidates += lv.frames.size();
+                if (!vis.sees(p, seg.view)) continue;
+                cnt.candidates += n_frames;
                 if (rpi[p].w == 0.0f) {
-                    cnt.dropped_no_diffuse += lv.frames.size();
+                    cnt.dropped_no_diffuse += n_frames;
                     continue;
                 }
                 std::uint32_t lit = 0;
-                for (std::uint32_t f : lv.frames) lit += vis.lights(p, f) ? 1u : 0u;
-                cnt.dropped_shadow += lv.frames.size() - lit;
+                for (std::uint32_t i = seg.frame_first; i < seg.frame_last; ++i) lit += vis.lights(p, lv.frames[i]) ? 1u : 0u;
+                cnt.dropped_shadow += n_frames - lit;
                 if (lit == 0) continue;
-                keys.push_back({p, v - b.first, 0u});
+                keys.push_back({p, si, 0u});
                 key_slots.push_back(key_slots.back() + lit);
+                key_dest.push_back({&ov, ov.pair_first[p] + ov.lit_before[p]});
+                ov.lit_before[p] += lit;
             }
         }
-        if (keys.empty()) continue;
 
-        pack_view_batch(in, surfaces, b, packed);
-        const auto& views = packed.views;
-        const auto& frames = packed.frames;
-        const auto& pixel_words = packed.pixel_words;
-        gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, views.size(), "residual views");
-        views_buf.upload(views);
-        gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, frames.size(), "residual frames");
-        frames_buf.upload(frames);
-        gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, pixel_words.size(), "residual images");
-        pixels_buf.upload(pixel_words);
+        if (!keys.empty()) {
+            pack_view_batch(in, surfaces, b, packed);
+            gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), "residual views");
+            views_buf.upload(packed.views);
+            gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), "residual frames");
+            frames_buf.upload(packed.frames);
+            gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), "residual images");
+            pixels_buf.upload(packed.pixel_words);
 
-        // Chunks of whole pairs whose slots fit one binding.
-        for (std::size_t first = 0; first < keys.size();) {
-            std::size_t last = first;
-            while (last < keys.size() && key_slots[last + 1] - key_slots[first] <= max_slots) ++last;
-            const std::uint64_t base = key_slots[first];
-            const std::uint64_t n_slots = key_slots[last] - base;
-            std::vector<shared::LambertPairKey> chunk_keys(keys.begin() + static_cast<std::ptrdiff_t>(first),
-                                                           keys.begin() + static_cast<std::ptrdiff_t>(last));
-            for (std::size_t i = 0; i < chunk_keys.size(); ++i)
-                chunk_keys[i].slot = static_cast<std::uint32_t>(key_slots[first + i] - base);
-            gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, chunk_keys.size(), "residual pair keys");
-            keys_buf.upload(chunk_keys);
-            gpu::Buffer samples_buf = gpu::Buffer::of<ResidualSample>(ctx, n_slots, "residual samples");
-            const shared::ResidualPush push{.dispatch = {},
-                                            .frame_words = vis.frame_words,
-                                            .min_light_cos = o.min_light_cos,
-                                            .material = material_gpu(o.material)};
-            gpu::Sequence seq(ctx, 2);
-            seq.dispatch_1d(m_impl->kernel,
-                            {particles_buf, lit_buf, rpi_buf, views_buf, frames_buf, pixels_buf, keys_buf, samples_buf},
-                            static_cast<std::uint32_t>(chunk_keys.size()), push, "residuals")
-                .barrier(gpu::Barrier::ComputeToHost)
-                .submit_and_wait();
-            for (const auto& t : seq.timings()) {
-                if (t.ns) gpu_ns += *t.ns;
-                else timed = false;
-            }
-            ++out.chunks;
-            slots.resize(n_slots);
-            samples_buf.download(std::span<ResidualSample>(slots));
-            for (const ResidualSample& s : slots) {
-                switch (s.status) {
-                case shared::kResidualUsed: out.samples.push_back(s); ++cnt.used; break;
-                case shared::kResidualGrazing: ++cnt.dropped_grazing; break;
-                case shared::kResidualMissing: ++cnt.dropped_missing; break;
-                case shared::kResidualClipped: ++cnt.dropped_clipped; break;
-                default: throw Error("residual_samples: the kernel wrote an unknown status " + std::to_string(s.status));
+            // Chunks of whole pairs whose slots fit one binding.
+            for (std::size_t first = 0; first < keys.size();) {
+                std::size_t last = first;
+                while (last < keys.size() && key_slots[last + 1] - key_slots[first] <= max_slots) ++last;
+                if (last == first)
+                    throw gpu::LimitError("residual_samples: the " + std::to_string(key_slots[first + 1] - key_slots[first]) +
+                                          " samples of one pair exceed one storage binding");
+                const std::uint64_t base = key_slots[first];
+                const std::uint64_t n_slots = key_slots[last] - base;
+                std::vector<shared::LambertPairKey> chunk_keys(keys.begin() + static_cast<std::ptrdiff_t>(first),
+                                                               keys.begin() + static_cast<std::ptrdiff_t>(last));
+                for (std::size_t i = 0; i < chunk_keys.size(); ++i)
+                    chunk_keys[i].slot = static_cast<std::uint32_t>(key_slots[first + i] - base);
+                gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, chunk_keys.size(), "residual pair keys");
+                keys_buf.upload(chunk_keys);
+                gpu::Buffer samples_buf = gpu::Buffer::of<ResidualSample>(ctx, n_slots, "residual samples");
+                const shared::ResidualPush push{.dispatch = {},
+                                                .frame_words = vis.frame_words,
+                                                .min_light_cos = o.min_light_cos,
+                                                .material = material_gpu(o.material)};
+                gpu::Sequence seq(ctx, 2);
+                seq.dispatch_1d(m_impl->kernel,
+                                {particles_buf, lit_buf, rpi_buf, views_buf, frames_buf, pixels_buf, keys_buf, samples_buf},
+                                static_cast<std::uint32_t>(chunk_keys.size()), push, "residuals")
+                    .barrier(gpu::Barrier::ComputeToHost)
+                    .submit_and_wait();
+                for (const auto& t : seq.timings()) {
+                    if (t.ns) gpu_ns += *t.ns;
+                    else timed = false;
                 }
+                ++out.chunks;
+                slots.resize(n_slots);
+                samples_buf.download(std::span<ResidualSample>(slots));
+                for (std::size_t i = first; i < last; ++i)
+                    std::copy(slots.begin() + static_cast<std::ptrdiff_t>(key_slots[i] - base),
+                              slots.begin() + static_cast<std::ptrdiff_t>(key_slots[i + 1] - base),
+                              key_dest[i].first->slots.begin() + static_cast<std::ptrdiff_t>(key_dest[i].second));
+                first = last;
             }
-            first = last;
         }
+        // Views whose last segment this batch held are complete.
+        for (const ViewSegment& seg : b.segments)
+            if (seg.frame_last == in.views[seg.view].frames.size()) {
+                auto it = std::find_if(open.begin(), open.end(), [&](const OpenView& ov) { return ov.view == seg.view; });
+                keep_view(*it);
+                open.erase(it);
+            }
     }
     if (timed) out.gpu_ms = gpu_ns * 1e-6;
     out.seconds = sw.seconds();

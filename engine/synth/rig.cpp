@@ -83,7 +83,7 @@ double exposure_intensity(const Mesh& mesh, const glm::dvec3& position, const Ri
 Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     require(o.size >= 8 && o.size <= 16384, "--size must be between 8 and 16384 pixels");
     require(o.views >= 1 && o.views <= 1000, "--views must be between 1 and 1000");
-    require(o.lights >= 1 && o.lights <= 64, "--lights must be between 1 and 64");
+    require(o.lights >= 1 && o.lights <= 1024, "--lights must be between 1 and 1024");
     require(o.test_views >= 0 && o.test_views <= 1000, "--test-views must be between 0 and 1000");
     require(o.test_lights >= 1 && o.test_lights <= 64, "test lights must be between 1 and 64");
     require(o.fov_deg > 1.0 && o.fov_deg < 170.0, "field of view must be in (1, 170) degrees");

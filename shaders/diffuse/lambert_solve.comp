@@ -1,10 +1,11 @@
 #version 450
-// lambert_solve, pair step: one invocation per (particle, view) pair of the current view
-// batch. Samples every train frame of the view at the particle's projection (bilinear),
-// scales each tap to the particle's irradiance (view surface map), rejects shadowed, grazing,
-// missing, clipped and highlight samples, and solves albedo or
-// photometric mode (method and thresholds: shared/lambert.h; reference:
-// engine/diffuse/lambert_solve_cpu.cpp, which follows this step for step).
+// lambert_solve, pair step: one invocation per (particle, view) pair of a particle chunk,
+// after the gather step (lambert_gather.comp) wrote one record per frame of the view. Counts
+// the rejected samples, finds the highlights (lower median of the channel-sum ratios by
+// selection in the scratch buffer, then iterated refits) and solves albedo or photometric
+// mode (method and thresholds: shared/lambert.h; reference: engine/diffuse/lambert_solve_cpu.cpp,
+// which follows this step for step). Any number of frames per view: nothing is held per frame
+// in the invocation; each pass recomputes a sample from its record and its light.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/dispatch.h"
 #include "shared/lambert.h"
@@ -21,111 +22,149 @@ struct ParticleGpu {
 };
 
 layout(std430, set = 0, binding = 0) readonly buffer Particles { ParticleGpu particles[]; };
-layout(std430, set = 0, binding = 1) readonly buffer Lit { uint lit[]; };
-layout(std430, set = 0, binding = 2) readonly buffer Views { LambertViewGpu views[]; };
-layout(std430, set = 0, binding = 3) readonly buffer Frames { LambertFrameGpu frames[]; };
-layout(std430, set = 0, binding = 4) readonly buffer Pixels { uvec4 pixels[]; }; // rgb float bits, flags
-layout(std430, set = 0, binding = 5) readonly buffer Keys { LambertPairKey keys[]; };
+layout(std430, set = 0, binding = 1) readonly buffer Views { LambertViewGpu views[]; };    // every view
+layout(std430, set = 0, binding = 2) readonly buffer Frames { LambertFrameGpu frames[]; }; // their train frames
+layout(std430, set = 0, binding = 3) readonly buffer Records { vec4 records[]; };
+layout(std430, set = 0, binding = 4) buffer Scratch { float scratch[]; }; // one float per record
+layout(std430, set = 0, binding = 5) readonly buffer Keys { LambertSolveKey keys[]; };
 layout(std430, set = 0, binding = 6) writeonly buffer Results { LambertPairResult results[]; };
 
-#include "shared/lambert_sample.glsl"
-
 layout(push_constant) uniform PushBlock { LambertPairPush pc; }; // shared header: one definition for GLSL and C++
+
+// One usable sample of the pair (shared/lambert.h): c with the known specular light
+// subtracted, E = I k_d n.u / d^2, I, a = k_d u / d^2, es = E_r + E_g + E_b, q = sum(c) / es.
+struct PairSample {
+    vec3 c;
+    vec3 e;
+    vec3 i;
+    vec3 a;
+    float es;
+    float q;
+};
+
+PairSample pair_sample(vec4 rec, LambertFrameGpu fr, vec3 P, vec3 n) {
+    PairSample s;
+    vec3 L = fr.light.xyz - P;
+    float d2 = dot(L, L);
+    vec3 u = L / sqrt(d2);
+    float kd = rec.w;
+    s.c = rec.xyz;
+    s.i = fr.intensity.xyz;
+    s.e = fr.intensity.xyz * (dot(n, u) / d2) * kd;
+    s.a = (u / d2) * kd;
+    s.es = s.e.x + s.e.y + s.e.z;
+    s.q = (s.c.x + s.c.y + s.c.z) / s.es;
+    return s;
+}
+
+// Kept (not a highlight, not a shadow edge) against the estimate est.
+bool pair_keep(PairSample s, float est) {
+    return lambert_keep(s.q, s.es, est, pc.tau, pc.k_sigma) && !lambert_low(s.q, s.es, est, pc.tau, pc.k_sigma);
+}
+
+// The element of rank k (0-based, ascending) of scratch[first, first + n): Hoare selection,
+// in place. The value equals the reference's std::nth_element.
+float select_rank(uint first, uint n, uint k) {
+    int lo = int(first);
+    int hi = int(first + n) - 1;
+    int target = int(first + k);
+    while (lo < hi) {
+        float pivot = scratch[(lo + hi) / 2];
+        int i = lo;
+        int j = hi;
+        while (i <= j) {
+            while (scratch[i] < pivot) ++i;
+            while (scratch[j] > pivot) --j;
+            if (i <= j) {
+                float tmp = scratch[i];
+                scratch[i] = scratch[j];
+                scratch[j] = tmp;
+                ++i;
+                --j;
+            }
+        }
+        if (target <= j) hi = j;
+        else if (target >= i) lo = i;
+        else break;
+    }
+    return scratch[target];
+}
 
 void main() {
     uint e = dispatch_element(pc.dispatch.element_base, gl_GlobalInvocationID.x);
     if (e >= pc.dispatch.element_count) return;
-    LambertPairKey key = keys[e];
+    LambertSolveKey key = keys[e];
     ParticleGpu part = particles[key.particle];
     LambertViewGpu view = views[key.view];
     vec3 P = part.position.xyz;
     vec3 n = part.normal.xyz;
-    vec4 Ph = vec4(P, 1.0);
-    vec3 xc = vec3(dot(view.w2c0, Ph), dot(view.w2c1, Ph), dot(view.w2c2, Ph));
-    vec2 pos = vec2(view.intrinsics.z + view.intrinsics.x * xc.x / (-xc.z),
-                    view.intrinsics.w - view.intrinsics.y * xc.y / (-xc.z));
-    int w = int(view.width);
-    int h = int(view.height);
-    LambertTaps t = lambert_taps(pos, w, h);
+    vec3 vdir = normalize(view.center.xyz - P);
 
     LambertPairResult r;
-    r.view = pc.global_view_base + key.view;
-    vec3 vdir = normalize(view.center.xyz - P);
-    float nv = dot(n, vdir);
-    r.albedo = vec4(0.0, 0.0, 0.0, nv);
+    r.view = key.view;
+    r.albedo = vec4(0.0, 0.0, 0.0, dot(n, vdir));
     r.normal = vec4(n, 0.0);
     r.status = 0u;
-    uint shadow = 0u, clipped = 0u, missing = 0u, grazing = 0u;
+    r.shadow = 0u;
+    r.clipped = 0u;
+    r.missing = 0u;
+    r.grazing = 0u;
+    r.frames = view.frame_count;
+    r.pad0 = 0u;
+    r.pad1 = 0u;
 
-    vec3 sc[kLambertMaxFramesPerView];
-    vec3 se[kLambertMaxFramesPerView];
-    vec3 si[kLambertMaxFramesPerView];
-    vec3 sa[kLambertMaxFramesPerView];
-    float sq[kLambertMaxFramesPerView];
-    float ses[kLambertMaxFramesPerView];
-    bool skept[kLambertMaxFramesPerView];
+    // Rejections, and the usable samples' ratios q into the scratch buffer.
     uint ns = 0u;
     for (uint k = 0u; k < view.frame_count; ++k) {
-        LambertFrameGpu fr = frames[view.frame_first + k];
-        uint word = lit[key.particle * pc.frame_words + fr.frame / 32u];
-        if (((word >> (fr.frame % 32u)) & 1u) == 0u) { ++shadow; continue; }
-        vec3 L = fr.light.xyz - P;
-        float d2 = dot(L, L);
-        vec3 u = L / sqrt(d2);
-        float cosl = dot(n, u);
-        if (!(cosl >= pc.min_light_cos)) { ++grazing; continue; }
-        LambertSample smp = lambert_read_sample(t, w, fr.pixel_offset, fr.light.w, view.surface_offset, fr.light.xyz,
-                                                cosl / d2, pc.min_light_cos);
-        if (smp.status == kLambertSampleMissing) { ++missing; continue; }
-        if (smp.status == kLambertSampleClipped) { ++clipped; continue; }
-        if (smp.status == kLambertSampleGrazing) { ++grazing; continue; }
-        si[ns] = fr.intensity.xyz;
-        se[ns] = fr.intensity.xyz * (cosl / d2);
-        float kd = material_diffuse_factor(pc.material, cosl, nv);
-        if (!(kd > 0.0)) { ++grazing; continue; } // the known diffuse term is dark here (shared/lambert.h)
-        sc[ns] = smp.c - material_specular(pc.material, cosl, nv, dot(u, vdir)) * se[ns];
-        se[ns] *= kd;
-        sa[ns] = (u / d2) * kd;
-        ses[ns] = se[ns].x + se[ns].y + se[ns].z;
-        sq[ns] = (sc[ns].x + sc[ns].y + sc[ns].z) / ses[ns];
-        skept[ns] = true;
-        ++ns;
+        vec4 rec = records[key.record + k];
+        if (rec.w > 0.0) {
+            scratch[key.record + ns] = pair_sample(rec, frames[view.frame_first + k], P, n).q;
+            ++ns;
+            continue;
+        }
+        uint reason = uint(-rec.w);
+        if (reason == kLambertRecordShadow) ++r.shadow;
+        else if (reason == kLambertRecordClipped) ++r.clipped;
+        else if (reason == kLambertRecordMissing) ++r.missing;
+        else ++r.grazing;
     }
 
-    // Highlights: lower median of q, then iterated refits (shared/lambert.h).
-    uint kept = 0u;
-    uint low = 0u;
-    if (ns > 0u) {
-        uint rank = (ns - 1u) / 2u;
-        float est = 0.0;
-        for (uint i = 0u; i < ns; ++i) { // the element with `rank` smaller ones (ties by index)
-            uint below = 0u;
-            for (uint j = 0u; j < ns; ++j)
-                if (sq[j] < sq[i] || (sq[j] == sq[i] && j < i)) ++below;
-            if (below == rank) est = sq[i];
-        }
-        for (uint it = 0u; it < pc.iterations; ++it) {
-            bool changed = false;
-            float num = 0.0, den = 0.0;
-            for (uint i = 0u; i < ns; ++i) {
-                bool keep = lambert_keep(sq[i], ses[i], est, pc.tau, pc.k_sigma) &&
-                            !lambert_low(sq[i], ses[i], est, pc.tau, pc.k_sigma);
-                changed = changed || keep != skept[i];
-                skept[i] = keep;
-                if (keep) {
-                    num += sq[i] * ses[i] * ses[i];
-                    den += ses[i] * ses[i];
-                }
+    // Highlights: lower median of q, then iterated refits (shared/lambert.h). The kept set of
+    // an iteration depends only on the estimate it used, so it is recomputed, not stored.
+    float est = ns > 0u ? select_rank(key.record, ns, (ns - 1u) / 2u) : 0.0;
+    bool fitted = false; // an iteration ran: the kept set is pair_keep(s, est_kept), else every sample
+    float est_kept = est;
+    for (uint it = 0u; it < pc.iterations && ns > 0u; ++it) {
+        bool changed = false;
+        float num = 0.0, den = 0.0;
+        for (uint k = 0u; k < view.frame_count; ++k) {
+            vec4 rec = records[key.record + k];
+            if (!(rec.w > 0.0)) continue;
+            PairSample s = pair_sample(rec, frames[view.frame_first + k], P, n);
+            bool keep = pair_keep(s, est);
+            bool before = fitted ? pair_keep(s, est_kept) : true;
+            changed = changed || keep != before;
+            if (keep) {
+                num += s.q * s.es * s.es;
+                den += s.es * s.es;
             }
-            if (den > 0.0) est = num / den;
-            if (!changed && it > 0u) break;
         }
-        for (uint i = 0u; i < ns; ++i) {
-            kept += skept[i] ? 1u : 0u;
-            if (!skept[i] && sq[i] < est) ++low;
-        }
+        fitted = true;
+        est_kept = est;
+        if (den > 0.0) est = num / den;
+        if (!changed && it > 0u) break;
     }
-    uint highlight = ns - kept - low;
+    uint kept = 0u, low = 0u;
+    for (uint k = 0u; k < view.frame_count; ++k) {
+        vec4 rec = records[key.record + k];
+        if (!(rec.w > 0.0)) continue;
+        PairSample s = pair_sample(rec, frames[view.frame_first + k], P, n);
+        if (!fitted || pair_keep(s, est_kept)) ++kept;
+        else if (s.q < est) ++low;
+    }
+    r.used = kept;
+    r.low = low;
+    r.highlight = ns - kept - low;
 
     if (kept > 0u) {
         r.status |= kLambertPairHasSample;
@@ -136,11 +175,14 @@ void main() {
                 Lsq3Normal n0 = lsq3_normal_zero();
                 Lsq3Normal n1 = lsq3_normal_zero();
                 Lsq3Normal n2 = lsq3_normal_zero();
-                for (uint i = 0u; i < ns; ++i) {
-                    if (!skept[i]) continue;
-                    lsq3_accumulate(n0, si[i].x * sa[i], sc[i].x, 1.0);
-                    lsq3_accumulate(n1, si[i].y * sa[i], sc[i].y, 1.0);
-                    lsq3_accumulate(n2, si[i].z * sa[i], sc[i].z, 1.0);
+                for (uint k = 0u; k < view.frame_count; ++k) {
+                    vec4 rec = records[key.record + k];
+                    if (!(rec.w > 0.0)) continue;
+                    PairSample s = pair_sample(rec, frames[view.frame_first + k], P, n);
+                    if (fitted && !pair_keep(s, est_kept)) continue;
+                    lsq3_accumulate(n0, s.i.x * s.a, s.c.x, 1.0);
+                    lsq3_accumulate(n1, s.i.y * s.a, s.c.y, 1.0);
+                    lsq3_accumulate(n2, s.i.z * s.a, s.c.z, 1.0);
                 }
                 Lsq3Solution s0 = lsq3_solve_normal(n0);
                 Lsq3Solution s1 = lsq3_solve_normal(n1);
@@ -161,10 +203,13 @@ void main() {
         }
         if (!solved) {
             vec3 num = vec3(0.0), den = vec3(0.0);
-            for (uint i = 0u; i < ns; ++i) {
-                if (!skept[i]) continue;
-                num += sc[i] * se[i];
-                den += se[i] * se[i];
+            for (uint k = 0u; k < view.frame_count; ++k) {
+                vec4 rec = records[key.record + k];
+                if (!(rec.w > 0.0)) continue;
+                PairSample s = pair_sample(rec, frames[view.frame_first + k], P, n);
+                if (fitted && !pair_keep(s, est_kept)) continue;
+                num += s.c * s.e;
+                den += s.e * s.e;
             }
             rho.x = den.x > 0.0 ? kPi * num.x / den.x : 0.0;
             rho.y = den.y > 0.0 ? kPi * num.y / den.y : 0.0;
@@ -172,7 +217,5 @@ void main() {
         }
         r.albedo.xyz = rho;
     }
-    r.counts0 = lambert_pack4(kept, shadow, clipped, missing);
-    r.counts1 = lambert_pack4(grazing, highlight, view.frame_count, low);
     results[key.slot] = r;
 }

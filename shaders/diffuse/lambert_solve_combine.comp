@@ -52,12 +52,12 @@ void main() {
     uint with_sample = 0u;
     for (uint i = begin; i < end; ++i) {
         LambertPairResult p = pairs[i];
-        r.rejected_shadow += lambert_byte(p.counts0, 1u);
-        r.rejected_clipped += lambert_byte(p.counts0, 2u);
-        r.rejected_missing += lambert_byte(p.counts0, 3u);
-        r.rejected_grazing += lambert_byte(p.counts1, 0u);
-        r.rejected_highlight += lambert_byte(p.counts1, 1u);
-        r.rejected_low += lambert_byte(p.counts1, 3u);
+        r.rejected_shadow += p.shadow;
+        r.rejected_clipped += p.clipped;
+        r.rejected_missing += p.missing;
+        r.rejected_grazing += p.grazing;
+        r.rejected_highlight += p.highlight;
+        r.rejected_low += p.low;
         if ((p.status & kLambertPairHasSample) != 0u) ++with_sample;
     }
     if (begin == end) {
@@ -69,7 +69,7 @@ void main() {
         // in (luminance, position) order, the view where the cumulative weight reaches half.
         uint total = 0u;
         for (uint i = begin; i < end; ++i)
-            if ((pairs[i].status & kLambertPairHasSample) != 0u) total += lambert_byte(pairs[i].counts0, 0u);
+            if ((pairs[i].status & kLambertPairHasSample) != 0u) total += pairs[i].used;
         float ref = 0.0;
         for (uint i = begin; i < end; ++i) {
             if ((pairs[i].status & kLambertPairHasSample) == 0u) continue;
@@ -78,9 +78,9 @@ void main() {
             for (uint j = begin; j < end; ++j) {
                 if ((pairs[j].status & kLambertPairHasSample) == 0u) continue;
                 float lj = lum(pairs[j]);
-                if (lj < li || (lj == li && j < i)) below += lambert_byte(pairs[j].counts0, 0u);
+                if (lj < li || (lj == li && j < i)) below += pairs[j].used;
             }
-            uint cum = below + lambert_byte(pairs[i].counts0, 0u);
+            uint cum = below + pairs[i].used;
             if (2u * below < total && 2u * cum >= total) ref = li;
         }
         vec3 sum = vec3(0.0);
@@ -91,7 +91,7 @@ void main() {
         for (uint i = begin; i < end; ++i) {
             LambertPairResult p = pairs[i];
             if ((p.status & kLambertPairHasSample) == 0u) continue;
-            uint used = lambert_byte(p.counts0, 0u);
+            uint used = p.used;
             if (lambert_view_outlier(lum(p), ref, pc.view_tau, pc.view_abs)) {
                 r.rejected_view += used;
                 r.status |= kLambertViewsRejected;

@@ -74,7 +74,6 @@
 
 SPECULA_SHARED_BEGIN
 
-const uint kLambertMaxFramesPerView = 16u; // local arrays in the shader
 const uint kLambertModeAlbedo = 0u;
 const uint kLambertModePhotometric = 1u;
 const uint kLambertNoView = 0xFFFFFFFFu;
@@ -102,7 +101,19 @@ const uint kLambertViewsRejected = 16u; // some views were outliers against the 
 // -32768, so no normal packs to it).
 const uint kLambertNoHit = 0x80008000u;
 const uint kLambertNoSurface = 0xFFFFFFFFu; // LambertViewGpu::surface_offset: the view has no surface map
-// One view of a batch (std430, 112 bytes).
+// Sample records (the gather step's output, the pair step's input): one per (pair, train
+// frame of the view), 4 floats: the sample's value with the known material's specular light
+// subtracted (rgb), and in w the known diffuse factor k_d (> 0) of a usable sample, or minus
+// a kLambertRecord* reason of a rejected one. Any number of frames per view: the records of a
+// pair are a contiguous run of the chunk's record buffer, the frames of a view may come from
+// several image batches (diffuse/view_batches.h).
+const uint kLambertRecordShadow = 1u;
+const uint kLambertRecordGrazing = 2u;
+const uint kLambertRecordMissing = 3u;
+const uint kLambertRecordClipped = 4u;
+
+// One view of a batch (std430, 112 bytes): a segment of a view's frames in an image batch
+// (gather step), or a whole view in the table of all views (pair step).
 struct LambertViewGpu {
     vec4 w2c0; // rows of world_to_camera (float)
     vec4 w2c1;
@@ -129,21 +140,37 @@ struct LambertFrameGpu {
     uint pad1;
 };
 
-// Work item of the pair kernel (std430, 12 bytes).
+// Work item of the gather step and of the residual samples (std430, 12 bytes).
 struct LambertPairKey {
     uint particle; // global particle index
-    uint view;     // index into the batch's views
-    uint slot;     // index into the chunk's pair results
+    uint view;     // index into the batch's views (segments)
+    uint slot;     // gather: record of the segment's first frame; residuals: first output slot
 };
 
-// Result of one (particle, view) pair (std430, 48 bytes).
+// Work item of the pair step (std430, 16 bytes).
+struct LambertSolveKey {
+    uint particle; // global particle index
+    uint view;     // global view index (into the table of all views)
+    uint slot;     // index into the chunk's pair results
+    uint record;   // the pair's first record (the view's frame 0) in the chunk's record buffer
+};
+
+// Result of one (particle, view) pair (std430, 80 bytes).
 struct LambertPairResult {
     vec4 albedo;  // rgb: rho (not rho/pi); w: n.v of the view (cosine to the camera)
     vec4 normal;  // xyz: refined normal (photometric), else the mesh normal; w: its angle to the mesh normal (deg)
-    uint counts0; // bytes: used, shadow, clipped, missing
-    uint counts1; // bytes: grazing, highlight, frames, shadow edge (below the fit)
+    uint used;    // samples kept
+    uint shadow;  // rejected samples by reason (shared/lambert.h)
+    uint clipped;
+    uint missing;
+    uint grazing;
+    uint highlight;
+    uint frames;  // train frames of the view
+    uint low;     // shadow edges (below the fit)
     uint status;  // kLambertPair*
     uint view;    // global view index
+    uint pad0;
+    uint pad1;
 };
 
 // Result of one particle (std430, 96 bytes).
@@ -165,20 +192,27 @@ struct LambertParticleResult {
     uint pad1;
 };
 
+// Push constants of the gather step (diffuse/lambert_gather.comp).
+struct LambertGatherPush {
+    DispatchHeader dispatch;
+    uint frame_words;
+    float min_light_cos;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+    uint pad3;
+    MaterialGpu material;  // the known material (the zero material: none; see "Known material" above)
+};
+
 // Push constants of the pair step (diffuse/lambert_solve.comp).
 struct LambertPairPush {
     DispatchHeader dispatch;
-    uint frame_words;
     uint mode;             // kLambertModeAlbedo or kLambertModePhotometric
     uint iterations;
-    float min_light_cos;
     float tau;
     float k_sigma;
     float min_rcond;
-    uint global_view_base; // global index of the batch's first view
     uint pad0;
-    uint pad1;
-    MaterialGpu material;  // the known material (the zero material: none; see "Known material" above)
 };
 
 // Push constants of the combine step (diffuse/lambert_solve_combine.comp).
@@ -188,13 +222,6 @@ struct LambertCombinePush {
     float view_tau;
     float view_abs;
 };
-
-SHARED_FN uint lambert_pack4(uint a, uint b, uint c, uint d) {
-    return min(a, 255u) | (min(b, 255u) << 8u) | (min(c, 255u) << 16u) | (min(d, 255u) << 24u);
-}
-SHARED_FN uint lambert_byte(uint packed, uint i) {
-    return (packed >> (8u * i)) & 255u;
-}
 
 #define LAMBERT_REAL float
 #define LAMBERT_VEC2 vec2
@@ -211,9 +238,11 @@ SPECULA_SHARED_END
 static_assert(sizeof(specula::shared::LambertViewGpu) == 112);
 static_assert(sizeof(specula::shared::LambertFrameGpu) == 48);
 static_assert(sizeof(specula::shared::LambertPairKey) == 12);
-static_assert(sizeof(specula::shared::LambertPairResult) == 48);
+static_assert(sizeof(specula::shared::LambertSolveKey) == 16);
+static_assert(sizeof(specula::shared::LambertPairResult) == 80);
 static_assert(sizeof(specula::shared::LambertParticleResult) == 96);
-static_assert(sizeof(specula::shared::LambertPairPush) == 112 && offsetof(specula::shared::LambertPairPush, material) == 48);
+static_assert(sizeof(specula::shared::LambertGatherPush) == 96 && offsetof(specula::shared::LambertGatherPush, material) == 32);
+static_assert(sizeof(specula::shared::LambertPairPush) == 32);
 static_assert(sizeof(specula::shared::LambertCombinePush) == 20);
 namespace specula::shared::f64 {
 using namespace glm;
