@@ -1,4 +1,4 @@
-// Capture format version 1 (docs/capture-format.md): parsing and
+// Capture format versions 1 and 1.1 (docs/capture-format.md): parsing and
 // validating capture.json, decoding images and masks, writing capture.json back.
 // Every refusal throws InputError(file, field, message).
 #include "capture/capture.h"
@@ -30,7 +30,8 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kFormatName = "specula-capture";
-constexpr int kFormatVersion = 1;
+constexpr double kFormatVersion = 1.0;
+constexpr double kFormatVersionDirectional = 1.1; // version 1 and directional lights
 // Intrinsics of frames of one view must agree to this relative tolerance.
 constexpr double kIntrinsicsTolerance = 1e-6;
 
@@ -45,7 +46,7 @@ const std::set<std::string>& frame_keys() {
     return keys;
 }
 const std::set<std::string>& light_keys() {
-    static const std::set<std::string> keys{"type", "position", "intensity"};
+    static const std::set<std::string> keys{"type", "position", "intensity", "direction", "irradiance"};
     return keys;
 }
 
@@ -377,6 +378,78 @@ fs::path capture_json_path(const fs::path& dir_or_file) {
     return dir_or_file;
 }
 
+namespace {
+
+/// A frame's "light" (docs/capture-format.md "Lights"): a point light, or with version 1.1 a
+/// directional one (its stand-in is placed once the mesh is known: place_directional_lights).
+PointLight parse_light(const JsonReader& r, const json& light, const std::string& lp, bool v1_1) {
+    const std::string type = r.string(r.require(light, "type", lp + "."), lp + ".type");
+    PointLight out;
+    if (type == "directional") {
+        if (!v1_1)
+            r.fail(lp + ".type", "directional lights need \"version\": 1.1 (version 1 knows only \"point\")");
+        for (const char* key : {"position", "intensity"})
+            if (light.contains(key))
+                r.fail(lp + "." + key, std::string("a directional light has no ") + key +
+                                           " (give \"direction\", toward the light, and \"irradiance\")");
+        DirectionalLight d;
+        const glm::dvec3 dir = r.vec3(r.require(light, "direction", lp + "."), lp + ".direction");
+        const double len = glm::length(dir);
+        if (!(len > 0.0) || !std::isfinite(len))
+            r.fail(lp + ".direction", "the direction must be a nonzero vector (from the object toward the light), got [" +
+                                          short_number(dir.x) + ", " + short_number(dir.y) + ", " + short_number(dir.z) + "]");
+        d.direction = dir / len;
+        d.irradiance = r.vec3(r.require(light, "irradiance", lp + "."), lp + ".irradiance");
+        for (int c = 0; c < 3; ++c) {
+            const std::string field = lp + ".irradiance[" + std::to_string(c) + "]";
+            if (d.irradiance[c] < 0.0) r.fail(field, "irradiance must not be negative");
+            if (d.irradiance[c] > kMaxIrradiance)
+                r.fail(field, out_of_range(d.irradiance[c], "<= " + short_number(kMaxIrradiance),
+                                           "full scale 1; the diffuse solve squares irradiances in float"));
+            if (d.irradiance[c] > 0.0 && d.irradiance[c] < kMinIrradiance)
+                r.fail(field, out_of_range(d.irradiance[c], "0 or >= " + short_number(kMinIrradiance),
+                                           "full scale 1; the diffuse solve squares irradiances in float"));
+        }
+        out.directional = d;
+        return out;
+    }
+    if (type != "point")
+        r.fail(lp + ".type", std::string("expected \"point\"") + (v1_1 ? " or \"directional\"" : "") + ", got \"" + type + "\"");
+    if (v1_1)
+        for (const char* key : {"direction", "irradiance"})
+            if (light.contains(key))
+                r.fail(lp + "." + key, std::string("a point light has no ") + key +
+                                           " (give \"position\" and \"intensity\", or make it \"directional\")");
+    out.position = r.point(r.require(light, "position", lp + "."), lp + ".position");
+    out.intensity = r.vec3(r.require(light, "intensity", lp + "."), lp + ".intensity");
+    for (int c = 0; c < 3; ++c) {
+        if (out.intensity[c] < 0.0) r.fail(lp + ".intensity", "intensity must not be negative");
+        if (out.intensity[c] > kMaxLightIntensity)
+            r.fail(lp + ".intensity[" + std::to_string(c) + "]",
+                   out_of_range(out.intensity[c], "<= " + short_number(kMaxLightIntensity),
+                                "the engine computes with intensities as floats"));
+    }
+    return out;
+}
+
+} // namespace
+
+PointLight directional_stand_in(const DirectionalLight& light, const Bounds& bounds) {
+    const glm::dvec3 lo(bounds.min), hi(bounds.max);
+    const double distance = kDirectionalStandIn * glm::length(hi - lo);
+    PointLight p;
+    p.position = 0.5 * (lo + hi) + distance * light.direction;
+    p.intensity = light.irradiance * (distance * distance);
+    p.directional = light;
+    return p;
+}
+
+void place_directional_lights(CaptureDesc& desc, const Mesh& mesh) {
+    const Bounds bounds = mesh_bounds(mesh);
+    for (FrameDesc& f : desc.frames)
+        if (f.light.directional) f.light = directional_stand_in(*f.light.directional, bounds);
+}
+
 CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
     const JsonReader r(json_path);
     if (!j.is_object()) r.fail("", std::string("expected a JSON object at the top level, got ") + type_name(j));
@@ -388,9 +461,9 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
     const std::string format = r.string(r.require(j, "format", ""), "format");
     if (format != kFormatName) r.fail("format", "expected \"" + std::string(kFormatName) + "\", got \"" + format + "\"");
     const json& version = r.require(j, "version", "");
-    if (!version.is_number() || version.get<double>() != kFormatVersion)
-        r.fail("version", "unsupported version " + version.dump() + " (this reader knows version " +
-                              std::to_string(kFormatVersion) + ")");
+    if (!version.is_number() || (version.get<double>() != kFormatVersion && version.get<double>() != kFormatVersionDirectional))
+        r.fail("version", "unsupported version " + version.dump() + " (this reader knows versions 1 and 1.1)");
+    const bool v1_1 = version.get<double>() == kFormatVersionDirectional;
 
     desc.mesh_path = r.relative_path(r.require(j, "mesh_path", ""), "mesh_path");
 
@@ -432,19 +505,10 @@ CaptureDesc parse_capture_desc(const json& j, const fs::path& json_path) {
         const json& light = r.require(f, "light", p + ".");
         const std::string lp = p + ".light";
         if (!light.is_object()) r.fail(lp, std::string("expected an object, got ") + type_name(light));
-        const std::string type = r.string(r.require(light, "type", lp + "."), lp + ".type");
-        if (type != "point") r.fail(lp + ".type", "expected \"point\", got \"" + type + "\"");
-        fd.light.position = r.point(r.require(light, "position", lp + "."), lp + ".position");
-        fd.light.intensity = r.vec3(r.require(light, "intensity", lp + "."), lp + ".intensity");
-        for (int c = 0; c < 3; ++c) {
-            if (fd.light.intensity[c] < 0.0) r.fail(lp + ".intensity", "intensity must not be negative");
-            if (fd.light.intensity[c] > kMaxLightIntensity)
-                r.fail(lp + ".intensity[" + std::to_string(c) + "]",
-                       out_of_range(fd.light.intensity[c], "<= " + short_number(kMaxLightIntensity),
-                                    "the engine computes with intensities as floats"));
-        }
+        fd.light = parse_light(r, light, lp, v1_1);
         for (const auto& [key, value] : light.items())
-            if (!light_keys().count(key)) fd.light_extra[key] = value;
+            if (!light_keys().count(key) || (!v1_1 && (key == "direction" || key == "irradiance")))
+                fd.light_extra[key] = value; // version 1 had no directional lights: those keys were unknown
 
         if (const auto it = f.find("mask_path"); it != f.end()) fd.mask_path = r.relative_path(*it, p + ".mask_path");
         if (const auto it = f.find("split"); it != f.end()) {
@@ -525,7 +589,9 @@ float effective_saturation(const CaptureDesc& desc, const ImageFileInfo& file) {
 json capture_desc_to_json(const CaptureDesc& desc) {
     json j = json::object();
     j["format"] = kFormatName;
-    j["version"] = kFormatVersion;
+    const bool directional =
+        std::any_of(desc.frames.begin(), desc.frames.end(), [](const FrameDesc& f) { return f.light.directional.has_value(); });
+    j["version"] = directional ? kFormatVersionDirectional : kFormatVersion;
     j["mesh_path"] = desc.mesh_path.generic_string();
     j["color_space"] = desc.color_space == ColorSpace::Srgb ? "srgb" : "linear";
     if (desc.saturation) j["saturation"] = *desc.saturation;
@@ -547,9 +613,15 @@ json capture_desc_to_json(const CaptureDesc& desc) {
         json m = json::array();
         for (int row = 0; row < 4; ++row) m.push_back({f.transform[0][row], f.transform[1][row], f.transform[2][row], f.transform[3][row]});
         fj["transform_matrix"] = std::move(m);
-        json light = {{"type", "point"},
-                      {"position", {f.light.position.x, f.light.position.y, f.light.position.z}},
-                      {"intensity", {f.light.intensity.x, f.light.intensity.y, f.light.intensity.z}}};
+        json light;
+        if (const auto& d = f.light.directional)
+            light = {{"type", "directional"},
+                     {"direction", {d->direction.x, d->direction.y, d->direction.z}},
+                     {"irradiance", {d->irradiance.x, d->irradiance.y, d->irradiance.z}}};
+        else
+            light = {{"type", "point"},
+                     {"position", {f.light.position.x, f.light.position.y, f.light.position.z}},
+                     {"intensity", {f.light.intensity.x, f.light.intensity.y, f.light.intensity.z}}};
         if (f.light_extra.is_object())
             for (const auto& [key, value] : f.light_extra.items())
                 if (!light.contains(key)) light[key] = value;
@@ -789,6 +861,14 @@ std::vector<std::string> check_capture_scene(const CaptureDesc& desc, const std:
     for (std::size_t i = 0; i < desc.frames.size(); ++i) {
         const FrameDesc& f = desc.frames[i];
         const std::string lp = "frames[" + std::to_string(i) + "].light";
+        if (const auto& d = f.light.directional) { // its irradiance was range-checked when parsed
+            for (int c = 0; c < 3; ++c) channel_lit[c] = channel_lit[c] || (d->irradiance[c] > 0.0 && f.split == Split::Train);
+            if (d->irradiance.x <= 0.0 && d->irradiance.y <= 0.0 && d->irradiance.z <= 0.0) {
+                ++dark_frames;
+                if (!first_dark) first_dark = i;
+            }
+            continue;
+        }
         const glm::dvec3 p = f.light.position;
         const double distance = glm::length(p - centre);
         if (distance > far)
@@ -885,17 +965,25 @@ Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptio
     const fs::path root = fs::weakly_canonical(fs::absolute(desc.dir, ec), ec);
     check_inside_capture(root, desc.resolve(desc.mesh_path), "mesh_path");
 
+    const bool directional =
+        std::any_of(desc.frames.begin(), desc.frames.end(), [](const FrameDesc& f) { return f.light.directional.has_value(); });
+    if (!options.load_mesh && directional) {
+        // The stand-ins of directional lights are placed about the mesh (capture.h PointLight).
+        const fs::path mesh_file = desc.resolve(desc.mesh_path);
+        place_directional_lights(capture.desc, load_mesh(mesh_file, "mesh_path").mesh);
+    }
     if (options.load_mesh) {
         const fs::path mesh_file = desc.resolve(desc.mesh_path);
         MeshLoadResult m = load_mesh(mesh_file, "mesh_path");
         capture.mesh = std::move(m.mesh);
+        place_directional_lights(capture.desc, capture.mesh);
         capture.warnings.insert(capture.warnings.end(), m.warnings.begin(), m.warnings.end());
         const std::vector<std::string> scene = check_capture_scene(desc, capture.views, capture.mesh, mesh_file);
         capture.warnings.insert(capture.warnings.end(), scene.begin(), scene.end());
         const Bounds bounds = mesh_bounds(capture.mesh);
         std::vector<std::size_t> inside;
         for (std::size_t i = 0; i < desc.frames.size(); ++i)
-            if (bounds.contains(desc.frames[i].light.position)) inside.push_back(i);
+            if (!desc.frames[i].light.directional && bounds.contains(desc.frames[i].light.position)) inside.push_back(i);
         if (!inside.empty())
             capture.warnings.push_back(std::to_string(inside.size()) + " frame(s) have their light inside the mesh's " +
                                        "bounding box (first: " + frame_prefix(inside.front()) + ".light.position)");

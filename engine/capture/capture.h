@@ -1,5 +1,5 @@
 #pragma once
-// Capture format version 1 (docs/capture-format.md): reading,
+// Capture format versions 1 and 1.1 (docs/capture-format.md): reading,
 // validating and writing `capture.json`, plus the decoded images and masks.
 // Every refusal names the file and the field (InputError).
 #include "capture/camera.h"
@@ -18,10 +18,32 @@
 
 namespace specula {
 
+/// A distant light (capture format 1.1): the same direction and irradiance at every point.
+struct DirectionalLight {
+    glm::dvec3 direction{0.0, 0.0, 1.0}; ///< unit, world space, from the object toward the light
+    glm::dvec3 irradiance{0.0};          ///< RGB irradiance on a surface facing the light
+};
+
+/// The light of a frame as every stage computes with it: a point light. A directional light
+/// keeps its description in `directional`, and `position` and `intensity` hold its stand-in:
+/// a point light kDirectionalStandIn times the mesh's size D from the centre of the mesh's
+/// bounding box in `direction`, of intensity irradiance x distance^2 (directional_stand_in).
+/// Across the mesh the stand-in's direction differs from `direction` by at most 1 / (2 x
+/// kDirectionalStandIn) radian (1e-6) and its irradiance from `irradiance` by a relative
+/// 1 / kDirectionalStandIn (2e-6): below what any image resolves (16 bits: 1.5e-5), and
+/// measured in tests/capture (docs/capture-format.md "Directional lights").
 struct PointLight {
     glm::dvec3 position{0.0};
     glm::dvec3 intensity{0.0}; // RGB radiant intensity
+    std::optional<DirectionalLight> directional;
 };
+
+/// Distance of a directional light's stand-in point light, in units of the mesh's size D
+/// (half the largest distance kMaxDistanceToObject that a light may have).
+inline constexpr double kDirectionalStandIn = 5e5;
+
+/// The stand-in point light of `light` for a mesh whose bounding box is `bounds` (see PointLight).
+[[nodiscard]] PointLight directional_stand_in(const DirectionalLight& light, const Bounds& bounds);
 
 enum class Split { Train, Test };
 
@@ -51,6 +73,10 @@ struct CaptureDesc {
 
     [[nodiscard]] std::filesystem::path resolve(const std::filesystem::path& rel) const { return dir / rel; }
 };
+
+/// Sets the stand-in (position, intensity) of every directional light of `desc` for `mesh`
+/// (load_capture calls it once the mesh is read; parse_capture_desc leaves them at 0).
+void place_directional_lights(CaptureDesc& desc, const Mesh& mesh);
 
 /// Per-pixel flags of a decoded frame.
 enum PixelFlag : std::uint8_t {

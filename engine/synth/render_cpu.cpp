@@ -84,14 +84,15 @@ struct Renderer::Impl {
             glm::vec3 ng = glm::normalize(glm::cross(p1 - p0, p2 - p0));
             if (glm::dot(glm::dvec3(ng), ray_dir) > 0.0) ng = -ng; // the side the camera sees
 
-            const glm::dvec3 to_light = light.position - hit;
-            const double d = glm::length(to_light);
+            // A directional light exactly (not its stand-in): parallel rays, the same irradiance everywhere.
+            const glm::dvec3 to_light = light.directional ? light.directional->direction : light.position - hit;
+            const double d = light.directional ? 1.0 : glm::length(to_light);
             const glm::dvec3 u = to_light / d;
             const double cos_theta = glm::dot(glm::dvec3(n), u);
             if (!(cos_theta > 0.0)) continue;
             // A light behind the geometric surface seen from the camera cannot reach this side.
-            if (glm::dot(glm::dvec3(ng), u) <= 0.0 ||
-                occluded(glm::vec3(hit) + epsilon * ng, glm::vec3(u), static_cast<float>(d) - epsilon)) {
+            const float reach = light.directional ? std::numeric_limits<float>::infinity() : static_cast<float>(d) - epsilon;
+            if (glm::dot(glm::dvec3(ng), u) <= 0.0 || occluded(glm::vec3(hit) + epsilon * ng, glm::vec3(u), reach)) {
                 ++counts.shadowed;
                 continue;
             }
@@ -117,7 +118,8 @@ struct Renderer::Impl {
                 const glm::vec3 v_local = shared::to_tangent_frame(n, glm::vec3(v));
                 f += shared::lafortune_eval_rgb(material.lobe.cx, material.lobe.cz, material.lobe.n, u_local, v_local);
             }
-            const glm::dvec3 radiance = glm::dvec3(f) * light.intensity * (cos_theta / (d * d));
+            const glm::dvec3 radiance = light.directional ? glm::dvec3(f) * light.directional->irradiance * cos_theta
+                                                          : glm::dvec3(f) * light.intensity * (cos_theta / (d * d));
             for (int c = 0; c < 3; ++c) out.color.at(x, y, c) = static_cast<float>(radiance[c]);
         }
     }

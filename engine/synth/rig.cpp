@@ -67,7 +67,7 @@ std::size_t Rig::frame_count() const {
 std::size_t Rig::frame_count(Split split) const {
     std::size_t n = 0;
     for (const RigView& v : views)
-        if (v.split == split) n += v.lights.size();
+        for (std::size_t l = 0; l < v.lights.size(); ++l) n += v.split_of(l) == split ? 1 : 0;
     return n;
 }
 
@@ -86,6 +86,7 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     require(o.lights >= 1 && o.lights <= 1024, "--lights must be between 1 and 1024");
     require(o.test_views >= 0 && o.test_views <= 1000, "--test-views must be between 0 and 1000");
     require(o.test_lights >= 1 && o.test_lights <= 64, "test lights must be between 1 and 64");
+    require(o.held_out_lights >= 0 && o.held_out_lights <= 1024, "--held-out-lights must be between 0 and 1024");
     require(o.fov_deg > 1.0 && o.fov_deg < 170.0, "field of view must be in (1, 170) degrees");
     require(o.fill > 0.05 && o.fill <= 1.0, "fill must be in (0.05, 1]");
     require(o.ring_radius > 0.0 && o.test_ring_radius > 0.0, "light ring radii must be positive");
@@ -132,16 +133,22 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     const double az_step = glm::two_pi<double>() / o.views;
     for (int i = 0; i < o.views; ++i) {
         RigView view = make_view(i, Split::Train, az_step * i, glm::mix(e0, e1, elevation_level(i)));
-        for (int l = 0; l < o.lights; ++l) {
-            const double angle = glm::two_pi<double>() * l / o.lights;
-            PointLight light;
-            if (angles.empty())
-                light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
-            else
-                light.position = off_camera(view, angles[std::size_t(l) % angles.size()] * kDeg, angle);
-            light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
-            view.lights.push_back(light);
-        }
+        // Train lights at azimuths l / lights of a turn; held-out ones halfway between (l + 0.5) / count.
+        const auto add_lights = [&](int count, double offset, Split split) {
+            for (int l = 0; l < count; ++l) {
+                const double angle = glm::two_pi<double>() * (l + offset) / count;
+                PointLight light;
+                if (angles.empty())
+                    light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
+                else
+                    light.position = off_camera(view, angles[std::size_t(l) % angles.size()] * kDeg, angle);
+                light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
+                view.lights.push_back(light);
+                view.light_splits.push_back(split);
+            }
+        };
+        add_lights(o.lights, 0.0, Split::Train);
+        add_lights(o.held_out_lights, 0.5, Split::Test);
         rig.views.push_back(std::move(view));
     }
 
@@ -163,6 +170,13 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
         }
         rig.views.push_back(std::move(view));
     }
+    if (o.directional) // the same irradiance at the centre, from the same direction
+        for (RigView& v : rig.views)
+            for (PointLight& l : v.lights) {
+                const glm::dvec3 to_light = l.position - rig.center;
+                const double d = glm::length(to_light);
+                l = directional_stand_in(DirectionalLight{to_light / d, l.intensity / (d * d)}, b);
+            }
     return rig;
 }
 

@@ -67,6 +67,13 @@ struct RigOptions {
     double test_ring_radius = 0.45;
     double test_forward = 0.15;
     double exposure = 1.0;
+    /// Per train view, this many more lights whose frames are test frames of that view (between
+    /// the train lights in azimuth, at the same angles off the camera): held-out lights, the
+    /// test a single-view or few-view rig can have (no other view sees what they see).
+    int held_out_lights = 0;
+    /// Every light directional (capture format 1.1): toward where the point light would be,
+    /// seen from the object's centre, with the irradiance it would give there.
+    bool directional = false;
     double target_value = 0.6;
     double reference_albedo = 0.8;
 
@@ -80,6 +87,8 @@ struct RigView {
     Split split = Split::Train;
     Camera camera;
     std::vector<PointLight> lights;
+    std::vector<Split> light_splits; ///< per light; empty: every light has the view's split
+    [[nodiscard]] Split split_of(std::size_t light) const { return light_splits.empty() ? split : light_splits[light]; }
 };
 
 struct Rig {

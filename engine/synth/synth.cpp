@@ -35,6 +35,8 @@ RigOptions SynthOptions::rig_options() const {
     r.lights = lights;
     r.test_views = test_views;
     r.test_lights = test_lights;
+    r.held_out_lights = held_out_lights;
+    r.directional = directional;
     r.kind = rig;
     r.light_angles_deg = light_angles_deg;
     r.exposure = exposure;
@@ -226,7 +228,7 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
                 f.intrinsics = view.camera.intrinsics;
                 f.light = view.lights[l];
                 f.mask_path = mask_rel;
-                f.split = view.split;
+                f.split = view.split_of(l);
                 desc.frames.push_back(std::move(f));
 
                 ++frame_index;
@@ -260,6 +262,8 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
               {"lights", options.lights},
               {"test_views", options.test_views},
               {"test_lights", options.test_lights},
+              {"held_out_lights", options.held_out_lights},
+              {"light_type", options.directional ? "directional" : "point"},
               {"fov_deg", rig_options.fov_deg},
               {"camera_distance", rig.camera_distance},
               {"object_center", {rig.center.x, rig.center.y, rig.center.z}},

@@ -29,6 +29,8 @@ struct SynthOptions {
     int lights = 6;
     int test_views = 4;
     int test_lights = 2;
+    int held_out_lights = 0;  // per train view, test frames of that view (rig.h)
+    bool directional = false; // directional lights (capture format 1.1, rig.h)
     RigKind rig = RigKind::Spread; // spread (light_angles_deg) or thesis (a 15-degree ring), rig.h
     std::vector<double> light_angles_deg = RigOptions{}.light_angles_deg; // spread: train lights off the camera (rig.h)
     double noise_sigma = 0.0; // Gaussian read noise, relative to full scale 1.0

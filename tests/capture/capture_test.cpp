@@ -42,6 +42,10 @@ json frame_json(const std::string& file, int view, double tz, const std::vector<
             {"light", {{"type", "point"}, {"position", light_pos}, {"intensity", {10.0, 10.0, 10.0}}}}};
 }
 
+json directional_json(const std::vector<double>& direction, const std::vector<double>& irradiance = {0.5, 0.5, 0.5}) {
+    return {{"type", "directional"}, {"direction", direction}, {"irradiance", irradiance}};
+}
+
 Image solid(int w, int h, int channels, float value) { return Image(w, h, channels, value); }
 
 /// A small valid capture in a temp folder: 2 views x 2 lights, 4 x 3 PNGs,
@@ -366,6 +370,60 @@ TEST(CaptureJson, UnknownFieldsSurviveRoundTrip) {
     }
 }
 
+// Version 1.1: directional lights read back with a unit direction and their irradiance,
+// stand in as point lights kDirectionalStandIn D away (capture.h), whose direction and
+// irradiance over the mesh differ from the light's by at most the stated bounds; a capture
+// written back keeps version 1.1 and the directional light, and one without directional
+// lights keeps version 1.
+TEST(CaptureJson, DirectionalLightsStandInAndRoundTrip) {
+    CaptureFixture fx;
+    fx.j["version"] = 1.1;
+    fx.j["frames"][1]["light"] = directional_json({0.0, 3.0, 4.0}, {0.25, 0.5, 1.0});
+    const Capture c = fx.load({.load_images = false});
+    const PointLight& l = c.desc.frames[1].light;
+    ASSERT_TRUE(l.directional.has_value());
+    EXPECT_NEAR(glm::length(l.directional->direction - glm::dvec3(0.0, 0.6, 0.8)), 0.0, 1e-15);
+    EXPECT_EQ(l.directional->irradiance, glm::dvec3(0.25, 0.5, 1.0));
+    const Bounds b = mesh_bounds(c.mesh);
+    const double size = glm::length(glm::dvec3(b.max) - glm::dvec3(b.min));
+    double worst_angle = 0.0, worst_irradiance = 0.0;
+    for (const glm::vec3& v : c.mesh.positions) { // every vertex of the mesh
+        const glm::dvec3 to = l.position - glm::dvec3(v);
+        const double d2 = glm::dot(to, to);
+        worst_angle = std::max(worst_angle, std::acos(std::min(1.0, glm::dot(to / std::sqrt(d2), l.directional->direction))));
+        worst_irradiance = std::max(worst_irradiance, std::abs(l.intensity.z / d2 / l.directional->irradiance.z - 1.0));
+    }
+    std::printf("stand-in at %.3g D: worst direction error %.3g rad, worst irradiance error %.3g\n",
+                glm::length(l.position - glm::dvec3(b.center())) / size, worst_angle, worst_irradiance);
+    EXPECT_LE(worst_angle, 0.5 / kDirectionalStandIn);
+    EXPECT_LE(worst_irradiance, 1.0 / kDirectionalStandIn);
+    EXPECT_FALSE(c.desc.frames[0].light.directional.has_value());
+
+    const json back = capture_desc_to_json(c.desc);
+    EXPECT_EQ(back["version"].get<double>(), 1.1);
+    EXPECT_EQ(back["frames"][1]["light"]["type"], "directional");
+    EXPECT_FALSE(back["frames"][1]["light"].contains("position"));
+    EXPECT_EQ(back["frames"][1]["light"]["irradiance"], json::array({0.25, 0.5, 1.0}));
+    EXPECT_EQ(back["frames"][0]["light"]["type"], "point");
+
+    CaptureFixture v1;
+    EXPECT_EQ(capture_desc_to_json(v1.load({.load_images = false}).desc)["version"], 1);
+}
+
+// A capture loaded without its mesh (specula evaluate, render --frame) still places the
+// stand-ins: the same place as with the mesh.
+TEST(CaptureLoad, DirectionalStandInsWithoutLoadingTheMesh) {
+    CaptureFixture fx;
+    fx.j["version"] = 1.1;
+    fx.j["frames"][2]["light"] = directional_json({1.0, 0.0, 0.0});
+    const Capture with = fx.load({.load_images = false});
+    const Capture without = fx.load({.load_mesh = false, .load_images = false});
+    EXPECT_TRUE(without.mesh.positions.empty());
+    EXPECT_EQ(with.desc.frames[2].light.position, without.desc.frames[2].light.position);
+    EXPECT_EQ(with.desc.frames[2].light.intensity, without.desc.frames[2].light.intensity);
+    EXPECT_GT(glm::length(without.desc.frames[2].light.position), 1e5);
+}
+
 TEST(CaptureJson, PerFrameIntrinsicsWrittenWhereTheyDiffer) {
     CaptureFixture fx;
     for (int l = 0; l < 2; ++l) fx.j["frames"][CaptureFixture::frame_index(0, l)]["fl_y"] = 9.0;
@@ -467,6 +525,81 @@ std::vector<RefusalCase> refusal_cases() {
          cj, "frames[1].transform_matrix"},
         {"IntrinsicsOfViewDisagree", [](CaptureFixture& fx) { fx.j["frames"][1]["fl_x"] = 6.0; }, cj, "frames[1]"},
         {"MissingLight", [](CaptureFixture& fx) { fx.j["frames"][0].erase("light"); }, cj, "frames[0].light"},
+        // directional lights (version 1.1)
+        {"DirectionalInVersion1", [](CaptureFixture& fx) { fx.j["frames"][1]["light"] = directional_json({0, 0, 1}); }, cj,
+         "frames[1].light.type"},
+        {"DirectionalZero",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][1]["light"] = directional_json({0, 0, 0});
+         },
+         cj, "frames[1].light.direction"},
+        {"DirectionalNotANumber",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][1]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][1]["light"]["direction"][2] = "up";
+         },
+         cj, "frames[1].light.direction[2]"},
+        {"DirectionalTwoNumbers",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][1]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][1]["light"]["direction"].erase(2);
+         },
+         cj, "frames[1].light.direction"},
+        {"DirectionalMissingDirection",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][1]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][1]["light"].erase("direction");
+         },
+         cj, "frames[1].light.direction"},
+        {"DirectionalNegativeIrradiance",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][2]["light"] = directional_json({0, 0, 1}, {0.5, -0.1, 0.5});
+         },
+         cj, "frames[2].light.irradiance[1]"},
+        {"DirectionalIrradianceTooHigh",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][2]["light"] = directional_json({0, 0, 1}, {0.5, 0.5, 1e16});
+         },
+         cj, "frames[2].light.irradiance[2]"},
+        {"DirectionalMissingIrradiance",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][2]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][2]["light"].erase("irradiance");
+         },
+         cj, "frames[2].light.irradiance"},
+        {"DirectionalGivenAPosition",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][0]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][0]["light"]["position"] = {0.0, 0.0, 3.0};
+         },
+         cj, "frames[0].light.position"},
+        {"DirectionalGivenAnIntensity",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][0]["light"] = directional_json({0, 0, 1});
+             fx.j["frames"][0]["light"]["intensity"] = {1.0, 1.0, 1.0};
+         },
+         cj, "frames[0].light.intensity"},
+        {"PointGivenADirection",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][3]["light"]["direction"] = {0.0, 0.0, 1.0};
+         },
+         cj, "frames[3].light.direction"},
+        {"UnknownLightTypeIn1_1",
+         [](CaptureFixture& fx) {
+             fx.j["version"] = 1.1;
+             fx.j["frames"][3]["light"]["type"] = "spot";
+         },
+         cj, "frames[3].light.type"},
         {"LightNotObject", [](CaptureFixture& fx) { fx.j["frames"][0]["light"] = 1; }, cj, "frames[0].light"},
         {"LightBadType", [](CaptureFixture& fx) { fx.j["frames"][0]["light"]["type"] = "spot"; }, cj, "frames[0].light.type"},
         {"LightMissingType", [](CaptureFixture& fx) { fx.j["frames"][0]["light"].erase("type"); }, cj,

@@ -38,7 +38,8 @@ DiffuseScene make_scene(const SceneOptions& o) {
     if (!o.light_angles_deg.empty()) ro.light_angles_deg = o.light_angles_deg;
     ro.test_views = 0;
     ro.exposure = o.exposure;
-    const synth::Rig rig = synth::make_rig(s.preset.mesh, ro);
+    synth::Rig rig = synth::make_rig(s.preset.mesh, ro);
+    if (o.edit_rig) o.edit_rig(rig);
     const synth::Renderer renderer(s.preset.mesh, s.preset.material);
     const bool is_float = o.format == synth::ImageFormat::Exr;
     const float sat = is_float ? std::numeric_limits<float>::infinity() : 1.0f;

@@ -27,6 +27,7 @@ struct SceneOptions {
     bool force_rays = false;
     std::vector<double> light_angles_deg; // empty: the rig default
     std::function<void(synth::Preset&)> edit_preset; // applied before rendering (another texture)
+    std::function<void(synth::Rig&)> edit_rig;       // applied before rendering (other lights)
 };
 
 struct DiffuseScene {

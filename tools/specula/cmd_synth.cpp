@@ -166,6 +166,13 @@ void add_synth_command(CLI::App& app) {
     sub->add_option("--test-views", args->options.test_views, "Test views between train views")->capture_default_str();
     sub->add_option("--test-lights", args->options.test_lights,
                     "Lights per test view, off the rig's rings (--rig thesis: on the 15-degree ring, between the train lights)")->capture_default_str();
+    sub->add_option("--held-out-lights", args->options.held_out_lights,
+                    "Per train view, this many more lights (between the train lights, at the same angles) whose frames "
+                    "are test frames of that view: the held-out test a single-view or few-view photometric rig has")
+        ->capture_default_str();
+    sub->add_flag("--directional", args->options.directional,
+                  "Directional (distant) lights, capture format 1.1: each toward where the rig's point light would be, "
+                  "seen from the object's centre, with the irradiance it would give there (a photometric-stereo dome)");
     sub->add_option("--noise", args->options.noise_sigma, "Gaussian noise sigma, relative to full scale 1.0")->capture_default_str();
     sub->add_option("--shot-noise", args->options.shot_noise, "Shot noise: variance = K * value")->capture_default_str();
     sub->add_option("--exposure", args->options.exposure, "Light intensity factor (1: facing diffuse albedo 0.8 at 0.6)")->capture_default_str();
