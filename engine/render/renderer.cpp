@@ -45,6 +45,8 @@ constexpr uint32_t kDeferredAnalyticGbuffer = kLitBindings, kDeferredFactorizedG
 // The shadow map's frustum: a light at least this many bounding radii from the centre
 // (half-angle asin(1 / 1.1) = 65 degrees); a closer light gets no shadow pass.
 constexpr double kMinLightDistanceRadii = 1.1;
+// Beyond this many bounding radii the shadow map is a parallel projection (light_frustum).
+constexpr double kOrthographicLightDistanceRadii = 1000.0;
 // Field-of-view margin over the bounding sphere's silhouette, and near/far margins.
 constexpr double kFovMargin = 1.02, kDepthMargin = 0.02;
 // Bias (shared/render.h shadow_lookup_point; the depth pass's rasterizer bias): a normal
@@ -58,7 +60,8 @@ struct LightFrustum {
 };
 
 /// The perspective frustum from the light aimed at the bounding sphere (centre c, radius r)
-/// that just covers it; nullopt, with `note` saying why, when the light is too close.
+/// that just covers it (a parallel one for a light beyond kOrthographicLightDistanceRadii);
+/// nullopt, with `note` saying why, when the light is too close.
 std::optional<LightFrustum> light_frustum(const glm::dvec3& light, const glm::dvec3& c, double r, uint32_t size,
                                           std::string& note) {
     const double d = glm::length(light - c);
@@ -72,11 +75,22 @@ std::optional<LightFrustum> light_frustum(const glm::dvec3& light, const glm::dv
                "% of the bounding sphere (radius " + std::to_string(r) + "): no shadow map, drawn unshadowed";
         return std::nullopt;
     }
-    const double half = std::asin(r / d) * kFovMargin;
-    const double near = (d - r) * (1.0 - kDepthMargin), far = (d + r) * (1.0 + kDepthMargin);
     const glm::dvec3 forward = (c - light) / d;
     const glm::dvec3 up = std::abs(forward.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
     LightFrustum f;
+    if (d > kOrthographicLightDistanceRadii * r) {
+        // A distant light (a directional light's stand-in, capture.h): parallel projection from
+        // 2 r before the sphere, so that the depths span 2 r, not the light's distance (whose
+        // float rounding would exceed the bias). Its rays differ from the light's by < r / d.
+        const double extent = r * kFovMargin;
+        const glm::dvec3 eye = c - 2.0 * r * forward;
+        f.to_clip = glm::orthoRH_ZO(-extent, extent, -extent, extent, r * (1.0 - kDepthMargin), 3.0 * r * (1.0 + kDepthMargin)) *
+                    glm::lookAtRH(eye, c, up);
+        f.texel_per_distance = 2.0 * extent / size / d; // the shader scales it by the distance to the light
+        return f;
+    }
+    const double half = std::asin(r / d) * kFovMargin;
+    const double near = (d - r) * (1.0 - kDepthMargin), far = (d + r) * (1.0 + kDepthMargin);
     f.to_clip = glm::perspectiveRH_ZO(2.0 * half, 1.0, near, far) * glm::lookAtRH(light, c, up);
     f.texel_per_distance = 2.0 * std::tan(half) / size;
     return f;
