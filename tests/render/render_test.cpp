@@ -377,14 +377,17 @@ TEST_F(RenderTest, CanAnalyticMatchesSynthWithConstantAlbedo) {
 // aliasing, a texel of 1/1000 of the bounding sphere against synth's exact edge, softened
 // by the 2x2 PCF; measured: +24.5 dB, 0.05%, against 7.6% unshadowed). Every pass shader
 // applies the same light_visibility: fused and separate passes must agree.
-TEST_F(RenderTest, ShadowMapReproducesTheKnotsSelfShadowing) {
+// A directional light (capture format 1.1) draws through its stand-in point light 5e5 D
+// away (capture.h), whose shadow map is a parallel projection (renderer.cpp light_frustum):
+// against synth's exact directional light, the same bounds as the point light's.
+void expect_knot_self_shadowing(gpu::Context& context, const PointLight& light, const char* name) {
     synth::Preset preset = synth::make_preset("knot");
     preset.material.albedo_texture = Image();
     preset.material.albedo_value = glm::vec3(0.55f, 0.45f, 0.35f);
     const SceneData data = constant_albedo(preset.mesh, preset.material.albedo_value);
     const Camera cam = make_camera(160, 160, 170.0, 170.0, 80.0, 80.0, {0.4, 1.2, 4.2}, {0.0, 0.0, 0.0});
-    const PointLight light{{2.2, 3.0, 2.0}, {30.0, 30.0, 30.0}};
-    Renderer r(ctx(), data.scene(preset.material.lobe));
+    std::printf("%s light:\n", name);
+    Renderer r(context, data.scene(preset.material.lobe));
     const synth::RenderedFrame ref = synth::Renderer(preset.mesh, preset.material).render(cam, light);
     ASSERT_GT(ref.shadowed_pixels, 500u) << "the scene must show a cast shadow";
 
@@ -412,6 +415,14 @@ TEST_F(RenderTest, ShadowMapReproducesTheKnotsSelfShadowing) {
     for (std::size_t i = 0; i < fused.color.pixels.size(); ++i)
         max_diff = std::max(max_diff, static_cast<double>(std::abs(fused.color.pixels[i] - on.color.pixels[i])));
     EXPECT_LE(max_diff, 1e-4 * c_on.peak);
+}
+
+TEST_F(RenderTest, ShadowMapReproducesTheKnotsSelfShadowing) {
+    expect_knot_self_shadowing(ctx(), PointLight{{2.2, 3.0, 2.0}, {30.0, 30.0, 30.0}, std::nullopt}, "point");
+    const glm::dvec3 p(2.2, 3.0, 2.0);
+    const Bounds b = mesh_bounds(synth::make_preset("knot").mesh);
+    expect_knot_self_shadowing(ctx(), directional_stand_in(DirectionalLight{glm::normalize(p), glm::dvec3(30.0 / glm::dot(p, p))}, b),
+                               "directional");
 }
 
 // A light inside (or too close to) the bounding sphere gets no shadow map, and says so.
