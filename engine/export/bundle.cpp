@@ -9,6 +9,7 @@
 // are exact; a .glb without the extension is read through load_mesh (all nodes, transforms
 // applied) plus its base colour texture.
 #include "export/bundle.h"
+#include "export/normal_map.h"
 
 #include "capture/gltf_io.h"
 #include "core/error.h"
@@ -217,6 +218,51 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     return albedo;
 }
 
+/// The normal map's PNG (linear, 8 bits) as a bufferView of `glb`, with the TANGENT
+/// attribute added to `primitive`; nothing when the bundle has no normal map.
+std::optional<std::size_t> add_normal_map(GlbWriter& glb, json& primitive, const Bundle& bundle, const fs::path& path) {
+    if (!bundle.normal_map) return std::nullopt;
+    const Image& nm = *bundle.normal_map;
+    if (nm.width != bundle.albedo.width || nm.height != bundle.albedo.height || nm.channels != 3 ||
+        nm.pixels.size() != static_cast<std::size_t>(nm.width) * nm.height * 3)
+        throw InputError(path, "normal_map", "not an RGB image of the albedo's size");
+    if (!std::all_of(nm.pixels.begin(), nm.pixels.end(), [](float v) { return v >= 0.0f && v <= 1.0f; }))
+        throw InputError(path, "normal_map", "a value outside [0, 1] (or not finite): not an encoded normal map");
+    constexpr int kArrayBuffer = 34962;
+    const std::vector<glm::vec4> tangents = vertex_tangents(bundle.mesh);
+    primitive["attributes"]["TANGENT"] =
+        glb.add_accessor({{"bufferView", glb.add_view(tangents.data(), tangents.size() * sizeof(glm::vec4), kArrayBuffer)},
+                          {"componentType", 5126}, // FLOAT
+                          {"count", tangents.size()},
+                          {"type", "VEC4"}});
+    std::vector<std::uint8_t> png;
+    try {
+        png = encode_image(nm, ImageCodec::Png, ColorSpace::Linear, 8);
+    } catch (const Error& e) {
+        throw InputError(path, "normal_map", e.what());
+    }
+    return glb.add_view(png.data(), png.size());
+}
+
+/// The material's normalTexture decoded (linear), when it has one.
+std::optional<Image> read_normal_map(const GltfFile& f) {
+    const tinygltf::Model& model = f.model();
+    if (model.meshes.empty() || model.meshes[0].primitives.empty() || model.meshes[0].primitives[0].material < 0) return std::nullopt;
+    const auto mat_index = static_cast<std::size_t>(model.meshes[0].primitives[0].material);
+    if (mat_index >= model.materials.size() || model.materials[mat_index].normalTexture.index < 0) return std::nullopt;
+    const std::string field = "materials[" + std::to_string(mat_index) + "].normalTexture";
+    const auto tex = static_cast<std::size_t>(model.materials[mat_index].normalTexture.index);
+    if (tex >= model.textures.size()) f.fail(field + ".index", "no such texture");
+    const int img = model.textures[tex].source;
+    if (img < 0 || static_cast<std::size_t>(img) >= model.images.size()) f.fail("textures[" + std::to_string(tex) + "].source", "no such image");
+    const Image decoded = f.decode_image(img, ColorSpace::Linear, "images[" + std::to_string(img) + "]");
+    if (decoded.channels < 3) f.fail(field, "the normal map is not RGB");
+    Image out(decoded.width, decoded.height, 3);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(decoded.width) * decoded.height; ++i)
+        for (int c = 0; c < 3; ++c) out.pixels[i * 3 + c] = decoded.pixels[i * decoded.channels + c];
+    return out;
+}
+
 /// The extension's linear float albedo: from its bufferView, or from the file `uri` names
 /// beside the .glb, or (that file missing) from the 8-bit base colour texture with a warning.
 Image read_albedo(const GltfFile& f, const json& ext, const std::string& ext_field, std::vector<std::string>& warnings) {
@@ -360,6 +406,7 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         throw InputError(path, "albedo", e.what());
     }
     const std::size_t png_view = glb.add_view(png.data(), png.size());
+    const std::optional<std::size_t> normal_view = add_normal_map(glb, primitive, bundle, path);
 
     const bool mirrored = mat.factorized && mat.factorized->param == FactorParam::Mirrored;
     const bool warped = mat.factorized && mat.factorized->param == FactorParam::Warped;
@@ -421,12 +468,19 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         extensions_used.push_back(kSpecularExtension);
     }
     const double roughness = coated ? roughness_from_coated(*coated) : roughness_from_lobe(lobe);
-    const json material = {
+    json material = {
         {"name", "specula"},
         {"pbrMetallicRoughness",
          {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0}, {"roughnessFactor", roughness}}},
         {"extensions", std::move(extensions)},
     };
+    json textures = {{{"sampler", 0}, {"source", 0}}};
+    json images = {{{"bufferView", png_view}, {"mimeType", "image/png"}}};
+    if (normal_view) {
+        material["normalTexture"] = {{"index", 1}};
+        textures.push_back({{"sampler", 0}, {"source", 1}});
+        images.push_back({{"bufferView", *normal_view}, {"mimeType", "image/png"}});
+    }
     glb.write(path, {
                         {"asset", {{"version", "2.0"}, {"generator", "Specula"}}},
                         {"extensionsUsed", std::move(extensions_used)},
@@ -435,10 +489,10 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
                         {"nodes", {{{"mesh", 0}, {"name", "specula"}}}},
                         {"meshes", {{{"primitives", {primitive}}}}},
                         {"materials", json::array({material})},
-                        {"textures", {{{"sampler", 0}, {"source", 0}}}},
+                        {"textures", std::move(textures)},
                         {"samplers",
                          {{{"magFilter", kLinear}, {"minFilter", kLinear}, {"wrapS", kClampToEdge}, {"wrapT", kClampToEdge}}}},
-                        {"images", {{{"bufferView", png_view}, {"mimeType", "image/png"}}}},
+                        {"images", std::move(images)},
                     });
 }
 
@@ -573,6 +627,7 @@ Bundle read_bundle(const fs::path& path) {
         }
     }
     b.albedo = read_albedo(f, *ext, ext_field, b.warnings);
+    b.normal_map = read_normal_map(f);
     if (ext->contains("cubeG") != ext->contains("cubeH"))
         f.fail(ext_field + (ext->contains("cubeG") ? ".cubeH" : ".cubeG"), "missing: G and H go together");
     if (ext->contains("cubeG")) {

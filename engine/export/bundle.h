@@ -37,6 +37,10 @@ struct Bundle {
     /// the lobe's radial factor, so they need the lobe).
     Material material;
     nlohmann::json info = nlohmann::json::object(); ///< provenance (Specula version, capture, report summary)
+    /// Optional tangent-space normal map (export/normal_map.h): per atlas texel the encoded
+    /// (c + 1) / 2 in [0, 1]^3, atlas size. Written as glTF's material.normalTexture (8-bit
+    /// linear PNG) with the mesh's TANGENT attribute (vertex_tangents); read back from it.
+    std::optional<Image> normal_map;
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.
     std::vector<std::string> warnings;

@@ -140,6 +140,8 @@ LightConditioning light_conditioning(const Capture& capture, double min_rcond) {
         }
         rconds.push_back(rcond);
         if (lights >= 3 && rcond >= min_rcond) ++lc.capable_views;
+        lc.max_lights = std::max(lc.max_lights, lights);
+        if (lights >= kNormalMapMinLights && rcond >= kNormalMapMinRcond) ++lc.rich_views;
     }
     if (lc.views == 0) lc.min_lights = 0;
     if (!rconds.empty()) {
@@ -187,6 +189,36 @@ PlanDecision decide_diffuse_mode(const LightConditioning& lc, DiffuseModeChoice 
 }
 
 bool decided_photometric(const PlanDecision& d) { return d.value == "photometric"; }
+
+// ---- normal map -------------------------------------------------------------------------
+
+PlanDecision decide_normal_map(const LightConditioning& lc, Toggle choice) {
+    PlanDecision d;
+    d.name = "normal_map";
+    d.forced = choice != Toggle::Auto;
+    d.detail = {{"train_views", lc.views},
+                {"rich_views", lc.rich_views},
+                {"most_lights_per_view", lc.max_lights},
+                {"min_lights", kNormalMapMinLights},
+                {"min_rcond", kNormalMapMinRcond}};
+    const bool rich = lc.rich_views > 0;
+    const bool on = choice == Toggle::On || (choice == Toggle::Auto && rich);
+    d.value = on ? "refined normals" : "none";
+    d.skipped = !on;
+    const std::string why = std::to_string(lc.rich_views) + " of " + std::to_string(lc.views) + " train views have >= " +
+                            std::to_string(kNormalMapMinLights) + " lights with rcond >= " +
+                            format_text("%.3g", kNormalMapMinRcond) + " (most lights in a view " +
+                            std::to_string(lc.max_lights) + ")";
+    if (choice == Toggle::Auto)
+        d.reason = rich ? why + ": a photometric rig, the photometric solve refines the normals (the bundle's normal map)"
+                        : why + ": too few lights to refine a normal beside the highlights, the mesh normals stay";
+    else
+        d.reason = std::string("--normal-map ") + (on ? "on" : "off") + " (the planner would " + (rich ? "" : "not ") +
+                   "make one: " + why + ")";
+    return d;
+}
+
+bool decided_normal_map(const PlanDecision& d) { return d.value == "refined normals"; }
 
 // ---- atlas ------------------------------------------------------------------------------
 

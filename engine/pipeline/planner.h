@@ -86,6 +86,8 @@ struct LightConditioning {
     double median_rcond = 0.0;
     double min_rcond = 0.0;         ///< the threshold used
     std::size_t min_lights = 0;     ///< fewest train lights of a view
+    std::size_t max_lights = 0;     ///< most train lights of a view
+    std::size_t rich_views = 0;     ///< >= kNormalMapMinLights lights and rcond >= kNormalMapMinRcond
 };
 [[nodiscard]] LightConditioning light_conditioning(const Capture& capture, double min_rcond);
 
@@ -101,6 +103,21 @@ inline constexpr double kPhotometricViewFraction = 0.5;
 [[nodiscard]] PlanDecision decide_diffuse_mode(const LightConditioning& lc, DiffuseModeChoice choice, bool specular_may_run);
 /// The LambertMode a decision chose.
 [[nodiscard]] bool decided_photometric(const PlanDecision& d);
+
+// ---- normal map -------------------------------------------------------------------------
+
+/// A view of a photometric rig (a dome, a light stage): at least this many train lights...
+inline constexpr std::size_t kNormalMapMinLights = 12;
+/// ...whose directions from the object's centre are this well spread (rcond of sum u u^T).
+inline constexpr double kNormalMapMinRcond = 0.05;
+
+/// Auto: on when some train view is rich (kNormalMapMinLights, kNormalMapMinRcond): the
+/// photometric solve then refines the normals, with the final material's specular light
+/// subtracted and each view's highlights rejected among many samples, and the bundle gets
+/// them as a tangent-space normal map (glTF normalTexture). Off otherwise: a few lights per
+/// view (the 20 x 6 rig, the thesis's ring) tilt a photometric normal toward each highlight.
+[[nodiscard]] PlanDecision decide_normal_map(const LightConditioning& lc, Toggle choice);
+[[nodiscard]] bool decided_normal_map(const PlanDecision& d);
 
 // ---- atlas ------------------------------------------------------------------------------
 

@@ -60,9 +60,10 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     atlas_decision(run, geometry);
     const RefineStage refine = refine_stage(run, capture, geometry, diffuse);
     const AlbedoTexture texture = texture_stage(run, geometry, diffuse, refine);
+    const NormalMapStage normals = normal_map_stage(run, capture, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);
     record_specular_cost(run, specular, factorization);
-    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization);
+    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals);
     const std::optional<evaluate::EvaluationResult> evaluation = evaluation_stage(run, capture, bundle);
 
     result.total_seconds = total.seconds();
@@ -74,6 +75,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                                   .specular = specular,
                                                   .refine = refine,
                                                   .texture = texture,
+                                                  .normals = normals,
                                                   .factorization = factorization,
                                                   .bundle = bundle,
                                                   .evaluation = evaluation});

@@ -75,6 +75,9 @@ struct ReconstructConfig {
     /// S(render(A)) after the last solve. nullopt: the planner's choice (kAlbedoRefineRounds);
     /// 0: the solve's albedo (bilinear reading of the best view).
     std::optional<std::uint32_t> refine_rounds;
+    /// Refined normals as a normal map in the bundle (planner.h decide_normal_map): auto on
+    /// for photometric rigs (a view with many well-spread lights).
+    Toggle normal_map = Toggle::Auto;
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan
     /// device; left out, with the reason, when none can be had).

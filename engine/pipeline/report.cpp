@@ -300,6 +300,20 @@ json evaluation_json(const PipelineRun& run, const std::optional<evaluate::Evalu
     return j;
 }
 
+// The refined normals (null when left out): how many particles, their angle to the mesh normals.
+json normal_map_json(const PipelineRun& run, const NormalMapStage& n) {
+    if (!n.image) return nullptr;
+    const NormalMapStats& s = n.stats;
+    return {{"in", "object.glb (material.normalTexture, tangent space, with the TANGENT attribute)"},
+            {"width", n.image->width},
+            {"height", n.image->height},
+            {"particles", s.particles},
+            {"refined", s.refined},
+            {"angle_to_mesh_normal_deg",
+             {{"mean", s.mean_angle_deg}, {"median", s.median_angle_deg}, {"p95", s.p95_angle_deg}, {"max", s.max_angle_deg}}},
+            {"seconds", run.seconds("photometric solve (normal map)") + run.seconds("normal map")}};
+}
+
 } // namespace
 
 json report_json(PipelineRun& run, const ReportInputs& in) {
@@ -336,7 +350,9 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
             {"bundle",
              {{"file", "object.glb"},
               {"has_lobe", in.bundle.material.specular.has_value()},
-              {"has_cubemaps", in.bundle.material.factorized.has_value()}}},
+              {"has_cubemaps", in.bundle.material.factorized.has_value()},
+              {"has_normal_map", in.bundle.normal_map.has_value()}}},
+            {"normal_map", normal_map_json(run, in.normals)},
             {"evaluation", evaluation_json(run, in.evaluation)},
             {"albedo_texture",
              {{"files", {"albedo.exr", "albedo.png"}},

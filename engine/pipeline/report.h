@@ -20,6 +20,7 @@ struct ReportInputs {
     const SpecularStage& specular;
     const RefineStage& refine;
     const AlbedoTexture& texture;
+    const NormalMapStage& normals;
     const FactorizationStage& factorization;
     const Bundle& bundle;
     const std::optional<evaluate::EvaluationResult>& evaluation;

@@ -6,6 +6,7 @@
 #include "core/log.h"
 #include "core/timer.h"
 #include "gpu/context.h"
+#include "export/normal_map.h"
 #include "pipeline/planner.h"
 #include "specula/version.h"
 
@@ -129,9 +130,10 @@ LambertOptions plan_stage(PipelineRun& run, const Capture& capture) {
     Plan& plan = run.plan();
     run.stage("plan", [&] {
         plan.add(decide_occlusion_rays(analyze_convexity(capture.mesh), run.config.occlusion_rays));
-        const PlanDecision& mode = plan.add(decide_diffuse_mode(light_conditioning(capture, static_cast<double>(lambert.min_rcond)),
-                                                                run.config.diffuse_mode, run.config.specular != SpecularMode::Off));
+        const LightConditioning lc = light_conditioning(capture, static_cast<double>(lambert.min_rcond));
+        const PlanDecision& mode = plan.add(decide_diffuse_mode(lc, run.config.diffuse_mode, run.config.specular != SpecularMode::Off));
         lambert.mode = decided_photometric(mode) ? LambertMode::Photometric : LambertMode::Albedo;
+        plan.add(decide_normal_map(lc, run.config.normal_map));
         plan.add(PlanDecision{.name = "atlas"}); // filled once the particle stages are timed
     });
     for (const PlanDecision& d : plan.decisions)
@@ -482,6 +484,62 @@ AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, con
     });
 }
 
+namespace {
+
+// Angles between refined and mesh normals over the refined interior particles.
+void normal_angle_stats(std::vector<double> angles, NormalMapStats& s) {
+    if (angles.empty()) return;
+    std::sort(angles.begin(), angles.end());
+    double sum = 0.0;
+    for (double a : angles) sum += a;
+    s.mean_angle_deg = sum / static_cast<double>(angles.size());
+    s.median_angle_deg = angles[angles.size() / 2];
+    s.p95_angle_deg = angles[angles.size() * 95 / 100];
+    s.max_angle_deg = angles.back();
+}
+
+} // namespace
+
+NormalMapStage normal_map_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                const DiffuseStage& diffuse) {
+    NormalMapStage out;
+    const PlanDecision& decision = *run.plan().find("normal_map");
+    if (!decided_normal_map(decision)) {
+        if (!decision.forced) run.leave_out("normal map (refined normals)", decision.reason);
+        return out;
+    }
+    LambertOptions o = diffuse.options; // the final material known: its specular light subtracted
+    o.mode = LambertMode::Photometric;
+    const LambertOutputs solve = run_solve(run, diffuse.inputs, o, "photometric solve (normal map)");
+    out.image = run.stage("normal map", [&] {
+        const std::span<const Particle> particles = geometry.particles.particles;
+        // The bundle's mesh (bundle_stage makes the same): its vertices' frames are what viewers interpolate.
+        const Bundle shape = make_bundle(capture.mesh, geometry.atlas.corner_uv, Image(1, 1, 3), Material{});
+        const std::vector<glm::vec3> normals = gltf_unit_normals(shape.mesh);
+        const std::vector<glm::vec4> tangents = vertex_tangents(shape.mesh);
+        std::vector<glm::vec3> encoded(particles.size());
+        std::vector<std::uint8_t> valid(particles.size(), 1); // every particle: its refined normal or the mesh's
+        std::vector<double> angles;
+        for (std::size_t p = 0; p < particles.size(); ++p) {
+            const LambertParticleResult& r = solve.particles[p];
+            const bool refined = (r.status & shared::kLambertOk) && !(r.status & shared::kLambertFallback);
+            const TangentFrame frame = tangent_frame_at(shape.mesh, normals, tangents, particles[p].triangle, particles[p].bary);
+            encoded[p] = encode_tangent_normal(frame, refined ? glm::vec3(r.normal) : particles[p].n());
+            if (!refined) continue;
+            ++out.stats.refined;
+            if (!particles[p].is_gutter()) angles.push_back(r.normal.w);
+        }
+        out.stats.particles = particles.size();
+        normal_angle_stats(std::move(angles), out.stats);
+        return make_albedo_texture(geometry.atlas, particles, encoded, valid).image;
+    });
+    log::info(format_text("normal map: %.0f of %.0f particles refined; angle to the mesh normal mean %.3f, median %.3f, "
+                          "95%% %.3f deg",
+                          out.stats.refined, out.stats.particles, out.stats.mean_angle_deg, out.stats.median_angle_deg,
+                          out.stats.p95_angle_deg));
+    return out;
+}
+
 FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& specular) {
     const ReconstructConfig& config = run.config;
     FactorizationStage f;
@@ -579,13 +637,14 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 }
 
 Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const AlbedoTexture& texture,
-                    const FactorizationStage& factorization) {
+                    const FactorizationStage& factorization, const NormalMapStage& normals) {
     return run.stage("bundle", [&] {
         Material material;
         material.specular = factorization.material;
         material.status = factorization.status;
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
+        b.normal_map = normals.image;
         b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", folder_name(capture.desc.dir)}}; // no machine path
         // The float albedo beside the bundle by default: albedo.exr, which the albedo texture
         // stage wrote already with the same texels (write_bundle writes it again, exactly).

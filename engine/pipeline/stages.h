@@ -106,6 +106,24 @@ struct RefineStage {
 [[nodiscard]] AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse,
                                           const RefineStage& refine);
 
+/// 8b. Refined normals (planner.h decide_normal_map): the photometric solve with the final
+///     material known, its normals encoded in the bundle's tangent frames (export/normal_map.h)
+///     and filled like the albedo texture. Absent when left out.
+struct NormalMapStats {
+    std::size_t particles = 0;   ///< particles
+    std::size_t refined = 0;     ///< with a photometric normal (the rest keep the mesh's)
+    double mean_angle_deg = 0.0; ///< refined vs mesh normal, over the refined interior particles
+    double median_angle_deg = 0.0;
+    double p95_angle_deg = 0.0;
+    double max_angle_deg = 0.0;
+};
+struct NormalMapStage {
+    std::optional<Image> image; ///< encoded, atlas size
+    NormalMapStats stats;
+};
+[[nodiscard]] NormalMapStage normal_map_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                              const DiffuseStage& diffuse);
+
 /// 9. The chosen material, and its Kautz-McCool factorization on the grid the planner chose
 ///    from its width, in the parametrization of least error.
 struct FactorizationStage {
@@ -121,7 +139,8 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 
 /// 10. The bundle object.glb: mesh with atlas coordinates, albedo, lobe, cube-maps.
 [[nodiscard]] Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                                  const AlbedoTexture& texture, const FactorizationStage& factorization);
+                                  const AlbedoTexture& texture, const FactorizationStage& factorization,
+                                  const NormalMapStage& normals);
 
 /// 11. Self-evaluation: every frame re-rendered from the bundle and scored (writes evaluation.json
 ///     and sheets/). Absent when left out (--no-evaluate, or no device).

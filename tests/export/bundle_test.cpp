@@ -5,6 +5,11 @@
 #include "../capture/gltf_builder.h"
 #include "../capture/png_bytes.h"
 #include "bundle_fixtures.h"
+#include "export/normal_map.h"
+#include "geometry/particles.h"
+#include "core/file_util.h"
+
+#include <glm/gtc/matrix_transform.hpp>
 #include "expect_error.h"
 #include "legacy_bundles.h"
 #include "test_dirs.h"
@@ -458,8 +463,9 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
                                                          {test::random_cube(8, 3), test::random_cube(8, 4)}}}; // version 2, cubeTerms
     TempDir dir("bundle");
     // lobe; mirrored (version 3); warped (version 4); diffuse only; coated (version 5, with
-    // KHR_materials_ior and KHR_materials_specular, which the validator checks).
-    for (const int kind : {0, 1, 2, 3, 4}) {
+    // KHR_materials_ior and KHR_materials_specular, which the validator checks); with a normal
+    // map (normalTexture and the TANGENT attribute, whose unit length and sign it checks).
+    for (const int kind : {0, 1, 2, 3, 4, 5}) {
         if (kind == 1) b.material.factorized->param = FactorParam::Mirrored;
         if (kind == 2) {
             b.material.factorized->param = FactorParam::Warped;
@@ -470,11 +476,13 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
             b.material.specular.reset();
         }
         if (kind == 4) b.material.specular = CoatedParams{.eta = 1.4537f, .alpha = 0.0837f, .tint = {0.91f, 1.0f, 1.23f}};
+        if (kind == 5) b.normal_map = Image(b.albedo.width, b.albedo.height, 3, 0.5f);
         const auto file = dir / (kind == 0   ? "lobe.glb"
                                  : kind == 1 ? "mirrored.glb"
                                  : kind == 2 ? "warped.glb"
                                  : kind == 3 ? "diffuse.glb"
-                                             : "coated.glb");
+                                 : kind == 4 ? "coated.glb"
+                                             : "normal_map.glb");
         write_bundle(file, b);
         const std::string cmd = "SPECULA_GLTF_VALIDATOR_PATHS='" + std::string(SPECULA_NODE_MODULES_DIR) +
                                 "' node '" + std::string(SPECULA_GLTF_VALIDATE_JS) + "' '" +
@@ -487,6 +495,64 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     }
 }
 
+
+// A normal map (issue 17): written as normalTexture (8-bit linear PNG) with a TANGENT per
+// vertex (unit, orthogonal to the written normal, w = +-1), read back to the 8-bit codes; a
+// world normal stored through the bundle's frames decodes, as a viewer decodes it, within the
+// 8-bit quantization (0.5 degree) on every texel of a sphere. A bundle without one has no
+// normalTexture and no TANGENT.
+TEST(Bundle, NormalMapRoundTripsThroughTheTangentFrames) {
+    const test::BundlePieces p = test::make_pieces();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    const std::vector<glm::vec3> normals = gltf_unit_normals(b.mesh);
+    const std::vector<glm::vec4> tangents = vertex_tangents(b.mesh);
+    ASSERT_EQ(tangents.size(), b.mesh.positions.size());
+    for (std::size_t i = 0; i < tangents.size(); ++i) {
+        EXPECT_NEAR(glm::length(glm::vec3(tangents[i])), 1.0f, 1e-5f) << i;
+        EXPECT_NEAR(glm::dot(glm::vec3(tangents[i]), normals[i]), 0.0f, 1e-5f) << i;
+        EXPECT_EQ(std::abs(tangents[i].w), 1.0f) << i;
+    }
+    // Every texel's world normal: the mesh normal tilted by 10 degrees about a fixed axis.
+    const ParticleSet particles = build_particles(p.mesh, p.atlas);
+    const glm::mat3 tilt = glm::mat3(glm::rotate(glm::mat4(1.0f), glm::radians(10.0f), glm::vec3(0.3f, 0.8f, 0.5f)));
+    Image map(b.albedo.width, b.albedo.height, 3, 0.5f);
+    std::vector<glm::vec3> truth(particles.particles.size());
+    for (std::size_t i = 0; i < particles.particles.size(); ++i) {
+        const Particle& q = particles.particles[i];
+        truth[i] = glm::normalize(tilt * q.n());
+        const TangentFrame f = tangent_frame_at(b.mesh, normals, tangents, q.triangle, q.bary);
+        const glm::vec3 e = encode_tangent_normal(f, truth[i]);
+        for (int c = 0; c < 3; ++c) map.at(static_cast<int>(q.texel_x()), static_cast<int>(q.texel_y()), c) = e[c];
+    }
+    b.normal_map = map;
+    TempDir dir("bundle");
+    write_bundle(dir / "n.glb", b);
+    const Bundle r = read_bundle(dir / "n.glb");
+    ASSERT_TRUE(r.normal_map.has_value());
+    ASSERT_EQ(r.normal_map->pixels.size(), map.pixels.size());
+    double worst = 0.0;
+    for (std::size_t i = 0; i < map.pixels.size(); ++i) // 8-bit codes
+        ASSERT_NEAR(r.normal_map->pixels[i], std::round(map.pixels[i] * 255.0f) / 255.0f, 1e-6f) << i;
+    for (std::size_t i = 0; i < particles.particles.size(); ++i) {
+        const Particle& q = particles.particles[i];
+        const TangentFrame f = tangent_frame_at(r.mesh, gltf_unit_normals(r.mesh), tangents, q.triangle, q.bary);
+        const glm::vec3 code(r.normal_map->at(static_cast<int>(q.texel_x()), static_cast<int>(q.texel_y()), 0),
+                             r.normal_map->at(static_cast<int>(q.texel_x()), static_cast<int>(q.texel_y()), 1),
+                             r.normal_map->at(static_cast<int>(q.texel_x()), static_cast<int>(q.texel_y()), 2));
+        const glm::vec3 shaded = decode_tangent_normal(f, code);
+        worst = std::max(worst, glm::degrees(std::acos(std::min(1.0, double(glm::dot(shaded, truth[i]))))));
+    }
+    std::printf("normal map through the bundle: worst decoded angle %.3f deg over %zu texels\n", worst, particles.particles.size());
+    EXPECT_LT(worst, 0.5);
+
+    b.normal_map.reset();
+    write_bundle(dir / "plain.glb", b);
+    EXPECT_FALSE(read_bundle(dir / "plain.glb").normal_map.has_value());
+    const std::string text = read_text_file(dir / "plain.glb");
+    EXPECT_EQ(text.find("TANGENT"), std::string::npos);
+    EXPECT_EQ(text.find("normalTexture"), std::string::npos);
+    EXPECT_NE(read_text_file(dir / "n.glb").find("TANGENT"), std::string::npos);
+}
 
 // ---- format compatibility -----------------------------------------------------------
 

@@ -20,6 +20,7 @@ struct ReconstructArgs {
     std::string mode = "auto";
     std::string occlusion_rays = "auto";
     std::string tap_irradiance = "on";
+    std::string normal_map = "auto";
     bool force_occlusion_rays = false;
     std::vector<std::uint32_t> grid;
     std::string views = "best";
@@ -41,6 +42,7 @@ void run_reconstruct(ReconstructArgs& args) {
                        : args.occlusion_rays == "off"                          ? Toggle::Off
                                                                                : Toggle::Auto;
     c.lambert.tap_irradiance = args.tap_irradiance == "on";
+    c.normal_map = args.normal_map == "on" ? Toggle::On : args.normal_map == "off" ? Toggle::Off : Toggle::Auto;
     if (args.force_occlusion_rays && args.occlusion_rays == "off")
         throw UsageError("--force-occlusion-rays contradicts --occlusion-rays off");
     if (!args.grid.empty()) {
@@ -85,8 +87,8 @@ void add_reconstruct_command(CLI::App& app) {
         "re-rendered and compared), OUT/report.html (one self-contained page) and OUT/report.json (the planner's\n"
         "decisions, stage times, GPU dispatch times, counts, quality figures, the lobe, and what was left out\n"
         "for this scene and why). Every planner decision can be forced: --occlusion-rays, --mode, --specular,\n"
-        "--atlas, --texels-per-pixel/--texture-size, --factorization-grid, --factor-param; the report then gives the cost of the\n"
-        "forced work.");
+        "--atlas, --texels-per-pixel/--texture-size, --factorization-grid, --factor-param, --normal-map; the report then gives\n"
+        "the cost of the forced work.");
     cmd->add_option("capture", args->config.capture, "Capture folder, or its capture.json")->required();
     cmd->add_option("-o,--out", args->config.out_dir,
                     "Output folder, written as a whole: the run writes into .OUT.tmp-* beside it and renames that into\n"
@@ -155,6 +157,12 @@ void add_reconstruct_command(CLI::App& app) {
                     "costs one render of every train frame and one diffuse solve (default: the planner's 2; 0 = the\n"
                     "solve's bilinear reading of the best view)")
         ->check(CLI::Range(0u, 10u));
+    cmd->add_option("--normal-map", args->normal_map,
+                    "Refined normals as a tangent-space normal map in the bundle (glTF normalTexture, with TANGENT):\n"
+                    "a photometric solve with the final material subtracted. auto: on when a train view has >= 12 lights\n"
+                    "in well-spread directions (a photometric dome or light stage); off: the mesh normals only")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
     cmd->add_option("--occlusion-rays", args->occlusion_rays,
                     "auto: Embree occlusion rays only where the mesh can occlude itself (not convex); on: always (the\n"
                     "report gives their measured cost); off: never (biased where the mesh shadows or hides itself)")
