@@ -13,5 +13,6 @@ void add_bench_command(CLI::App& app);    // cmd_bench.cpp
 
 void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_evaluate_command(CLI::App& app); // cmd_evaluate.cpp
+void add_import_command(CLI::App& app);   // cmd_import.cpp
 
 } // namespace specula::cli

@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
     specula::cli::add_bench_command(app);
     specula::cli::add_render_command(app);
     specula::cli::add_evaluate_command(app);
+    specula::cli::add_import_command(app);
     try {
         app.parse(argc, argv);
         return 0;
