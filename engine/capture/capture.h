@@ -166,8 +166,8 @@ inline constexpr double kMaxLightIntensity = 1e30;
 /// Irradiance range: a light of intensity I > 0 (per channel) gives every surface point an
 /// irradiance I / d^2 (full scale 1: a white Lambertian surface reads E / pi) within
 /// [kMinIrradiance, kMaxIrradiance], with d the distance from the light to the nearest and to
-/// the farthest point of the mesh. The diffuse solve sums E^2 over up to 16 frames in float:
-/// 16 x (1e15)^2 = 1.6e31 stays below FLT_MAX / 1e6, (1e-15)^2 = 1e-30 above FLT_MIN x 1e6.
+/// the farthest point of the mesh. The diffuse solve sums E^2 over a view's frames in float:
+/// even 1e6 frames give 1e6 x (1e15)^2 = 1e36 below FLT_MAX / 100, (1e-15)^2 = 1e-30 above FLT_MIN x 1e6.
 /// Pixels between them read 3e-16 to 3e14 of full scale: no real capture is near either end.
 inline constexpr double kMaxIrradiance = 1e15;
 inline constexpr double kMinIrradiance = 1e-15;
