@@ -3,7 +3,7 @@
 // that clipping, highlights, shadows, grazing light and photometric fallbacks all occur.
 //
 // Tolerance. Per pair, the GPU differs from the reference by (a) float rounding of the sums
-// of K samples: relative (K + 8) eps32 (1.4e-6 for 16, 5.7e-6 for 40), (b) the projection in float: the
+// of K samples: relative (K + 8) eps32 (1.4e-6 for 16, 2.9e-6 for 40), (b) the projection in float: the
 // image position moves by ~1e-5 pixel at 96 px, so a bilinear sample moves by at most that
 // times the local pixel difference (<= full scale 1): ~1e-5 / E in rho/pi, and (c) in
 // photometric mode the 3x3 solve amplifies (a) by up to cond ~ 3 / rcond <= 3000
