@@ -76,13 +76,14 @@ void summarize(LambertOutputs& out) {
     const double seconds = s.seconds;
     const auto gpu_ms = s.gpu_ms;
     const auto dispatch = s.gpu_dispatch_ms;
-    const auto batches = s.view_batches, chunks = s.pair_chunks;
+    const auto batches = s.view_batches, chunks = s.pair_chunks, groups = s.record_groups;
     s = LambertSummary{};
     s.seconds = seconds;
     s.gpu_ms = gpu_ms;
     s.gpu_dispatch_ms = dispatch;
     s.view_batches = batches;
     s.pair_chunks = chunks;
+    s.record_groups = groups;
     s.particles = out.particles.size();
     double angle_sum = 0.0;
     std::size_t angle_n = 0;
@@ -118,7 +119,8 @@ std::string describe(const LambertSummary& s, LambertMode mode) {
                   s.pairs, s.seconds);
     o << buf;
     if (s.gpu_ms) {
-        std::snprintf(buf, sizeof buf, " (GPU %.3f ms, %u view batches, %u pair chunks)", *s.gpu_ms, s.view_batches, s.pair_chunks);
+        std::snprintf(buf, sizeof buf, " (GPU %.3f ms, %u image batches, %u pair chunks in %u record groups)", *s.gpu_ms,
+                      s.view_batches, s.pair_chunks, s.record_groups);
         o << buf;
     }
     std::snprintf(buf, sizeof buf,

@@ -74,7 +74,13 @@ struct LambertOptions {
     /// Vulkan: upper bound on the bytes of the batched bindings, images and pair results
     /// (0 = maxStorageBufferRange); tests lower it. Particles and lit masks take one binding each.
     std::uint64_t max_binding_bytes = 0;
+    /// Vulkan: bytes of sample records held at once (0 = kLambertRecordGroupBytes); tests lower it.
+    std::uint64_t max_record_group_bytes = 0;
 };
+
+/// Sample records (16 bytes per pair and frame of its view) held at once by the Vulkan solve:
+/// particle chunks are processed in groups within this, the images uploaded once per group.
+inline constexpr std::uint64_t kLambertRecordGroupBytes = std::uint64_t{512} << 20;
 
 /// One view as the solve sees it: its camera and its train frames (global frame indices).
 struct LambertView {
@@ -119,6 +125,7 @@ struct LambertSummary {
     std::vector<std::pair<std::string, double>> gpu_dispatch_ms; ///< per labelled dispatch
     std::uint32_t view_batches = 0;
     std::uint32_t pair_chunks = 0;
+    std::uint32_t record_groups = 0; ///< groups of chunks whose records were held at once (the images went up once per group)
 };
 
 struct LambertOutputs {

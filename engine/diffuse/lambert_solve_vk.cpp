@@ -148,9 +148,6 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
     particles_buf.upload(in.particles);
     gpu::Buffer lit_buf = gpu::Buffer::of<std::uint32_t>(ctx, vis.lit.size(), "lambert lit masks");
     lit_buf.upload(vis.lit);
-    std::vector<std::optional<gpu::Buffer>> record_bufs;
-    for (const Chunk& c : chunks) record_bufs.emplace_back(gpu::Buffer::of<glm::vec4>(ctx, c.records, "lambert sample records"));
-
     double gpu_ns = 0.0;
     bool timed = true;
     double gather_ns = 0.0, pair_ns = 0.0, combine_ns = 0.0;
@@ -165,39 +162,6 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
             }
         }
     };
-
-    // Gather: the records of each batch's frames.
-    const shared::LambertGatherPush gather_push{
-        .dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos, .material = material_gpu(o.material)};
-    PackedViewBatch packed;
-    std::vector<std::int32_t> segment_of(view_count, -1); // view -> its segment in the batch
-    for (const ViewBatch& b : batches) {
-        pack_view_batch(in, surfaces, b, packed);
-        gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), "lambert views");
-        views_buf.upload(packed.views);
-        gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), "lambert frames");
-        frames_buf.upload(packed.frames);
-        gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), "lambert images");
-        pixels_buf.upload(packed.pixel_words);
-        std::fill(segment_of.begin(), segment_of.end(), -1);
-        for (std::size_t i = 0; i < b.segments.size(); ++i) segment_of[b.segments[i].view] = static_cast<std::int32_t>(i);
-
-        for (std::size_t ci = 0; ci < chunks.size(); ++ci) {
-            std::vector<shared::LambertPairKey> keys;
-            for_pairs(chunks[ci], [&](std::uint32_t p, std::uint32_t v, std::uint32_t, std::uint32_t record) {
-                if (const std::int32_t si = segment_of[v]; si >= 0)
-                    keys.push_back({p, static_cast<std::uint32_t>(si), record + b.segments[std::size_t(si)].frame_first});
-            });
-            if (keys.empty()) continue;
-            gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, keys.size(), "lambert gather keys");
-            keys_buf.upload(keys);
-            gpu::Sequence seq(ctx, 2);
-            seq.dispatch_1d(m_impl->gather, {particles_buf, lit_buf, views_buf, frames_buf, pixels_buf, keys_buf, *record_bufs[ci]},
-                            static_cast<std::uint32_t>(keys.size()), gather_push, "lambert_solve gather")
-                .barrier(gpu::Barrier::ComputeToCompute);
-            run(seq, gather_ns);
-        }
-    }
 
     // The table of all views and their train frames, for the pair step.
     std::vector<shared::LambertViewGpu> all_views;
@@ -214,7 +178,9 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
     gpu::Buffer all_frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, all_frames.size(), "lambert all frames");
     if (!all_frames.empty()) all_frames_buf.upload(all_frames);
 
-    // Pair and combine steps, per chunk.
+    const std::uint64_t group_limit = o.max_record_group_bytes != 0 ? o.max_record_group_bytes : kLambertRecordGroupBytes;
+    const shared::LambertGatherPush gather_push{
+        .dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos, .material = material_gpu(o.material)};
     const shared::LambertPairPush pair_push{.dispatch = {},
                                             .mode = static_cast<std::uint32_t>(o.mode),
                                             .iterations = o.highlight_iterations,
@@ -222,38 +188,85 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
                                             .k_sigma = o.highlight_k * o.noise_sigma,
                                             .min_rcond = o.min_rcond,
                                             .pad0 = 0};
-    for (std::size_t ci = 0; ci < chunks.size(); ++ci) {
-        const Chunk& c = chunks[ci];
-        const std::uint32_t n = c.last - c.first;
-        gpu::Buffer pair_buf = gpu::Buffer::of<shared::LambertPairResult>(ctx, c.pairs, "lambert pair results");
-        std::vector<shared::LambertSolveKey> keys;
-        keys.reserve(c.pairs);
-        for_pairs(c, [&](std::uint32_t p, std::uint32_t v, std::uint32_t slot, std::uint32_t record) {
-            keys.push_back({p, v, slot, record});
-        });
-        if (!keys.empty()) {
-            gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertSolveKey>(ctx, keys.size(), "lambert pair keys");
-            keys_buf.upload(keys);
-            gpu::Buffer scratch_buf = gpu::Buffer::of<float>(ctx, c.records, "lambert selection scratch");
-            gpu::Sequence seq(ctx, 2);
-            seq.dispatch_1d(m_impl->pair,
-                            {particles_buf, all_views_buf, all_frames_buf, *record_bufs[ci], scratch_buf, keys_buf, pair_buf},
-                            static_cast<std::uint32_t>(keys.size()), pair_push, "lambert_solve pairs")
-                .barrier(gpu::Barrier::ComputeToCompute);
-            run(seq, pair_ns);
+    // Chunks in groups whose records, alive from the gather to the pair step, stay within
+    // kLambertRecordGroupBytes (the images go up once per group: a photometric rig's records,
+    // 16 bytes per pair and frame, would otherwise all be held at once).
+    PackedViewBatch packed;
+    std::vector<std::int32_t> segment_of(view_count, -1); // view -> its segment in the batch
+    for (std::size_t g0 = 0; g0 < chunks.size();) {
+        std::size_t g1 = g0 + 1;
+        std::uint64_t group_bytes = chunks[g0].records * sizeof(glm::vec4);
+        while (g1 < chunks.size() && group_bytes + chunks[g1].records * sizeof(glm::vec4) <= group_limit)
+            group_bytes += chunks[g1++].records * sizeof(glm::vec4);
+        ++out.summary.record_groups;
+        std::vector<std::optional<gpu::Buffer>> record_bufs(chunks.size());
+        for (std::size_t ci = g0; ci < g1; ++ci)
+            record_bufs[ci].emplace(gpu::Buffer::of<glm::vec4>(ctx, chunks[ci].records, "lambert sample records"));
+
+        // Gather: the records of each batch's frames.
+        for (const ViewBatch& b : batches) {
+            pack_view_batch(in, surfaces, b, packed);
+            gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), "lambert views");
+            views_buf.upload(packed.views);
+            gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), "lambert frames");
+            frames_buf.upload(packed.frames);
+            gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), "lambert images");
+            pixels_buf.upload(packed.pixel_words);
+            std::fill(segment_of.begin(), segment_of.end(), -1);
+            for (std::size_t i = 0; i < b.segments.size(); ++i) segment_of[b.segments[i].view] = static_cast<std::int32_t>(i);
+            for (std::size_t ci = g0; ci < g1; ++ci) {
+                std::vector<shared::LambertPairKey> keys;
+                for_pairs(chunks[ci], [&](std::uint32_t p, std::uint32_t v, std::uint32_t, std::uint32_t record) {
+                    if (const std::int32_t si = segment_of[v]; si >= 0)
+                        keys.push_back({p, static_cast<std::uint32_t>(si), record + b.segments[std::size_t(si)].frame_first});
+                });
+                if (keys.empty()) continue;
+                gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, keys.size(), "lambert gather keys");
+                keys_buf.upload(keys);
+                gpu::Sequence seq(ctx, 2);
+                seq.dispatch_1d(m_impl->gather, {particles_buf, lit_buf, views_buf, frames_buf, pixels_buf, keys_buf, *record_bufs[ci]},
+                                static_cast<std::uint32_t>(keys.size()), gather_push, "lambert_solve gather")
+                    .barrier(gpu::Barrier::ComputeToCompute);
+                run(seq, gather_ns);
+            }
         }
-        record_bufs[ci].reset(); // the chunk's records are no longer needed
-        std::vector<std::uint32_t> local(n + 1);
-        for (std::uint32_t i = 0; i <= n; ++i) local[i] = offsets[c.first + i] - static_cast<std::uint32_t>(c.pair_base);
-        gpu::Buffer off_buf = gpu::Buffer::of<std::uint32_t>(ctx, local.size(), "lambert pair offsets");
-        off_buf.upload(local);
-        gpu::Buffer res_buf = gpu::Buffer::of<LambertParticleResult>(ctx, n, "lambert particle results");
-        const shared::LambertCombinePush push{.dispatch = {}, .particle_base = c.first, .view_tau = o.view_tau, .view_abs = o.view_abs};
-        gpu::Sequence seq(ctx, 2);
-        seq.dispatch_1d(m_impl->combine, {off_buf, pair_buf, particles_buf, res_buf}, n, push, "lambert_solve combine")
-            .barrier(gpu::Barrier::ComputeToHost);
-        run(seq, combine_ns);
-        res_buf.download(std::span<LambertParticleResult>(out.particles).subspan(c.first, n));
+
+        // Pair and combine steps, per chunk of the group.
+        for (std::size_t ci = g0; ci < g1; ++ci) {
+            const Chunk& c = chunks[ci];
+            const std::uint32_t n = c.last - c.first;
+            gpu::Buffer pair_buf = gpu::Buffer::of<shared::LambertPairResult>(ctx, c.pairs, "lambert pair results");
+            std::vector<shared::LambertSolveKey> keys;
+            keys.reserve(c.pairs);
+            for_pairs(c, [&](std::uint32_t p, std::uint32_t v, std::uint32_t slot, std::uint32_t record) {
+                keys.push_back({p, v, slot, record});
+            });
+            if (!keys.empty()) {
+                gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertSolveKey>(ctx, keys.size(), "lambert pair keys");
+                keys_buf.upload(keys);
+                gpu::Buffer scratch_buf = gpu::Buffer::of<float>(ctx, c.records, "lambert selection scratch");
+                gpu::Sequence seq(ctx, 2);
+                seq.dispatch_1d(m_impl->pair,
+                                {particles_buf, all_views_buf, all_frames_buf, *record_bufs[ci], scratch_buf, keys_buf, pair_buf},
+                                static_cast<std::uint32_t>(keys.size()), pair_push, "lambert_solve pairs")
+                    .barrier(gpu::Barrier::ComputeToCompute);
+                run(seq, pair_ns);
+            }
+            record_bufs[ci].reset(); // the chunk's records are no longer needed
+            std::vector<std::uint32_t> local(n + 1);
+            for (std::uint32_t i = 0; i <= n; ++i) local[i] = offsets[c.first + i] - static_cast<std::uint32_t>(c.pair_base);
+            gpu::Buffer off_buf = gpu::Buffer::of<std::uint32_t>(ctx, local.size(), "lambert pair offsets");
+            off_buf.upload(local);
+            gpu::Buffer res_buf = gpu::Buffer::of<LambertParticleResult>(ctx, n, "lambert particle results");
+            const shared::LambertCombinePush push{
+                .dispatch = {}, .particle_base = c.first, .view_tau = o.view_tau, .view_abs = o.view_abs};
+            gpu::Sequence seq(ctx, 2);
+            seq.dispatch_1d(m_impl->combine, {off_buf, pair_buf, particles_buf, res_buf}, n, push, "lambert_solve combine")
+                .barrier(gpu::Barrier::ComputeToHost);
+            run(seq, combine_ns);
+            res_buf.download(std::span<LambertParticleResult>(out.particles).subspan(c.first, n));
+        }
+        g0 = g1;
     }
     if (timed) {
         out.summary.gpu_ms = gpu_ns * 1e-6;

@@ -84,6 +84,8 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, Backend ba
                 {"view_tau", o.view_tau},
                 {"view_abs", o.view_abs}}},
               {"view_batches", s.view_batches},
+              {"pair_chunks", s.pair_chunks},
+              {"record_groups", s.record_groups},
               {"seconds", s.seconds}};
     if (o.mode == LambertMode::Photometric) j["mean_normal_angle_deg"] = s.mean_normal_angle_deg;
     if (s.gpu_ms) {
@@ -161,6 +163,7 @@ json specular_json(const SpecularStage& s, double joint_tolerance) {
               {"samples",
                {{"candidates", c.candidates},
                 {"used", c.used},
+                {"kept_stride", rs.keep_stride}, // every k-th used sample kept (memory bound, residuals.h)
                 {"dropped",
                  {{"shadow", c.dropped_shadow},
                   {"grazing", c.dropped_grazing},

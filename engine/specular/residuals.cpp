@@ -25,6 +25,20 @@ bool residual_particle_usable(const LambertParticleResult& r, const ResidualOpti
     return d.x + d.y + d.z <= o.max_albedo_spread * (a.x + a.y + a.z);
 }
 
+std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o) {
+    if (o.max_kept_samples == 0 || in.visibility == nullptr) return 1;
+    const Visibility& vis = *in.visibility;
+    std::uint64_t lit = 0;
+    for (std::uint32_t p = 0; p < in.particles.size() && p < diffuse.particles.size(); ++p) {
+        if (!residual_particle_usable(diffuse.particles[p], o)) continue;
+        for (std::uint32_t v = 0; v < in.views.size(); ++v) {
+            if (!vis.sees(p, v)) continue;
+            for (std::uint32_t f : in.views[v].frames) lit += vis.lights(p, f) ? 1u : 0u;
+        }
+    }
+    return std::max<std::uint64_t>(1, (lit + o.max_kept_samples - 1) / o.max_kept_samples);
+}
+
 std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples) {
     std::vector<LafortuneSample> out;
     out.reserve(samples.size());

@@ -55,10 +55,21 @@ struct ResidualOptions {
     /// the residual energy above the noise (pipeline_tests LambertianSkips...). Default on
     /// (the previous behaviour) until the albedo bias (issue 4 report) is fixed.
     bool drop_view_outliers = true;
+    /// Memory bound: when the lit (particle, frame) slots exceed this, only every k-th used
+    /// sample is kept, in slot order, k = ceil(lit slots / max_kept_samples) (residual_keep_stride;
+    /// 0: keep all). The fits take a stride subsample of at most 200,000 anyway (material_fit.h),
+    /// and the energy test a mean; a photometric rig's 87 million samples (20 views x 64
+    /// lights, 256 px) would take 5.6 GB at 64 bytes each. 4 million: 256 MB.
+    std::uint64_t max_kept_samples = 4'000'000;
 };
 
 /// True when particle result r gives residual samples under `options` (both backends use it).
 [[nodiscard]] bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& options);
+
+/// The stride at which used samples are kept (ResidualOptions::max_kept_samples): from the
+/// lit (particle, frame) slots of the pairs whose particle is usable.
+[[nodiscard]] std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs& diffuse,
+                                                 const ResidualOptions& options);
 
 struct ResidualCounts {
     std::uint64_t candidates = 0;        ///< (particle, frame) of seeing views, particle with a diffuse solution
@@ -71,7 +82,8 @@ struct ResidualCounts {
 };
 
 struct ResidualSamples {
-    std::vector<ResidualSample> samples; ///< used samples only, in slot order
+    std::vector<ResidualSample> samples; ///< used samples only, in slot order (every keep_stride-th)
+    std::uint64_t keep_stride = 1;       ///< see ResidualOptions::max_kept_samples
     ResidualCounts counts;
     double seconds = 0.0;               ///< wall clock (layout, upload, dispatch, download, compaction)
     std::optional<double> gpu_ms;       ///< Vulkan with timestamps

@@ -35,6 +35,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     const double min_cos = static_cast<double>(o.min_light_cos);
     const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
     const shared::MaterialGpu known = material_gpu(o.material);
+    out.keep_stride = residual_keep_stride(in, diffuse, o);
     for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
         const LambertView& view = in.views[vi];
         if (view.frames.empty()) continue;
@@ -101,9 +102,9 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 s.f = glm::vec3(fs);
                 s.status = shared::kResidualUsed;
                 s.d = glm::vec4(glm::vec3(rpi), static_cast<float>(kd));
+                if (cnt.used++ % out.keep_stride != 0) continue; // memory bound (ResidualOptions::max_kept_samples)
                 out.samples.push_back(s);
                 if (sample_particle != nullptr) sample_particle->push_back(p);
-                ++cnt.used;
             }
         }
     }

@@ -65,6 +65,7 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
         throw gpu::LimitError("residual_samples: " + std::to_string(count) +
                               " particles (or their lit masks) exceed one storage binding; particle chunking is not implemented");
     const std::uint64_t max_slots = limit / sizeof(ResidualSample);
+    out.keep_stride = residual_keep_stride(in, diffuse, o);
 
     // Per particle: rho/pi (w = 1 when the particle has a diffuse solution).
     std::vector<glm::vec4> rpi(count, glm::vec4(0.0f));
@@ -102,7 +103,9 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
     const auto keep_view = [&](OpenView& ov) {
         for (const ResidualSample& s : ov.slots) {
             switch (s.status) {
-            case shared::kResidualUsed: out.samples.push_back(s); ++cnt.used; break;
+            case shared::kResidualUsed: // every keep_stride-th (ResidualOptions::max_kept_samples)
+                if (cnt.used++ % out.keep_stride == 0) out.samples.push_back(s);
+                break;
             case shared::kResidualGrazing: ++cnt.dropped_grazing; break;
             case shared::kResidualMissing: ++cnt.dropped_missing; break;
             case shared::kResidualClipped: ++cnt.dropped_clipped; break;

@@ -127,8 +127,12 @@ TEST_F(LambertSolveConformance, BatchedRunMatchesSingleRun) {
     const LambertOutputs whole = kernel.run(in, {.mode = LambertMode::Photometric});
     EXPECT_EQ(whole.summary.view_batches, 1u);
     EXPECT_EQ(whole.summary.pair_chunks, 1u);
+    EXPECT_EQ(whole.summary.record_groups, 1u);
     for (const std::uint64_t limit : {std::uint64_t(2) << 20, std::uint64_t(448) << 10}) {
-        const LambertOutputs batched = kernel.run(in, {.mode = LambertMode::Photometric, .max_binding_bytes = limit});
+        // The second run also holds the records of at most one chunk at a time (a group per chunk).
+        const LambertOutputs batched = kernel.run(
+            in, {.mode = LambertMode::Photometric, .max_binding_bytes = limit, .max_record_group_bytes = limit < (1u << 20) ? 1u : 0u});
+        EXPECT_EQ(batched.summary.record_groups, limit < (1u << 20) ? batched.summary.pair_chunks : 1u);
         EXPECT_GT(batched.summary.view_batches, limit < (1u << 20) ? in.views.size() : 2u);
         EXPECT_GT(batched.summary.pair_chunks, 1u);
         ASSERT_EQ(whole.particles.size(), batched.particles.size());
