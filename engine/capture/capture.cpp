@@ -939,6 +939,30 @@ CaptureDesc read_capture_file(const fs::path& json_path) {
     return parse_capture_text(read_text_file(json_path), json_path);
 }
 
+// The mesh and the checks that need it (with `keep`), and the stand-ins of directional lights
+// (capture.h PointLight), which are placed about the mesh whether it is kept or not.
+void load_capture_mesh(Capture& capture, bool keep) {
+    const CaptureDesc& desc = capture.desc;
+    const bool directional =
+        std::any_of(desc.frames.begin(), desc.frames.end(), [](const FrameDesc& f) { return f.light.directional.has_value(); });
+    if (!keep && !directional) return;
+    const fs::path mesh_file = desc.resolve(desc.mesh_path);
+    MeshLoadResult m = load_mesh(mesh_file, "mesh_path");
+    place_directional_lights(capture.desc, m.mesh);
+    if (!keep) return;
+    capture.mesh = std::move(m.mesh);
+    capture.warnings.insert(capture.warnings.end(), m.warnings.begin(), m.warnings.end());
+    const std::vector<std::string> scene = check_capture_scene(desc, capture.views, capture.mesh, mesh_file);
+    capture.warnings.insert(capture.warnings.end(), scene.begin(), scene.end());
+    const Bounds bounds = mesh_bounds(capture.mesh);
+    std::vector<std::size_t> inside;
+    for (std::size_t i = 0; i < desc.frames.size(); ++i)
+        if (!desc.frames[i].light.directional && bounds.contains(desc.frames[i].light.position)) inside.push_back(i);
+    if (!inside.empty())
+        capture.warnings.push_back(std::to_string(inside.size()) + " frame(s) have their light inside the mesh's " +
+                                   "bounding box (first: " + frame_prefix(inside.front()) + ".light.position)");
+}
+
 Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptions& options) {
     const Stopwatch clock;
     std::error_code ec;
@@ -965,29 +989,7 @@ Capture load_capture_unguarded(const fs::path& json_path, const CaptureLoadOptio
     const fs::path root = fs::weakly_canonical(fs::absolute(desc.dir, ec), ec);
     check_inside_capture(root, desc.resolve(desc.mesh_path), "mesh_path");
 
-    const bool directional =
-        std::any_of(desc.frames.begin(), desc.frames.end(), [](const FrameDesc& f) { return f.light.directional.has_value(); });
-    if (!options.load_mesh && directional) {
-        // The stand-ins of directional lights are placed about the mesh (capture.h PointLight).
-        const fs::path mesh_file = desc.resolve(desc.mesh_path);
-        place_directional_lights(capture.desc, load_mesh(mesh_file, "mesh_path").mesh);
-    }
-    if (options.load_mesh) {
-        const fs::path mesh_file = desc.resolve(desc.mesh_path);
-        MeshLoadResult m = load_mesh(mesh_file, "mesh_path");
-        capture.mesh = std::move(m.mesh);
-        place_directional_lights(capture.desc, capture.mesh);
-        capture.warnings.insert(capture.warnings.end(), m.warnings.begin(), m.warnings.end());
-        const std::vector<std::string> scene = check_capture_scene(desc, capture.views, capture.mesh, mesh_file);
-        capture.warnings.insert(capture.warnings.end(), scene.begin(), scene.end());
-        const Bounds bounds = mesh_bounds(capture.mesh);
-        std::vector<std::size_t> inside;
-        for (std::size_t i = 0; i < desc.frames.size(); ++i)
-            if (!desc.frames[i].light.directional && bounds.contains(desc.frames[i].light.position)) inside.push_back(i);
-        if (!inside.empty())
-            capture.warnings.push_back(std::to_string(inside.size()) + " frame(s) have their light inside the mesh's " +
-                                       "bounding box (first: " + frame_prefix(inside.front()) + ".light.position)");
-    }
+    load_capture_mesh(capture, options.load_mesh);
 
     // Image files and masks: each distinct file decoded once, whatever frames name it (a
     // view's frames usually share one mask; a converter may name one image many times).

@@ -66,6 +66,231 @@ struct LambertSolveVk::Impl {
 LambertSolveVk::LambertSolveVk(gpu::Context& ctx) : m_impl(std::make_unique<Impl>(ctx)) {}
 LambertSolveVk::~LambertSolveVk() = default;
 
+namespace {
+
+// The pairs of a solve: particle-major, views in order; offsets[p] = first pair of p. Each
+// pair owns one record per train frame of its view; records[p] = first record of p. Chunks
+// of particles whose pair results, records (and combine results) fit one binding.
+struct PairPlan {
+    std::vector<std::uint32_t> offsets;
+    std::vector<std::uint64_t> records;
+    std::vector<Chunk> chunks;
+};
+
+PairPlan plan_pairs(const LambertInputs& in, std::uint64_t limit) {
+    const Visibility& vis = *in.visibility;
+    const std::size_t count = in.particles.size();
+    PairPlan plan;
+    plan.offsets.assign(count + 1, 0);
+    plan.records.assign(count + 1, 0);
+    for (std::size_t p = 0; p < count; ++p) {
+        std::uint32_t n = 0;
+        std::uint64_t r = 0;
+        for (std::uint32_t v = 0; v < in.views.size(); ++v)
+            if (!in.views[v].frames.empty() && vis.sees(p, v)) {
+                ++n;
+                r += in.views[v].frames.size();
+            }
+        plan.offsets[p + 1] = plan.offsets[p] + n;
+        plan.records[p + 1] = plan.records[p] + r;
+    }
+    const auto& offsets = plan.offsets;
+    const auto& records = plan.records;
+    const std::uint64_t max_pairs = limit / sizeof(shared::LambertPairResult);
+    const std::uint64_t max_records = limit / sizeof(glm::vec4);
+    const std::uint64_t max_particles = std::min<std::uint64_t>(limit / sizeof(LambertParticleResult), limit / 4 - 1);
+    for (std::uint32_t first = 0; first < count;) {
+        std::uint32_t last = first;
+        while (last < count && last - first < max_particles && offsets[last + 1] - offsets[first] <= max_pairs &&
+               records[last + 1] - records[first] <= max_records)
+            ++last;
+        if (last == first)
+            throw gpu::LimitError("lambert_solve: the " + std::to_string(records[first + 1] - records[first]) +
+                                  " samples of particle " + std::to_string(first) + " (" + std::to_string(sizeof(glm::vec4)) +
+                                  " bytes each) exceed one storage binding (" + std::to_string(limit) + " bytes)");
+        plan.chunks.push_back(
+            {first, last, offsets[first], offsets[last] - offsets[first], records[first], records[last] - records[first]});
+        first = last;
+    }
+    return plan;
+}
+
+// One run of the three steps (memory plan at the top of the file).
+class SolveRun {
+public:
+    SolveRun(gpu::Context& ctx, const gpu::ComputePipeline& gather, const gpu::ComputePipeline& pair,
+             const gpu::ComputePipeline& combine, const LambertInputs& in, const LambertOptions& o, std::uint64_t limit)
+        : m_ctx(ctx), m_gather(gather), m_pair(pair), m_combine(combine), m_in(in), m_o(o), m_plan(plan_pairs(in, limit)),
+          m_surfaces(tap_surfaces(in, o.tap_irradiance)),
+          m_batches(plan_view_batches(in, m_surfaces, limit, "lambert_solve")),
+          m_particles(gpu::Buffer::of<Particle>(ctx, in.particles.size(), "lambert particles")),
+          m_lit(gpu::Buffer::of<std::uint32_t>(ctx, in.visibility->lit.size(), "lambert lit masks")),
+          m_all_views(gpu::Buffer::of<shared::LambertViewGpu>(ctx, in.views.size(), "lambert all views")),
+          m_all_frames(gpu::Buffer::of<shared::LambertFrameGpu>(ctx, frame_count(in), "lambert all frames")) {
+        m_particles.upload(in.particles);
+        m_lit.upload(in.visibility->lit);
+        // The table of all views and their train frames, for the pair step.
+        std::vector<shared::LambertViewGpu> views;
+        std::vector<shared::LambertFrameGpu> frames;
+        for (std::uint32_t v = 0; v < in.views.size(); ++v) {
+            shared::LambertViewGpu g = gpu_view(in, v);
+            g.frame_first = static_cast<std::uint32_t>(frames.size());
+            g.frame_count = static_cast<std::uint32_t>(in.views[v].frames.size());
+            views.push_back(g);
+            for (std::uint32_t f : in.views[v].frames) frames.push_back(gpu_frame(in, f));
+        }
+        m_all_views.upload(views);
+        if (!frames.empty()) m_all_frames.upload(frames);
+    }
+
+    // Chunks in groups whose records, alive from the gather to the pair step, stay within
+    // `group_limit` bytes (the images go up once per group: a photometric rig's records,
+    // 16 bytes per pair and frame, would otherwise all be held at once).
+    void run(std::span<LambertParticleResult> out, std::uint64_t group_limit, LambertSummary& summary) {
+        const std::vector<Chunk>& chunks = m_plan.chunks;
+        for (std::size_t g0 = 0; g0 < chunks.size();) {
+            std::size_t g1 = g0 + 1;
+            std::uint64_t bytes = chunks[g0].records * sizeof(glm::vec4);
+            while (g1 < chunks.size() && bytes + chunks[g1].records * sizeof(glm::vec4) <= group_limit)
+                bytes += chunks[g1++].records * sizeof(glm::vec4);
+            ++summary.record_groups;
+            std::vector<std::optional<gpu::Buffer>> records(chunks.size());
+            for (std::size_t ci = g0; ci < g1; ++ci)
+                records[ci].emplace(gpu::Buffer::of<glm::vec4>(m_ctx, chunks[ci].records, "lambert sample records"));
+            for (const ViewBatch& b : m_batches) gather(b, g0, g1, records);
+            for (std::size_t ci = g0; ci < g1; ++ci) {
+                solve_chunk(chunks[ci], *records[ci], out);
+                records[ci].reset(); // the chunk's records are no longer needed
+            }
+            g0 = g1;
+        }
+        summary.pair_chunks = static_cast<std::uint32_t>(chunks.size());
+        summary.view_batches = static_cast<std::uint32_t>(m_batches.size());
+        if (m_timed) {
+            summary.gpu_ms = (m_gather_ns + m_pair_ns + m_combine_ns) * 1e-6;
+            summary.gpu_dispatch_ms = {{"gather", m_gather_ns * 1e-6}, {"pairs", m_pair_ns * 1e-6}, {"combine", m_combine_ns * 1e-6}};
+        }
+        summary.tap_irradiance = m_surfaces != nullptr;
+    }
+
+private:
+    static std::size_t frame_count(const LambertInputs& in) {
+        std::size_t n = 0;
+        for (const LambertView& v : in.views) n += v.frames.size();
+        return n;
+    }
+
+    // Each pair of chunk c in order: fn(particle, view, slot, record), slot and record relative to the chunk.
+    template <class Fn>
+    void for_pairs(const Chunk& c, const Fn& fn) const {
+        const Visibility& vis = *m_in.visibility;
+        for (std::uint32_t p = c.first; p < c.last; ++p) {
+            std::uint32_t slot = m_plan.offsets[p] - static_cast<std::uint32_t>(c.pair_base);
+            std::uint64_t record = m_plan.records[p] - c.record_base;
+            for (std::uint32_t v = 0; v < m_in.views.size(); ++v) {
+                if (m_in.views[v].frames.empty() || !vis.sees(p, v)) continue;
+                fn(p, v, slot++, static_cast<std::uint32_t>(record));
+                record += m_in.views[v].frames.size();
+            }
+        }
+    }
+
+    void submit(gpu::Sequence& seq, double& bucket) {
+        seq.submit_and_wait();
+        for (const auto& t : seq.timings()) {
+            if (t.ns) bucket += *t.ns;
+            else m_timed = false;
+        }
+    }
+
+    // The records of batch b's frames for the chunks [g0, g1).
+    void gather(const ViewBatch& b, std::size_t g0, std::size_t g1, std::vector<std::optional<gpu::Buffer>>& records) {
+        pack_view_batch(m_in, m_surfaces, b, m_packed);
+        gpu::Buffer views = gpu::Buffer::of<shared::LambertViewGpu>(m_ctx, m_packed.views.size(), "lambert views");
+        views.upload(m_packed.views);
+        gpu::Buffer frames = gpu::Buffer::of<shared::LambertFrameGpu>(m_ctx, m_packed.frames.size(), "lambert frames");
+        frames.upload(m_packed.frames);
+        gpu::Buffer pixels = gpu::Buffer::of<std::uint32_t>(m_ctx, m_packed.pixel_words.size(), "lambert images");
+        pixels.upload(m_packed.pixel_words);
+        std::vector<std::int32_t> segment_of(m_in.views.size(), -1); // view -> its segment in the batch
+        for (std::size_t i = 0; i < b.segments.size(); ++i) segment_of[b.segments[i].view] = static_cast<std::int32_t>(i);
+        const shared::LambertGatherPush push{.dispatch = {},
+                                             .frame_words = m_in.visibility->frame_words,
+                                             .min_light_cos = m_o.min_light_cos,
+                                             .material = material_gpu(m_o.material)};
+        for (std::size_t ci = g0; ci < g1; ++ci) {
+            std::vector<shared::LambertPairKey> keys;
+            for_pairs(m_plan.chunks[ci], [&](std::uint32_t p, std::uint32_t v, std::uint32_t, std::uint32_t record) {
+                if (const std::int32_t si = segment_of[v]; si >= 0)
+                    keys.push_back({p, static_cast<std::uint32_t>(si), record + b.segments[std::size_t(si)].frame_first});
+            });
+            if (keys.empty()) continue;
+            gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(m_ctx, keys.size(), "lambert gather keys");
+            keys_buf.upload(keys);
+            gpu::Sequence seq(m_ctx, 2);
+            seq.dispatch_1d(m_gather, {m_particles, m_lit, views, frames, pixels, keys_buf, *records[ci]},
+                            static_cast<std::uint32_t>(keys.size()), push, "lambert_solve gather")
+                .barrier(gpu::Barrier::ComputeToCompute);
+            submit(seq, m_gather_ns);
+        }
+    }
+
+    // The pair and combine steps of one chunk, whose records are complete; its particles' results into `out`.
+    void solve_chunk(const Chunk& c, const gpu::Buffer& records, std::span<LambertParticleResult> out) {
+        const std::uint32_t n = c.last - c.first;
+        gpu::Buffer pair_buf = gpu::Buffer::of<shared::LambertPairResult>(m_ctx, c.pairs, "lambert pair results");
+        std::vector<shared::LambertSolveKey> keys;
+        keys.reserve(c.pairs);
+        for_pairs(c, [&](std::uint32_t p, std::uint32_t v, std::uint32_t slot, std::uint32_t record) {
+            keys.push_back({p, v, slot, record});
+        });
+        if (!keys.empty()) {
+            gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertSolveKey>(m_ctx, keys.size(), "lambert pair keys");
+            keys_buf.upload(keys);
+            gpu::Buffer scratch = gpu::Buffer::of<float>(m_ctx, c.records, "lambert selection scratch");
+            const shared::LambertPairPush push{.dispatch = {},
+                                               .mode = static_cast<std::uint32_t>(m_o.mode),
+                                               .iterations = m_o.highlight_iterations,
+                                               .tau = m_o.highlight_tau,
+                                               .k_sigma = m_o.highlight_k * m_o.noise_sigma,
+                                               .min_rcond = m_o.min_rcond,
+                                               .pad0 = 0};
+            gpu::Sequence seq(m_ctx, 2);
+            seq.dispatch_1d(m_pair, {m_particles, m_all_views, m_all_frames, records, scratch, keys_buf, pair_buf},
+                            static_cast<std::uint32_t>(keys.size()), push, "lambert_solve pairs")
+                .barrier(gpu::Barrier::ComputeToCompute);
+            submit(seq, m_pair_ns);
+        }
+        std::vector<std::uint32_t> local(n + 1);
+        for (std::uint32_t i = 0; i <= n; ++i) local[i] = m_plan.offsets[c.first + i] - static_cast<std::uint32_t>(c.pair_base);
+        gpu::Buffer off_buf = gpu::Buffer::of<std::uint32_t>(m_ctx, local.size(), "lambert pair offsets");
+        off_buf.upload(local);
+        gpu::Buffer res_buf = gpu::Buffer::of<LambertParticleResult>(m_ctx, n, "lambert particle results");
+        const shared::LambertCombinePush push{.dispatch = {}, .particle_base = c.first, .view_tau = m_o.view_tau, .view_abs = m_o.view_abs};
+        gpu::Sequence seq(m_ctx, 2);
+        seq.dispatch_1d(m_combine, {off_buf, pair_buf, m_particles, res_buf}, n, push, "lambert_solve combine")
+            .barrier(gpu::Barrier::ComputeToHost);
+        submit(seq, m_combine_ns);
+        res_buf.download(out.subspan(c.first, n));
+    }
+
+    gpu::Context& m_ctx;
+    const gpu::ComputePipeline& m_gather;
+    const gpu::ComputePipeline& m_pair;
+    const gpu::ComputePipeline& m_combine;
+    const LambertInputs& m_in;
+    const LambertOptions& m_o;
+    PairPlan m_plan;
+    const std::vector<SurfaceMap>* m_surfaces;
+    std::vector<ViewBatch> m_batches;
+    gpu::Buffer m_particles, m_lit, m_all_views, m_all_frames;
+    PackedViewBatch m_packed;
+    double m_gather_ns = 0.0, m_pair_ns = 0.0, m_combine_ns = 0.0;
+    bool m_timed = true;
+};
+
+} // namespace
+
 LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions& o) {
     const Stopwatch sw;
     lambert_validate(in);
@@ -81,200 +306,17 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
         return out;
     }
     const std::uint64_t device_limit = ctx.info().max_storage_buffer_range;
-    std::uint64_t limit = device_limit; // for the batched bindings: images, pair results
+    std::uint64_t limit = device_limit; // for the batched bindings: images, records, pair results
     if (o.max_binding_bytes != 0) limit = std::min(limit, o.max_binding_bytes);
     if (count * sizeof(Particle) > device_limit || vis.lit.size() * sizeof(std::uint32_t) > device_limit)
         throw gpu::LimitError("lambert_solve: " + std::to_string(count) + " particles (or their lit masks) exceed one storage binding (" +
                          std::to_string(device_limit) + " bytes); particle chunking of these inputs is not implemented");
-
-    // Pairs: particle-major, views in order; offsets[p] = first pair of p. Each pair owns one
-    // record per train frame of its view; records[p] = first record of p.
-    const std::uint32_t view_count = static_cast<std::uint32_t>(in.views.size());
-    std::vector<std::uint32_t> offsets(count + 1, 0);
-    std::vector<std::uint64_t> records(count + 1, 0);
-    for (std::size_t p = 0; p < count; ++p) {
-        std::uint32_t n = 0;
-        std::uint64_t r = 0;
-        for (std::uint32_t v = 0; v < view_count; ++v)
-            if (!in.views[v].frames.empty() && vis.sees(p, v)) {
-                ++n;
-                r += in.views[v].frames.size();
-            }
-        offsets[p + 1] = offsets[p] + n;
-        records[p + 1] = records[p] + r;
-    }
-    // Each pair's records, in the order of the pairs (visits `fn(particle, view, slot, record)`,
-    // slot and record relative to the chunk).
-    const auto for_pairs = [&](const Chunk& c, const auto& fn) {
-        for (std::uint32_t p = c.first; p < c.last; ++p) {
-            std::uint32_t slot = offsets[p] - static_cast<std::uint32_t>(c.pair_base);
-            std::uint64_t record = records[p] - c.record_base;
-            for (std::uint32_t v = 0; v < view_count; ++v) {
-                if (in.views[v].frames.empty() || !vis.sees(p, v)) continue;
-                fn(p, v, slot++, static_cast<std::uint32_t>(record));
-                record += in.views[v].frames.size();
-            }
-        }
-    };
-
-    // Chunks of particles whose pair results, records (and combine results) fit one binding.
-    std::vector<Chunk> chunks;
-    {
-        const std::uint64_t max_pairs = limit / sizeof(shared::LambertPairResult);
-        const std::uint64_t max_records = limit / sizeof(glm::vec4);
-        const std::uint64_t max_particles = std::min<std::uint64_t>(limit / sizeof(LambertParticleResult), limit / 4 - 1);
-        std::uint32_t first = 0;
-        while (first < count) {
-            std::uint32_t last = first;
-            while (last < count && last - first < max_particles && offsets[last + 1] - offsets[first] <= max_pairs &&
-                   records[last + 1] - records[first] <= max_records)
-                ++last;
-            if (last == first)
-                throw gpu::LimitError("lambert_solve: the " + std::to_string(records[first + 1] - records[first]) +
-                                      " samples of particle " + std::to_string(first) + " (" + std::to_string(sizeof(glm::vec4)) +
-                                      " bytes each) exceed one storage binding (" + std::to_string(limit) + " bytes)");
-            chunks.push_back({first, last, offsets[first], offsets[last] - offsets[first], records[first],
-                              records[last] - records[first]});
-            first = last;
-        }
-    }
-    // Image batches that fit one binding (diffuse/view_batches.h).
-    const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
-    const std::vector<ViewBatch> batches = plan_view_batches(in, surfaces, limit, "lambert_solve");
-    out.summary.pair_chunks = static_cast<std::uint32_t>(chunks.size());
-    out.summary.view_batches = static_cast<std::uint32_t>(batches.size());
-
-    gpu::Buffer particles_buf = gpu::Buffer::of<Particle>(ctx, count, "lambert particles");
-    particles_buf.upload(in.particles);
-    gpu::Buffer lit_buf = gpu::Buffer::of<std::uint32_t>(ctx, vis.lit.size(), "lambert lit masks");
-    lit_buf.upload(vis.lit);
-    double gpu_ns = 0.0;
-    bool timed = true;
-    double gather_ns = 0.0, pair_ns = 0.0, combine_ns = 0.0;
-    const auto run = [&](gpu::Sequence& seq, double& bucket) {
-        seq.submit_and_wait();
-        for (const auto& t : seq.timings()) {
-            if (t.ns) {
-                gpu_ns += *t.ns;
-                bucket += *t.ns;
-            } else {
-                timed = false;
-            }
-        }
-    };
-
-    // The table of all views and their train frames, for the pair step.
-    std::vector<shared::LambertViewGpu> all_views;
-    std::vector<shared::LambertFrameGpu> all_frames;
-    for (std::uint32_t v = 0; v < view_count; ++v) {
-        shared::LambertViewGpu g = gpu_view(in, v);
-        g.frame_first = static_cast<std::uint32_t>(all_frames.size());
-        g.frame_count = static_cast<std::uint32_t>(in.views[v].frames.size());
-        all_views.push_back(g);
-        for (std::uint32_t f : in.views[v].frames) all_frames.push_back(gpu_frame(in, f));
-    }
-    gpu::Buffer all_views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, all_views.size(), "lambert all views");
-    all_views_buf.upload(all_views);
-    gpu::Buffer all_frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, all_frames.size(), "lambert all frames");
-    if (!all_frames.empty()) all_frames_buf.upload(all_frames);
-
-    const std::uint64_t group_limit = o.max_record_group_bytes != 0 ? o.max_record_group_bytes : kLambertRecordGroupBytes;
-    const shared::LambertGatherPush gather_push{
-        .dispatch = {}, .frame_words = vis.frame_words, .min_light_cos = o.min_light_cos, .material = material_gpu(o.material)};
-    const shared::LambertPairPush pair_push{.dispatch = {},
-                                            .mode = static_cast<std::uint32_t>(o.mode),
-                                            .iterations = o.highlight_iterations,
-                                            .tau = o.highlight_tau,
-                                            .k_sigma = o.highlight_k * o.noise_sigma,
-                                            .min_rcond = o.min_rcond,
-                                            .pad0 = 0};
-    // Chunks in groups whose records, alive from the gather to the pair step, stay within
-    // kLambertRecordGroupBytes (the images go up once per group: a photometric rig's records,
-    // 16 bytes per pair and frame, would otherwise all be held at once).
-    PackedViewBatch packed;
-    std::vector<std::int32_t> segment_of(view_count, -1); // view -> its segment in the batch
-    for (std::size_t g0 = 0; g0 < chunks.size();) {
-        std::size_t g1 = g0 + 1;
-        std::uint64_t group_bytes = chunks[g0].records * sizeof(glm::vec4);
-        while (g1 < chunks.size() && group_bytes + chunks[g1].records * sizeof(glm::vec4) <= group_limit)
-            group_bytes += chunks[g1++].records * sizeof(glm::vec4);
-        ++out.summary.record_groups;
-        std::vector<std::optional<gpu::Buffer>> record_bufs(chunks.size());
-        for (std::size_t ci = g0; ci < g1; ++ci)
-            record_bufs[ci].emplace(gpu::Buffer::of<glm::vec4>(ctx, chunks[ci].records, "lambert sample records"));
-
-        // Gather: the records of each batch's frames.
-        for (const ViewBatch& b : batches) {
-            pack_view_batch(in, surfaces, b, packed);
-            gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), "lambert views");
-            views_buf.upload(packed.views);
-            gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), "lambert frames");
-            frames_buf.upload(packed.frames);
-            gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), "lambert images");
-            pixels_buf.upload(packed.pixel_words);
-            std::fill(segment_of.begin(), segment_of.end(), -1);
-            for (std::size_t i = 0; i < b.segments.size(); ++i) segment_of[b.segments[i].view] = static_cast<std::int32_t>(i);
-            for (std::size_t ci = g0; ci < g1; ++ci) {
-                std::vector<shared::LambertPairKey> keys;
-                for_pairs(chunks[ci], [&](std::uint32_t p, std::uint32_t v, std::uint32_t, std::uint32_t record) {
-                    if (const std::int32_t si = segment_of[v]; si >= 0)
-                        keys.push_back({p, static_cast<std::uint32_t>(si), record + b.segments[std::size_t(si)].frame_first});
-                });
-                if (keys.empty()) continue;
-                gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(ctx, keys.size(), "lambert gather keys");
-                keys_buf.upload(keys);
-                gpu::Sequence seq(ctx, 2);
-                seq.dispatch_1d(m_impl->gather, {particles_buf, lit_buf, views_buf, frames_buf, pixels_buf, keys_buf, *record_bufs[ci]},
-                                static_cast<std::uint32_t>(keys.size()), gather_push, "lambert_solve gather")
-                    .barrier(gpu::Barrier::ComputeToCompute);
-                run(seq, gather_ns);
-            }
-        }
-
-        // Pair and combine steps, per chunk of the group.
-        for (std::size_t ci = g0; ci < g1; ++ci) {
-            const Chunk& c = chunks[ci];
-            const std::uint32_t n = c.last - c.first;
-            gpu::Buffer pair_buf = gpu::Buffer::of<shared::LambertPairResult>(ctx, c.pairs, "lambert pair results");
-            std::vector<shared::LambertSolveKey> keys;
-            keys.reserve(c.pairs);
-            for_pairs(c, [&](std::uint32_t p, std::uint32_t v, std::uint32_t slot, std::uint32_t record) {
-                keys.push_back({p, v, slot, record});
-            });
-            if (!keys.empty()) {
-                gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertSolveKey>(ctx, keys.size(), "lambert pair keys");
-                keys_buf.upload(keys);
-                gpu::Buffer scratch_buf = gpu::Buffer::of<float>(ctx, c.records, "lambert selection scratch");
-                gpu::Sequence seq(ctx, 2);
-                seq.dispatch_1d(m_impl->pair,
-                                {particles_buf, all_views_buf, all_frames_buf, *record_bufs[ci], scratch_buf, keys_buf, pair_buf},
-                                static_cast<std::uint32_t>(keys.size()), pair_push, "lambert_solve pairs")
-                    .barrier(gpu::Barrier::ComputeToCompute);
-                run(seq, pair_ns);
-            }
-            record_bufs[ci].reset(); // the chunk's records are no longer needed
-            std::vector<std::uint32_t> local(n + 1);
-            for (std::uint32_t i = 0; i <= n; ++i) local[i] = offsets[c.first + i] - static_cast<std::uint32_t>(c.pair_base);
-            gpu::Buffer off_buf = gpu::Buffer::of<std::uint32_t>(ctx, local.size(), "lambert pair offsets");
-            off_buf.upload(local);
-            gpu::Buffer res_buf = gpu::Buffer::of<LambertParticleResult>(ctx, n, "lambert particle results");
-            const shared::LambertCombinePush push{
-                .dispatch = {}, .particle_base = c.first, .view_tau = o.view_tau, .view_abs = o.view_abs};
-            gpu::Sequence seq(ctx, 2);
-            seq.dispatch_1d(m_impl->combine, {off_buf, pair_buf, particles_buf, res_buf}, n, push, "lambert_solve combine")
-                .barrier(gpu::Barrier::ComputeToHost);
-            run(seq, combine_ns);
-            res_buf.download(std::span<LambertParticleResult>(out.particles).subspan(c.first, n));
-        }
-        g0 = g1;
-    }
-    if (timed) {
-        out.summary.gpu_ms = gpu_ns * 1e-6;
-        out.summary.gpu_dispatch_ms = {{"gather", gather_ns * 1e-6}, {"pairs", pair_ns * 1e-6}, {"combine", combine_ns * 1e-6}};
-    }
+    SolveRun run(ctx, m_impl->gather, m_impl->pair, m_impl->combine, in, o, limit);
+    run.run(out.particles, o.max_record_group_bytes != 0 ? o.max_record_group_bytes : kLambertRecordGroupBytes, out.summary);
+    const bool tap_irradiance = out.summary.tap_irradiance;
     out.summary.seconds = sw.seconds();
     summarize(out);
-    out.summary.tap_irradiance = surfaces != nullptr;
+    out.summary.tap_irradiance = tap_irradiance;
     return out;
 }
 
