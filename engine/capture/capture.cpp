@@ -1200,9 +1200,16 @@ std::string summarize(const Capture& capture) {
         first = false;
     }
     s << "\n";
-    std::set<std::tuple<double, double, double>> lights;
-    for (const FrameDesc& f : desc.frames) lights.emplace(f.light.position.x, f.light.position.y, f.light.position.z);
-    s << "lights:      " << lights.size() << " distinct position" << (lights.size() == 1 ? "" : "s") << "\n";
+    std::set<std::tuple<double, double, double>> lights, directions;
+    for (const FrameDesc& f : desc.frames) {
+        if (const auto& d = f.light.directional) directions.emplace(d->direction.x, d->direction.y, d->direction.z);
+        else lights.emplace(f.light.position.x, f.light.position.y, f.light.position.z);
+    }
+    s << "lights:      ";
+    if (!lights.empty()) s << lights.size() << " distinct position" << (lights.size() == 1 ? "" : "s");
+    if (!lights.empty() && !directions.empty()) s << ", ";
+    if (!directions.empty()) s << directions.size() << " distinct direction" << (directions.size() == 1 ? "" : "s") << " (directional)";
+    s << "\n";
     s << "color space: " << (desc.color_space == ColorSpace::Srgb ? "srgb" : "linear") << ", saturation ";
     if (desc.saturation) s << *desc.saturation;
     else s << "default (1.0 for integer files, none for float files)";
