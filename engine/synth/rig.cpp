@@ -133,22 +133,28 @@ Rig make_rig(const Mesh& mesh, const RigOptions& o) {
     const double az_step = glm::two_pi<double>() / o.views;
     for (int i = 0; i < o.views; ++i) {
         RigView view = make_view(i, Split::Train, az_step * i, glm::mix(e0, e1, elevation_level(i)));
-        // Train lights at azimuths l / lights of a turn; held-out ones halfway between (l + 0.5) / count.
-        const auto add_lights = [&](int count, double offset, Split split) {
+        // Train lights at azimuths l / lights of a turn, at angles[l] off the camera. Held-out
+        // ones between them: at (l + 0.5) / count moved on by half a train step, and halfway
+        // between two of the angles, so that none falls on (or next to) a train light.
+        const auto add_lights = [&](int count, bool held_out, Split split) {
             for (int l = 0; l < count; ++l) {
-                const double angle = glm::two_pi<double>() * (l + offset) / count;
+                const double turn = held_out ? (l + 0.5) / count + 0.5 / o.lights : double(l) / count;
+                const double angle = glm::two_pi<double>() * turn;
                 PointLight light;
+                const std::size_t a = std::size_t(l) % std::max<std::size_t>(1, angles.size());
                 if (angles.empty())
                     light.position = around_camera(view.camera.camera_to_world, o.ring_radius * rig.camera_distance, angle, 0.0);
+                else if (held_out && angles.size() > 1)
+                    light.position = off_camera(view, 0.5 * (angles[a] + angles[(a + 1) % angles.size()]) * kDeg, angle);
                 else
-                    light.position = off_camera(view, angles[std::size_t(l) % angles.size()] * kDeg, angle);
+                    light.position = off_camera(view, angles[a] * kDeg, angle);
                 light.intensity = glm::dvec3(exposure_intensity(mesh, light.position, o));
                 view.lights.push_back(light);
                 view.light_splits.push_back(split);
             }
         };
-        add_lights(o.lights, 0.0, Split::Train);
-        add_lights(o.held_out_lights, 0.5, Split::Test);
+        add_lights(o.lights, false, Split::Train);
+        add_lights(o.held_out_lights, true, Split::Test);
         rig.views.push_back(std::move(view));
     }
 

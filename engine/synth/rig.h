@@ -68,8 +68,8 @@ struct RigOptions {
     double test_forward = 0.15;
     double exposure = 1.0;
     /// Per train view, this many more lights whose frames are test frames of that view (between
-    /// the train lights in azimuth, at the same angles off the camera): held-out lights, the
-    /// test a single-view or few-view rig can have (no other view sees what they see).
+    /// the train lights in azimuth and halfway between two of light_angles_deg): held-out
+    /// lights, the test a single-view or few-view rig can have (no other view sees what they see).
     int held_out_lights = 0;
     /// Every light directional (capture format 1.1): toward where the point light would be,
     /// seen from the object's centre, with the irradiance it would give there.

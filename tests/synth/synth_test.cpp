@@ -308,6 +308,48 @@ TEST(SynthRig, ThesisRigPutsSixLightsOnA15DegreeRing) {
     EXPECT_THROW((void)parse_rig_kind("ring"), UsageError);
 }
 
+// A photometric rig (issue 17): one view of 96 lights and 4 held-out lights, which are test
+// frames of the same view, none on a train light (at least 2 degrees from every one); with
+// `directional`, every light is directional toward where the point light was, of the
+// irradiance it gave the centre, its stand-in 5e5 D away.
+TEST(SynthRig, HeldOutLightsOfAViewAndDirectionalLights) {
+    const Mesh sphere = make_uv_sphere(glm::vec3(0.2f, 0.5f, -0.1f), 0.5f, 64, 32);
+    RigOptions ro;
+    ro.views = 1;
+    ro.lights = 96;
+    ro.held_out_lights = 4;
+    ro.test_views = 0;
+    ro.light_angles_deg = {10.0, 25.0, 40.0, 55.0};
+    const Rig rig = make_rig(sphere, ro);
+    ASSERT_EQ(rig.views.size(), 1u);
+    EXPECT_EQ(rig.frame_count(Split::Train), 96u);
+    EXPECT_EQ(rig.frame_count(Split::Test), 4u);
+    const RigView& v = rig.views[0];
+    const auto degrees = [](const glm::dvec3& a, const glm::dvec3& b) {
+        return glm::degrees(std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)));
+    };
+    double nearest = 180.0;
+    for (std::size_t h = 96; h < 100; ++h) {
+        ASSERT_EQ(v.split_of(h), Split::Test);
+        for (std::size_t t = 0; t < 96; ++t)
+            nearest = std::min(nearest, degrees(v.lights[h].position - rig.center, v.lights[t].position - rig.center));
+    }
+    std::printf("held-out lights: nearest train light %.2f degrees away\n", nearest);
+    EXPECT_GT(nearest, 2.0);
+
+    ro.directional = true;
+    const Rig far = make_rig(sphere, ro);
+    for (std::size_t l = 0; l < 100; ++l) {
+        const PointLight& p = v.lights[l];
+        const PointLight& d = far.views[0].lights[l];
+        ASSERT_TRUE(d.directional.has_value());
+        const glm::dvec3 to = p.position - rig.center;
+        EXPECT_NEAR(glm::length(d.directional->direction - glm::normalize(to)), 0.0, 1e-12);
+        EXPECT_NEAR(d.directional->irradiance.x, p.intensity.x / glm::dot(to, to), 1e-12 * p.intensity.x / glm::dot(to, to));
+        EXPECT_GT(glm::length(d.position - rig.center), 1e5 * rig.radius);
+    }
+}
+
 // (e) Same inputs, same bytes: thread count and repeated runs do not change anything.
 TEST(SynthDeterminism, ThreadsAndSeedsGiveIdenticalResults) {
     const Preset knot = make_preset("knot");

@@ -167,8 +167,9 @@ void add_synth_command(CLI::App& app) {
     sub->add_option("--test-lights", args->options.test_lights,
                     "Lights per test view, off the rig's rings (--rig thesis: on the 15-degree ring, between the train lights)")->capture_default_str();
     sub->add_option("--held-out-lights", args->options.held_out_lights,
-                    "Per train view, this many more lights (between the train lights, at the same angles) whose frames "
-                    "are test frames of that view: the held-out test a single-view or few-view photometric rig has")
+                    "Per train view, this many more lights (between the train lights in azimuth and in angle off the "
+                    "camera) whose frames are test frames of that view: the held-out test a single-view or few-view "
+                    "photometric rig has")
         ->capture_default_str();
     sub->add_flag("--directional", args->options.directional,
                   "Directional (distant) lights, capture format 1.1: each toward where the rig's point light would be, "
