@@ -206,12 +206,7 @@ private:
     // The records of batch b's frames for the chunks [g0, g1).
     void gather(const ViewBatch& b, std::size_t g0, std::size_t g1, std::vector<std::optional<gpu::Buffer>>& records) {
         pack_view_batch(m_in, m_surfaces, b, m_packed);
-        gpu::Buffer views = gpu::Buffer::of<shared::LambertViewGpu>(m_ctx, m_packed.views.size(), "lambert views");
-        views.upload(m_packed.views);
-        gpu::Buffer frames = gpu::Buffer::of<shared::LambertFrameGpu>(m_ctx, m_packed.frames.size(), "lambert frames");
-        frames.upload(m_packed.frames);
-        gpu::Buffer pixels = gpu::Buffer::of<std::uint32_t>(m_ctx, m_packed.pixel_words.size(), "lambert images");
-        pixels.upload(m_packed.pixel_words);
+        const UploadedViewBatch up = upload_view_batch(m_ctx, m_packed, "lambert");
         std::vector<std::int32_t> segment_of(m_in.views.size(), -1); // view -> its segment in the batch
         for (std::size_t i = 0; i < b.segments.size(); ++i) segment_of[b.segments[i].view] = static_cast<std::int32_t>(i);
         const shared::LambertGatherPush push{.dispatch = {},
@@ -228,7 +223,7 @@ private:
             gpu::Buffer keys_buf = gpu::Buffer::of<shared::LambertPairKey>(m_ctx, keys.size(), "lambert gather keys");
             keys_buf.upload(keys);
             gpu::Sequence seq(m_ctx, 2);
-            seq.dispatch_1d(m_gather, {m_particles, m_lit, views, frames, pixels, keys_buf, *records[ci]},
+            seq.dispatch_1d(m_gather, {m_particles, m_lit, up.views, up.frames, up.pixels, keys_buf, *records[ci]},
                             static_cast<std::uint32_t>(keys.size()), push, "lambert_solve gather")
                 .barrier(gpu::Barrier::ComputeToCompute);
             submit(seq, m_gather_ns);

@@ -106,4 +106,14 @@ void pack_view_batch(const LambertInputs& in, const std::vector<SurfaceMap>* sur
     }
 }
 
+UploadedViewBatch upload_view_batch(gpu::Context& ctx, const PackedViewBatch& packed, const std::string& who) {
+    UploadedViewBatch u{.views = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), who + " views"),
+                        .frames = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), who + " frames"),
+                        .pixels = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), who + " images")};
+    u.views.upload(packed.views);
+    u.frames.upload(packed.frames);
+    u.pixels.upload(packed.pixel_words);
+    return u;
+}
+
 } // namespace specula

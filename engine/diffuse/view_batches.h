@@ -12,6 +12,7 @@
 // surface map (visibility.h, 4 words per pixel too) follows its frames in the same buffer.
 #include "diffuse/lambert_solve.h"
 
+#include "gpu/buffer.h"
 #include "shared/lambert.h"
 
 #include <cstdint>
@@ -62,5 +63,14 @@ struct PackedViewBatch {
 /// Fills `out` for `batch` (its vectors are reused: call it in a loop without reallocating).
 void pack_view_batch(const LambertInputs& in, const std::vector<SurfaceMap>* surfaces, const ViewBatch& batch,
                      PackedViewBatch& out);
+
+/// A packed batch on the device: its views (segments), frames and pixels, one binding each.
+struct UploadedViewBatch {
+    gpu::Buffer views;
+    gpu::Buffer frames;
+    gpu::Buffer pixels;
+};
+/// Uploads `packed`; the buffers are named after `who` (e.g. "lambert views").
+[[nodiscard]] UploadedViewBatch upload_view_batch(gpu::Context& ctx, const PackedViewBatch& packed, const std::string& who);
 
 } // namespace specula

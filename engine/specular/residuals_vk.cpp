@@ -162,12 +162,7 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
 
         if (!keys.empty()) {
             pack_view_batch(in, surfaces, b, packed);
-            gpu::Buffer views_buf = gpu::Buffer::of<shared::LambertViewGpu>(ctx, packed.views.size(), "residual views");
-            views_buf.upload(packed.views);
-            gpu::Buffer frames_buf = gpu::Buffer::of<shared::LambertFrameGpu>(ctx, packed.frames.size(), "residual frames");
-            frames_buf.upload(packed.frames);
-            gpu::Buffer pixels_buf = gpu::Buffer::of<std::uint32_t>(ctx, packed.pixel_words.size(), "residual images");
-            pixels_buf.upload(packed.pixel_words);
+            const UploadedViewBatch up = upload_view_batch(ctx, packed, "residual");
 
             // Chunks of whole pairs whose slots fit one binding.
             for (std::size_t first = 0; first < keys.size();) {
@@ -191,7 +186,7 @@ ResidualSamples ResidualsVk::run(const LambertInputs& in, const LambertOutputs& 
                                                 .material = material_gpu(o.material)};
                 gpu::Sequence seq(ctx, 2);
                 seq.dispatch_1d(m_impl->kernel,
-                                {particles_buf, lit_buf, rpi_buf, views_buf, frames_buf, pixels_buf, keys_buf, samples_buf},
+                                {particles_buf, lit_buf, rpi_buf, up.views, up.frames, up.pixels, keys_buf, samples_buf},
                                 static_cast<std::uint32_t>(chunk_keys.size()), push, "residuals")
                     .barrier(gpu::Barrier::ComputeToHost)
                     .submit_and_wait();

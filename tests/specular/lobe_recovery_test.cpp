@@ -11,6 +11,7 @@
 #include "pipeline/reconstruct.h"
 #include "synth/presets.h"
 #include "synth/synth.h"
+#include "lobe_truth.h"
 #include "test_dirs.h"
 #include "vulkan_env.h"
 
@@ -57,21 +58,7 @@ TEST_P(LobeRecovery, ReconstructRecoversTheGroundTruthLobe) {
     c.evaluate = false;
     if (rc.noise > 0.0) c.lambert.noise_sigma = static_cast<float>(rc.noise);
     const ReconstructResult r = reconstruct(c);
-    const nlohmann::json& lobe = r.report["specular"]["lobe"];
-    const nlohmann::json truth = nlohmann::json::parse(std::ifstream(capture / "capture.json"))["ground_truth"]["lobe"];
-    ASSERT_TRUE(lobe.is_object()) << r.report["specular"].dump();
-    for (int k = 0; k < 3; ++k) {
-        const double cx = lobe["cx"][k], cz = lobe["cz"][k], n = lobe["n"][k];
-        const double tcx = truth["cx"][k], tcz = truth["cz"][k], tn = truth["n"][k];
-        std::printf("%s channel %d: Cx %.4f (%.4f, %+.2f%%)  Cz %.4f (%.4f, %+.2f%%)  N %.3f (%.3f, %+.2f%%)  %s\n",
-                    rc.preset.c_str(), k, cx, tcx, 100 * (cx - tcx) / std::abs(tcx), cz, tcz,
-                    100 * (cz - tcz) / std::abs(tcz), n, tn, 100 * (n - tn) / tn,
-                    lobe["status"][k].get<std::string>().c_str());
-        EXPECT_EQ(lobe["status"][k], "converged") << "channel " << k;
-        EXPECT_NEAR(cx, tcx, rc.tol_c * std::abs(tcx)) << "Cx, channel " << k;
-        EXPECT_NEAR(cz, tcz, rc.tol_c * std::abs(tcz)) << "Cz, channel " << k;
-        EXPECT_NEAR(n, tn, rc.tol_n * tn) << "N, channel " << k;
-    }
+    test::expect_lobe_near_truth(r.report, capture, rc.tol_c, rc.tol_n, rc.preset);
     std::printf("joint estimate: %s\n", r.report["specular"]["joint"].dump().c_str());
 }
 
