@@ -75,6 +75,11 @@ int main(int argc, char** argv) {
         k["ground_truth"] = {{"preset", "cube"}, {"lobe", {{"cx", {-0.5, -0.5, -0.5}}, {"cz", {0.5, 0.5, 0.5}}, {"n", {20, 20, 20}}}}};
         k["color_space"] = "linear";
         write_text_file(out / "capture_json/per_frame.json", k.dump());
+        json d = j; // version 1.1: directional lights beside point lights
+        d["version"] = 1.1;
+        d["frames"][0]["light"] = {{"type", "directional"}, {"direction", {0.2, 0.5, 1.0}}, {"irradiance", {0.5, 0.5, 0.5}}};
+        d["frames"][2]["light"] = {{"type", "directional"}, {"direction", {-1.0, 0.0, 0.5}}, {"irradiance", {0.0, 1e-3, 2.0}}};
+        write_text_file(out / "capture_json/directional.json", d.dump(1));
 
         // Meshes: a .glb as Specula writes it, and a .gltf with a node transform and 16-bit indices.
         write_mesh_glb(out / "gltf_mesh/cube.glb", test::unit_cube_mesh());
