@@ -592,7 +592,7 @@ std::size_t GlbWriter::add_accessor(json accessor) {
     return m_accessors.size() - 1;
 }
 
-json GlbWriter::add_mesh(const Mesh& mesh, const fs::path& file) {
+json GlbWriter::add_mesh(const Mesh& mesh, const fs::path& file, std::span<const glm::vec4> tangents) {
     constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963; // bufferView.target, glTF 2.0 section 3.6.1.1
     const std::size_t n = mesh.positions.size();
     if (n == 0 || mesh.triangles.empty()) throw InputError(file, "mesh", "refusing to write an empty mesh");
@@ -629,6 +629,11 @@ json GlbWriter::add_mesh(const Mesh& mesh, const fs::path& file) {
         attributes["TEXCOORD_0"] =
             add_accessor({{"bufferView", add_view(mesh.texcoords.data(), n * sizeof(glm::vec2), kArrayBuffer)},
                           {"componentType", TINYGLTF_COMPONENT_TYPE_FLOAT}, {"count", n}, {"type", "VEC2"}});
+    if (!tangents.empty()) {
+        if (tangents.size() != n) throw InputError(file, "mesh.tangents", "not one per vertex");
+        attributes["TANGENT"] = add_accessor({{"bufferView", add_view(tangents.data(), n * sizeof(glm::vec4), kArrayBuffer)},
+                                              {"componentType", TINYGLTF_COMPONENT_TYPE_FLOAT}, {"count", n}, {"type", "VEC4"}});
+    }
     std::vector<std::uint32_t> idx;
     idx.reserve(mesh.triangles.size() * 3);
     for (const glm::uvec3& t : mesh.triangles) idx.insert(idx.end(), {t.x, t.y, t.z});

@@ -121,10 +121,11 @@ public:
     std::size_t add_accessor(nlohmann::json accessor);
     /// Adds a triangle mesh's accessors: POSITION (with min and max, which glTF requires),
     /// NORMAL (unit: gltf_unit_normals), TEXCOORD_0 when the mesh has texture coordinates, and
-    /// uint32 indices, in that order. Returns the primitive {attributes, indices, mode}.
+    /// uint32 indices, in that order; with `tangents` (one per vertex) also TANGENT (VEC4, after
+    /// TEXCOORD_0). Returns the primitive {attributes, indices, mode}.
     /// Checks the mesh first (non-empty, indices in range, finite positions and texture
     /// coordinates) and throws InputError(file, "mesh...", ...) naming `file`, the file being written.
-    nlohmann::json add_mesh(const Mesh& mesh, const std::filesystem::path& file);
+    nlohmann::json add_mesh(const Mesh& mesh, const std::filesystem::path& file, std::span<const glm::vec4> tangents = {});
     /// Adds the buffer, bufferViews and accessors to `doc` and writes the .glb atomically (a
     /// JSON chunk padded with spaces and a BIN chunk padded with zeros, glTF 2.0 section 4.4).
     /// Throws InputError naming the file when the result would exceed 4 GiB.

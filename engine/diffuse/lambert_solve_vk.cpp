@@ -170,7 +170,6 @@ public:
             summary.gpu_ms = (m_gather_ns + m_pair_ns + m_combine_ns) * 1e-6;
             summary.gpu_dispatch_ms = {{"gather", m_gather_ns * 1e-6}, {"pairs", m_pair_ns * 1e-6}, {"combine", m_combine_ns * 1e-6}};
         }
-        summary.tap_irradiance = m_surfaces != nullptr;
     }
 
 private:
@@ -308,10 +307,9 @@ LambertOutputs LambertSolveVk::run(const LambertInputs& in, const LambertOptions
                          std::to_string(device_limit) + " bytes); particle chunking of these inputs is not implemented");
     SolveRun run(ctx, m_impl->gather, m_impl->pair, m_impl->combine, in, o, limit);
     run.run(out.particles, o.max_record_group_bytes != 0 ? o.max_record_group_bytes : kLambertRecordGroupBytes, out.summary);
-    const bool tap_irradiance = out.summary.tap_irradiance;
     out.summary.seconds = sw.seconds();
     summarize(out);
-    out.summary.tap_irradiance = tap_irradiance;
+    out.summary.tap_irradiance = tap_surfaces(in, o.tap_irradiance) != nullptr;
     return out;
 }
 

@@ -175,6 +175,19 @@ std::optional<Image> read_float_albedo_file(const GltfFile& f, const json& a, co
     return image;
 }
 
+/// The image a texture index names, decoded in `cs` (the header first: an image above the size
+/// limit is refused before it is decoded). Refusals name textures[i].source or images[j].
+Image decode_texture(const GltfFile& f, std::size_t tex, ColorSpace cs) {
+    const tinygltf::Model& model = f.model();
+    const std::string tex_entry = "textures[" + std::to_string(tex) + "]";
+    if (tex >= model.textures.size()) f.fail(tex_entry, "missing");
+    const int img = model.textures[tex].source;
+    if (img < 0) f.fail(tex_entry + ".source", "missing or not a non-negative integer");
+    const std::string img_field = "images[" + std::to_string(img) + "]";
+    if (static_cast<std::size_t>(img) >= model.images.size()) f.fail(img_field, "missing");
+    return f.decode_image(img, cs, img_field);
+}
+
 /// The base colour texture of the first material a primitive uses, decoded to linear RGB.
 Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     const tinygltf::Model& model = f.model();
@@ -190,14 +203,8 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     if (pbr.baseColorTexture.index < 0) f.fail(tex_field, "no base colour texture: nothing to take the albedo from");
     if (pbr.baseColorTexture.texCoord != 0) f.fail(tex_field + ".texCoord", "only TEXCOORD_0 is supported");
     const auto tex = static_cast<std::size_t>(pbr.baseColorTexture.index);
-    const std::string tex_entry = "textures[" + std::to_string(tex) + "]";
-    if (tex >= model.textures.size()) f.fail(tex_entry, "missing");
-    const int img = model.textures[tex].source;
-    if (img < 0) f.fail(tex_entry + ".source", "missing or not a non-negative integer");
-    const std::string img_field = "images[" + std::to_string(img) + "]";
-    if (static_cast<std::size_t>(img) >= model.images.size()) f.fail(img_field, "missing");
-    // Header first: an image above the size limit is refused before it is decoded.
-    const Image decoded = f.decode_image(img, ColorSpace::Srgb, img_field);
+    const Image decoded = decode_texture(f, tex, ColorSpace::Srgb);
+    const std::string img_field = "images[" + std::to_string(model.textures[tex].source) + "]";
     Image albedo(decoded.width, decoded.height, 3); // grey replicated, alpha dropped
     for (std::size_t i = 0; i < static_cast<std::size_t>(decoded.width) * decoded.height; ++i)
         for (int c = 0; c < 3; ++c)
@@ -218,9 +225,9 @@ Image read_base_color(const GltfFile& f, std::vector<std::string>& warnings) {
     return albedo;
 }
 
-/// The normal map's PNG (linear, 8 bits) as a bufferView of `glb`, with the TANGENT
-/// attribute added to `primitive`; nothing when the bundle has no normal map.
-std::optional<std::size_t> add_normal_map(GlbWriter& glb, json& primitive, const Bundle& bundle, const fs::path& path) {
+/// The normal map's PNG (linear, 8 bits) as a bufferView of `glb`; nothing when the bundle has
+/// no normal map (its TANGENT attribute goes with the mesh, write_bundle).
+std::optional<std::size_t> add_normal_map(GlbWriter& glb, const Bundle& bundle, const fs::path& path) {
     if (!bundle.normal_map) return std::nullopt;
     const Image& nm = *bundle.normal_map;
     if (nm.width != bundle.albedo.width || nm.height != bundle.albedo.height || nm.channels != 3 ||
@@ -228,13 +235,6 @@ std::optional<std::size_t> add_normal_map(GlbWriter& glb, json& primitive, const
         throw InputError(path, "normal_map", "not an RGB image of the albedo's size");
     if (!std::all_of(nm.pixels.begin(), nm.pixels.end(), [](float v) { return v >= 0.0f && v <= 1.0f; }))
         throw InputError(path, "normal_map", "a value outside [0, 1] (or not finite): not an encoded normal map");
-    constexpr int kArrayBuffer = 34962;
-    const std::vector<glm::vec4> tangents = vertex_tangents(bundle.mesh);
-    primitive["attributes"]["TANGENT"] =
-        glb.add_accessor({{"bufferView", glb.add_view(tangents.data(), tangents.size() * sizeof(glm::vec4), kArrayBuffer)},
-                          {"componentType", 5126}, // FLOAT
-                          {"count", tangents.size()},
-                          {"type", "VEC4"}});
     std::vector<std::uint8_t> png;
     try {
         png = encode_image(nm, ImageCodec::Png, ColorSpace::Linear, 8);
@@ -251,11 +251,7 @@ std::optional<Image> read_normal_map(const GltfFile& f) {
     const auto mat_index = static_cast<std::size_t>(model.meshes[0].primitives[0].material);
     if (mat_index >= model.materials.size() || model.materials[mat_index].normalTexture.index < 0) return std::nullopt;
     const std::string field = "materials[" + std::to_string(mat_index) + "].normalTexture";
-    const auto tex = static_cast<std::size_t>(model.materials[mat_index].normalTexture.index);
-    if (tex >= model.textures.size()) f.fail(field + ".index", "no such texture");
-    const int img = model.textures[tex].source;
-    if (img < 0 || static_cast<std::size_t>(img) >= model.images.size()) f.fail("textures[" + std::to_string(tex) + "].source", "no such image");
-    const Image decoded = f.decode_image(img, ColorSpace::Linear, "images[" + std::to_string(img) + "]");
+    const Image decoded = decode_texture(f, static_cast<std::size_t>(model.materials[mat_index].normalTexture.index), ColorSpace::Linear);
     if (decoded.channels < 3) f.fail(field, "the normal map is not RGB");
     Image out(decoded.width, decoded.height, 3);
     for (std::size_t i = 0; i < static_cast<std::size_t>(decoded.width) * decoded.height; ++i)
@@ -367,7 +363,8 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
     // The mesh first in the BIN chunk: POSITION, NORMAL (unit, glTF 3.7.2.1), TEXCOORD_0 and
     // the indices, as write_mesh_glb writes them (add_mesh also checks indices and finiteness).
     GlbWriter glb;
-    json primitive = glb.add_mesh(mesh, path);
+    // With a normal map, its TANGENT attribute (export/normal_map.h) after TEXCOORD_0.
+    json primitive = glb.add_mesh(mesh, path, bundle.normal_map ? vertex_tangents(mesh) : std::vector<glm::vec4>{});
     primitive["material"] = 0;
     const Image& albedo = bundle.albedo;
     if (albedo.width <= 0 || albedo.height <= 0 || albedo.channels < 1 || albedo.channels > 4 ||
@@ -406,7 +403,7 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         throw InputError(path, "albedo", e.what());
     }
     const std::size_t png_view = glb.add_view(png.data(), png.size());
-    const std::optional<std::size_t> normal_view = add_normal_map(glb, primitive, bundle, path);
+    const std::optional<std::size_t> normal_view = add_normal_map(glb, bundle, path);
 
     const bool mirrored = mat.factorized && mat.factorized->param == FactorParam::Mirrored;
     const bool warped = mat.factorized && mat.factorized->param == FactorParam::Warped;

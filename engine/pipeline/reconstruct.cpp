@@ -60,7 +60,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     atlas_decision(run, geometry);
     const RefineStage refine = refine_stage(run, capture, geometry, diffuse);
     const AlbedoTexture texture = texture_stage(run, geometry, diffuse, refine);
-    const NormalMapStage normals = normal_map_stage(run, capture, geometry, diffuse);
+    const NormalMapStage normals = normal_map_stage(run, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);
     record_specular_cost(run, specular, factorization);
     const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals);

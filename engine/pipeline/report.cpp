@@ -304,17 +304,17 @@ json evaluation_json(const PipelineRun& run, const std::optional<evaluate::Evalu
 }
 
 // The refined normals (null when left out): how many particles, their angle to the mesh normals.
-json normal_map_json(const PipelineRun& run, const NormalMapStage& n) {
-    if (!n.image) return nullptr;
+json normal_map_json(const PipelineRun& run, const NormalMapStage& n, const Bundle& bundle) {
+    if (!n.normals || !bundle.normal_map) return nullptr;
     const NormalMapStats& s = n.stats;
     return {{"in", "object.glb (material.normalTexture, tangent space, with the TANGENT attribute)"},
-            {"width", n.image->width},
-            {"height", n.image->height},
+            {"width", bundle.normal_map->width},
+            {"height", bundle.normal_map->height},
             {"particles", s.particles},
             {"refined", s.refined},
             {"angle_to_mesh_normal_deg",
              {{"mean", s.mean_angle_deg}, {"median", s.median_angle_deg}, {"p95", s.p95_angle_deg}, {"max", s.max_angle_deg}}},
-            {"seconds", run.seconds("photometric solve (normal map)") + run.seconds("normal map")}};
+            {"seconds", run.seconds("photometric solve (normal map)")}}; // the encoding is part of the bundle stage
 }
 
 } // namespace
@@ -355,7 +355,7 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
               {"has_lobe", in.bundle.material.specular.has_value()},
               {"has_cubemaps", in.bundle.material.factorized.has_value()},
               {"has_normal_map", in.bundle.normal_map.has_value()}}},
-            {"normal_map", normal_map_json(run, in.normals)},
+            {"normal_map", normal_map_json(run, in.normals, in.bundle)},
             {"evaluation", evaluation_json(run, in.evaluation)},
             {"albedo_texture",
              {{"files", {"albedo.exr", "albedo.png"}},

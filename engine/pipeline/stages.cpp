@@ -500,8 +500,7 @@ void normal_angle_stats(std::vector<double> angles, NormalMapStats& s) {
 
 } // namespace
 
-NormalMapStage normal_map_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                                const DiffuseStage& diffuse) {
+NormalMapStage normal_map_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse) {
     NormalMapStage out;
     const PlanDecision& decision = *run.plan().find("normal_map");
     if (!decided_normal_map(decision)) {
@@ -511,34 +510,42 @@ NormalMapStage normal_map_stage(PipelineRun& run, const Capture& capture, const 
     LambertOptions o = diffuse.options; // the final material known: its specular light subtracted
     o.mode = LambertMode::Photometric;
     const LambertOutputs solve = run_solve(run, diffuse.inputs, o, "photometric solve (normal map)");
-    out.image = run.stage("normal map", [&] {
-        const std::span<const Particle> particles = geometry.particles.particles;
-        // The bundle's mesh (bundle_stage makes the same): its vertices' frames are what viewers interpolate.
-        const Bundle shape = make_bundle(capture.mesh, geometry.atlas.corner_uv, Image(1, 1, 3), Material{});
-        const std::vector<glm::vec3> normals = gltf_unit_normals(shape.mesh);
-        const std::vector<glm::vec4> tangents = vertex_tangents(shape.mesh);
-        std::vector<glm::vec3> encoded(particles.size());
-        std::vector<std::uint8_t> valid(particles.size(), 1); // every particle: its refined normal or the mesh's
-        std::vector<double> angles;
-        for (std::size_t p = 0; p < particles.size(); ++p) {
-            const LambertParticleResult& r = solve.particles[p];
-            const bool refined = (r.status & shared::kLambertOk) && !(r.status & shared::kLambertFallback);
-            const TangentFrame frame = tangent_frame_at(shape.mesh, normals, tangents, particles[p].triangle, particles[p].bary);
-            encoded[p] = encode_tangent_normal(frame, refined ? glm::vec3(r.normal) : particles[p].n());
-            if (!refined) continue;
-            ++out.stats.refined;
-            if (!particles[p].is_gutter()) angles.push_back(r.normal.w);
-        }
-        out.stats.particles = particles.size();
-        normal_angle_stats(std::move(angles), out.stats);
-        return make_albedo_texture(geometry.atlas, particles, encoded, valid).image;
-    });
+    const std::span<const Particle> particles = geometry.particles.particles;
+    out.normals.emplace(particles.size());
+    std::vector<double> angles;
+    for (std::size_t p = 0; p < particles.size(); ++p) {
+        const LambertParticleResult& r = solve.particles[p];
+        const bool refined = (r.status & shared::kLambertOk) && !(r.status & shared::kLambertFallback);
+        (*out.normals)[p] = refined ? glm::vec3(r.normal) : particles[p].n();
+        if (!refined) continue;
+        ++out.stats.refined;
+        if (!particles[p].is_gutter()) angles.push_back(r.normal.w);
+    }
+    out.stats.particles = particles.size();
+    normal_angle_stats(std::move(angles), out.stats);
     log::info(format_text("normal map: %.0f of %.0f particles refined; angle to the mesh normal mean %.3f, median %.3f, "
                           "95%% %.3f deg",
                           out.stats.refined, out.stats.particles, out.stats.mean_angle_deg, out.stats.median_angle_deg,
                           out.stats.p95_angle_deg));
     return out;
 }
+
+namespace {
+
+// Each particle's world normal in the tangent frame a viewer interpolates on the bundle's
+// mesh at its point, and the atlas filled as the albedo texture is (every particle has a value).
+Image encode_normal_map(const Mesh& bundle_mesh, const GeometryStage& geometry, std::span<const glm::vec3> world) {
+    const std::span<const Particle> particles = geometry.particles.particles;
+    const std::vector<glm::vec3> normals = gltf_unit_normals(bundle_mesh);
+    const std::vector<glm::vec4> tangents = vertex_tangents(bundle_mesh);
+    std::vector<glm::vec3> encoded(particles.size());
+    for (std::size_t p = 0; p < particles.size(); ++p)
+        encoded[p] = encode_tangent_normal(tangent_frame_at(bundle_mesh, normals, tangents, particles[p].triangle, particles[p].bary),
+                                           world[p]);
+    return make_albedo_texture(geometry.atlas, particles, encoded, std::vector<std::uint8_t>(particles.size(), 1)).image;
+}
+
+} // namespace
 
 FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& specular) {
     const ReconstructConfig& config = run.config;
@@ -644,7 +651,7 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         material.status = factorization.status;
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
-        b.normal_map = normals.image;
+        if (normals.normals) b.normal_map = encode_normal_map(b.mesh, geometry, *normals.normals);
         b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", folder_name(capture.desc.dir)}}; // no machine path
         // The float albedo beside the bundle by default: albedo.exr, which the albedo texture
         // stage wrote already with the same texels (write_bundle writes it again, exactly).

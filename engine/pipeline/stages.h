@@ -107,8 +107,8 @@ struct RefineStage {
                                           const RefineStage& refine);
 
 /// 8b. Refined normals (planner.h decide_normal_map): the photometric solve with the final
-///     material known, its normals encoded in the bundle's tangent frames (export/normal_map.h)
-///     and filled like the albedo texture. Absent when left out.
+///     material known. The bundle stage encodes them in its mesh's tangent frames
+///     (export/normal_map.h) and fills the atlas like the albedo texture. Absent when left out.
 struct NormalMapStats {
     std::size_t particles = 0;   ///< particles
     std::size_t refined = 0;     ///< with a photometric normal (the rest keep the mesh's)
@@ -118,11 +118,10 @@ struct NormalMapStats {
     double max_angle_deg = 0.0;
 };
 struct NormalMapStage {
-    std::optional<Image> image; ///< encoded, atlas size
+    std::optional<std::vector<glm::vec3>> normals; ///< per particle: its refined normal, else the mesh's
     NormalMapStats stats;
 };
-[[nodiscard]] NormalMapStage normal_map_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                                              const DiffuseStage& diffuse);
+[[nodiscard]] NormalMapStage normal_map_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse);
 
 /// 9. The chosen material, and its Kautz-McCool factorization on the grid the planner chose
 ///    from its width, in the parametrization of least error.
