@@ -4,6 +4,7 @@
 #include "capture/capture.h"
 
 #include "core/error.h"
+#include "core/format.h"
 #include "core/file_util.h"
 #include "core/image_input.h"
 #include "core/json_guard.h"
@@ -61,14 +62,6 @@ const char* type_name(const json& v) {
     case json::value_t::discarded: return "nothing";
     default: return "a number";
     }
-}
-
-// A number for messages: "1e+15", "0.001", "5e-324" (shortest form that reads back alike).
-std::string short_number(double v) {
-    std::ostringstream s;
-    s.precision(6);
-    s << v;
-    return s.str();
 }
 
 std::string out_of_range(double v, const std::string& range, const std::string& why) {
@@ -147,6 +140,43 @@ private:
 };
 
 // Row-major nested 4x4 list -> glm (column-major) matrix, checked to be rigid with a proper rotation.
+} // namespace
+
+std::optional<TransformProblem> transform_problem(const glm::dmat4& m) {
+    // Last row 0 0 0 1.
+    for (int col = 0; col < 4; ++col) {
+        const double want = col == 3 ? 1.0 : 0.0;
+        if (!(std::abs(m[col][3] - want) <= kRigidTolerance)) return TransformProblem{"", "last row must be [0, 0, 0, 1]"};
+    }
+    // Rotation: R^T R = I (orthonormal) and det R = +1 (no reflection, no scale).
+    const glm::dmat3 rot(m);
+    const glm::dmat3 rtr = glm::transpose(rot) * rot;
+    double err = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) err = std::max(err, std::abs(rtr[i][j] - (i == j ? 1.0 : 0.0)));
+    if (!(err <= kRigidTolerance)) {
+        std::ostringstream msg;
+        msg << "not a rigid transform: the rotation part is not orthonormal (max |R^T R - I| = " << err
+            << ", tolerance " << kRigidTolerance << ")";
+        return TransformProblem{"", msg.str()};
+    }
+    const double det = glm::determinant(rot);
+    if (!(std::abs(det - 1.0) <= kRigidTolerance)) {
+        std::ostringstream msg;
+        msg << "not a valid rotation: determinant " << det << " (must be +1; a reflection or scale is not allowed)";
+        return TransformProblem{"", msg.str()};
+    }
+    // The camera centre: a point of the scene like any other.
+    for (int row = 0; row < 3; ++row)
+        if (!(std::abs(m[3][row]) <= kMaxWorldCoordinate))
+            return TransformProblem{"[" + std::to_string(row) + "][3]",
+                                    out_of_range(m[3][row], "|translation| <= " + short_number(kMaxWorldCoordinate),
+                                                 "camera centres are points of the scene, whose coordinates are squared in float")};
+    return std::nullopt;
+}
+
+namespace {
+
 glm::dmat4 parse_transform(const JsonReader& r, const json& v, const std::string& field) {
     if (!v.is_array() || v.size() != 4) r.fail(field, "expected a 4x4 matrix (4 rows of 4 numbers)");
     glm::dmat4 m(1.0);
@@ -157,35 +187,7 @@ glm::dmat4 parse_transform(const JsonReader& r, const json& v, const std::string
             m[col][row] = r.number(rv[static_cast<std::size_t>(col)],
                                    field + "[" + std::to_string(row) + "][" + std::to_string(col) + "]");
     }
-    // Last row 0 0 0 1.
-    for (int col = 0; col < 4; ++col) {
-        const double want = col == 3 ? 1.0 : 0.0;
-        if (std::abs(m[col][3] - want) > kRigidTolerance) r.fail(field, "last row must be [0, 0, 0, 1]");
-    }
-    // Rotation: R^T R = I (orthonormal) and det R = +1 (no reflection, no scale).
-    const glm::dmat3 rot(m);
-    const glm::dmat3 rtr = glm::transpose(rot) * rot;
-    double err = 0.0;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) err = std::max(err, std::abs(rtr[i][j] - (i == j ? 1.0 : 0.0)));
-    if (err > kRigidTolerance) {
-        std::ostringstream msg;
-        msg << "not a rigid transform: the rotation part is not orthonormal (max |R^T R - I| = " << err
-            << ", tolerance " << kRigidTolerance << ")";
-        r.fail(field, msg.str());
-    }
-    const double det = glm::determinant(rot);
-    if (std::abs(det - 1.0) > kRigidTolerance) {
-        std::ostringstream msg;
-        msg << "not a valid rotation: determinant " << det << " (must be +1; a reflection or scale is not allowed)";
-        r.fail(field, msg.str());
-    }
-    // The camera centre: a point of the scene like any other.
-    for (int row = 0; row < 3; ++row)
-        if (std::abs(m[3][row]) > kMaxWorldCoordinate)
-            r.fail(field + "[" + std::to_string(row) + "][3]",
-                   out_of_range(m[3][row], "|translation| <= " + short_number(kMaxWorldCoordinate),
-                                "camera centres are points of the scene, whose coordinates are squared in float"));
+    if (const std::optional<TransformProblem> p = transform_problem(m)) r.fail(field + p->entry, p->message);
     return m;
 }
 

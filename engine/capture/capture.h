@@ -185,6 +185,16 @@ inline constexpr std::uint64_t kMaxCaptureJsonBytes = std::uint64_t{1} << 28;
 /// Deepest JSON nesting accepted in capture.json (checked on the text before parsing).
 inline constexpr int kMaxCaptureJsonDepth = 256;
 
+/// Why `m` is not a camera-to-world transform the format accepts (docs/capture-format.md,
+/// "Geometry conventions" and "Ranges"): the last row, an orthonormal rotation of determinant
+/// +1, the translation's range. `entry` names the offending entry within the matrix ("" for
+/// the whole, "[r][3]" for a translation). nullopt when it is one.
+struct TransformProblem {
+    std::string entry;
+    std::string message;
+};
+[[nodiscard]] std::optional<TransformProblem> transform_problem(const glm::dmat4& m);
+
 /// The capture's folder from a path to the folder or to its capture.json.
 [[nodiscard]] std::filesystem::path capture_json_path(const std::filesystem::path& dir_or_file);
 

@@ -4,6 +4,7 @@
 #include "capture/mesh.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/format.h"
 #include "core/output_dir.h"
 
 #include <algorithm>
@@ -27,12 +28,6 @@ namespace {
 
 /// Largest text file of the dataset read (a row is a few dozen bytes: millions of rows).
 constexpr std::uintmax_t kMaxDatasetTextBytes = std::uintmax_t{64} << 20;
-
-std::string num(double v) {
-    std::ostringstream s;
-    s << v;
-    return s.str();
-}
 
 std::string line_field(int line) { return "line " + std::to_string(line); }
 
@@ -185,7 +180,7 @@ void read_light_rows(const fs::path& dir, PhotometricDataset& d) {
         for (int c = 0; c < 3; ++c)
             if (d.intensities[i][c] < 0.0)
                 throw InputError(int_file, line_field(d.intensity_lines[i]),
-                                 "intensity " + num(d.intensities[i][c]) + " is negative (channel " + std::to_string(c) + ")");
+                                 "intensity " + short_number(d.intensities[i][c]) + " is negative (channel " + std::to_string(c) + ")");
     check_row_count(dir_file, d.directions.size(), d.images.size());
     check_row_count(int_file, d.intensities.size(), d.images.size());
 }
@@ -254,7 +249,7 @@ namespace {
 
 void check_option_range(double v, double lo, double hi, const std::string& option, const std::string& what) {
     if (!std::isfinite(v) || v < lo || v > hi)
-        throw UsageError(option + ": " + num(v) + " is out of range (" + what + ": " + num(lo) + " to " + num(hi) + ")");
+        throw UsageError(option + ": " + short_number(v) + " is out of range (" + what + ": " + short_number(lo) + " to " + short_number(hi) + ")");
 }
 
 /// The intrinsics within the capture format's "Ranges" for w x h images.
@@ -269,32 +264,17 @@ void check_intrinsics(const PhotometricImportOptions& o, int w, int h) {
     if (o.cy) check_option_range(*o.cy, -pp, pp, "--cy", "pixels from the top edge " + images);
 }
 
-/// A rigid camera-to-world transform with a proper rotation (the capture format's tolerances).
+/// A rigid camera-to-world transform with a proper rotation (the capture format's own check).
 void check_pose(const glm::dmat4& m) {
-    for (int col = 0; col < 4; ++col)
-        if (!(std::abs(m[col][3] - (col == 3 ? 1.0 : 0.0)) <= kRigidTolerance))
-            throw UsageError("--pose: the last row must be 0 0 0 1 (16 numbers, row-major camera-to-world)");
-    const glm::dmat3 rot(m);
-    const glm::dmat3 rtr = glm::transpose(rot) * rot;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            if (!(std::abs(rtr[i][j] - (i == j ? 1.0 : 0.0)) <= kRigidTolerance))
-                throw UsageError("--pose: not a rigid transform: the rotation part is not orthonormal (tolerance " +
-                                 num(kRigidTolerance) + ")");
-    if (!(std::abs(glm::determinant(rot) - 1.0) <= kRigidTolerance))
-        throw UsageError("--pose: not a valid rotation: determinant " + num(glm::determinant(rot)) +
-                         " (must be +1; a reflection or scale is not allowed)");
-    for (int row = 0; row < 3; ++row)
-        if (!(std::abs(m[3][row]) <= kMaxWorldCoordinate))
-            throw UsageError("--pose: translation " + num(m[3][row]) + " is out of range (|t| <= " + num(kMaxWorldCoordinate) +
-                             ")");
+    if (const std::optional<TransformProblem> p = transform_problem(m))
+        throw UsageError("--pose" + p->entry + ": " + p->message + " (16 numbers, row-major camera-to-world)");
 }
 
 void check_options(const PhotometricImportOptions& o, int w, int h) {
     check_intrinsics(o, w, h);
     check_pose(o.pose);
     if (!(o.irradiance_scale > 0.0) || !std::isfinite(o.irradiance_scale))
-        throw UsageError("--irradiance-scale: must be a positive finite number, got " + num(o.irradiance_scale));
+        throw UsageError("--irradiance-scale: must be a positive finite number, got " + short_number(o.irradiance_scale));
     if (o.saturation)
         check_option_range(*o.saturation, kMinSaturation, kMaxSaturation, "--saturation", "linear units, full scale 1");
     if (o.test_every < 0)
@@ -316,9 +296,9 @@ DirectionalLight imported_light(const PhotometricDataset& d, std::size_t i, cons
         const double e = light.irradiance[c];
         if (e > kMaxIrradiance || (e > 0.0 && e < kMinIrradiance) || !std::isfinite(e))
             throw InputError(d.dir / kPhotometricIntensitiesFile, line_field(d.intensity_lines[i]),
-                             "irradiance " + num(e) + " (intensity " + num(d.intensities[i][c]) + " x --irradiance-scale " +
-                                 num(o.irradiance_scale) + ", channel " + std::to_string(c) + ") is out of range (0 or " +
-                                 num(kMinIrradiance) + " to " + num(kMaxIrradiance) +
+                             "irradiance " + short_number(e) + " (intensity " + short_number(d.intensities[i][c]) + " x --irradiance-scale " +
+                                 short_number(o.irradiance_scale) + ", channel " + std::to_string(c) + ") is out of range (0 or " +
+                                 short_number(kMinIrradiance) + " to " + short_number(kMaxIrradiance) +
                                  ", full scale 1: docs/capture-format.md \"Ranges\")");
     }
     return light;

@@ -2,6 +2,7 @@
 // printf-style formatting of a few numbers into a std::string (report text, decisions,
 // tables), one definition for every stage.
 #include <cstdio>
+#include <sstream>
 #include <string>
 
 namespace specula {
@@ -14,6 +15,14 @@ template <typename... Args>
     char buf[256];
     std::snprintf(buf, sizeof buf, format, static_cast<double>(args)...);
     return buf;
+}
+
+/// A number for messages: "1e+15", "0.001", "2.5" (6 significant digits, no trailing zeros).
+[[nodiscard]] inline std::string short_number(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
 }
 
 } // namespace specula
