@@ -1,0 +1,81 @@
+#pragma once
+// Light that bounced off the object itself (inverse global illumination; Yu, Debevec, Malik and
+// Hawkins 1999, "Inverse Global Illumination: Recovering Reflectance Models of Real Scenes from
+// Photographs", SIGGRAPH: estimate the reflectance, compute the light the scene sends to each
+// point with that estimate, remove it from the observations, estimate again).
+//
+// The geometry and the cameras are fixed while the light moves, so what depends on the geometry
+// alone is computed once per capture: the TRANSFER, a sparse matrix T over the surface particles.
+// Row i holds, for the cosine-weighted hemisphere of particle i (its normal N_i), the particles
+// that its rays reach first: with K rays, stratified, each ray that hits the object adds 1/K to
+// the entry of the particle whose texel holds the hit (rays that leave the object add nothing:
+// the capture's surroundings are black). For a diffuse source of radiosity B (W/m^2 leaving
+// the surface, B = pi L), the irradiance that reaches particle i is then
+//     E_i = sum_j T_ij B_j,
+// since a cosine-weighted mean of the radiance L over the hemisphere is E / pi.
+//
+// One frame, one bounce: the sources' radiosity is B_j = rho_j k_d E_dir_j (the direct
+// irradiance of the frame's light at j, zero where the visibility says the light does not reach
+// it). Two bounces: E2 = T (rho k_d E1); and so on. The indirect radiance that particle i sends
+// to a camera is (rho_i / pi) k_d (E1 + E2 + ...), which the pipeline removes from the captured
+// pixels before the diffuse solve (indirect/indirect.h).
+#include <glm/glm.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace specula {
+
+namespace gpu {
+class Context;
+}
+
+/// One entry of a transfer row (std430, 8 bytes): the source particle and its weight (the
+/// fraction of the row's rays that reached it).
+struct TransferEntry {
+    std::uint32_t source = 0;
+    float weight = 0.0f;
+};
+static_assert(sizeof(TransferEntry) == 8, "std430 layout of TransferEntry");
+
+/// The sparse transfer matrix (compressed rows; within a row, entries by increasing source).
+struct IndirectTransfer {
+    std::uint32_t rows = 0;                  ///< particles (receivers); the sources are the same particles
+    std::uint32_t rays_per_particle = 0;     ///< K
+    std::vector<std::uint32_t> row_begin;    ///< rows + 1 offsets into entries
+    std::vector<TransferEntry> entries;
+
+    [[nodiscard]] std::size_t entry_count() const noexcept { return entries.size(); }
+};
+
+/// Throws Error when the matrix is malformed (offsets not rising, a source out of range, a
+/// weight not finite or negative, a row whose weights sum above 1 + 1e-4).
+void validate_transfer(const IndirectTransfer& transfer);
+
+/// The per-frame step, for `frames` frames at once: with radiosity laid out frame by frame
+/// (radiosity[f * rows + j], rgb in xyz, w ignored),
+///     out[f * rows + i] = (sum over row i's entries of weight * radiosity[f * rows + source], 0).
+/// The C++ reference: accumulates in double, in entry order; `threads` threads over rows.
+void gather_indirect_cpu(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+                         std::span<glm::vec4> out, unsigned threads = 2);
+
+/// The Vulkan kernel of the same step (shaders/indirect/indirect_gather.comp). Splits the rows
+/// and the frames into dispatches whose buffers stay within the device's storage-buffer range.
+class IndirectGatherVk {
+public:
+    explicit IndirectGatherVk(gpu::Context& ctx);
+    ~IndirectGatherVk();
+    IndirectGatherVk(const IndirectGatherVk&) = delete;
+    IndirectGatherVk& operator=(const IndirectGatherVk&) = delete;
+    void run(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+             std::span<glm::vec4> out);
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace specula
