@@ -16,16 +16,19 @@
 //
 // Interreflections (Interreflection, bounces N >= 1): the pixel adds the light the object
 // reflects onto itself, by path tracing from the primary hit x (the direct term above is
-// unchanged). Each of S paths leaves x in a cosine-weighted direction w about the shading
-// normal; at the point y it hits it picks up the direct light at y (the formula above, with
-// v = -w), and it continues from y in the same way, up to N bounces:
+// unchanged). Each of S paths leaves x in a direction w drawn from a mixture of cosine-weighted
+// directions and the material's specular lobe (path_sampling.h), with density pdf(w); at the
+// point y it hits it picks up the direct light at y (the formula above, with v = -w), and it
+// continues from y in the same way, up to N bounces:
 //     pixel += 1/S sum over paths of  sum_k T_k * f_{y_k}(u, -w_k) I max(0, n.u) / d^2
-//     T_1 = f_x(w_1, v) pi,  T_{k+1} = T_k * f_{y_k}(w_{k+1}, -w_k) pi
-// (pi = 1 / the cosine-sampling density, up to the cosine). Paths that leave the object see
-// black (no environment). Directions below the geometric surface carry no light. The first
-// direction of each path is stratified (a Hammersley set, rotated per pixel); the rest are
-// independent. A pixel's random numbers depend only on (seed, frame, pixel): images do not
-// depend on the thread count.
+//     T_1 = f_x(w_1, v) (n.w_1) / pdf(w_1),  T_{k+1} = T_k * f_{y_k}(w_{k+1}, -w_k) (n.w_{k+1}) / pdf(w_{k+1})
+// (with cosine sampling alone, (n.w) / pdf(w) = pi). At each vertex the shading normal is
+// taken on the side the ray arrived from. Paths that leave the object see black (no
+// environment); directions below the geometric surface carry no light. The first direction of
+// each path is stratified (a Hammersley set, rotated per pixel); the rest are independent. A
+// pixel's random numbers depend only on (seed, frame, pixel): images do not depend on the
+// thread count. Unbiased: light reflected by a glossy point toward a diffuse one (a caustic of
+// the highlight) is found only by chance, and is the noise that remains.
 #include "material/lafortune.h"
 #include "material/material.h"
 #include "capture/camera.h"
@@ -75,6 +78,9 @@ struct Interreflection {
     int samples = 64; // paths per pixel (SynthOptions::bounce_samples)
     std::uint64_t seed = 1;
     std::uint64_t frame = 0; // the frame's index in its capture: each frame has its own samples
+    /// Draw directions from the specular lobe too (path_sampling.h); false: cosine-weighted
+    /// only (the same mean with more noise on glossy materials: for tests and comparisons).
+    bool lobe_sampling = true;
 };
 
 struct RenderedFrame {

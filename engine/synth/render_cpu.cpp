@@ -4,6 +4,7 @@
 #include "core/parallel.h"
 #include "geometry/ray_scene.h"
 #include "synth/noise.h"
+#include "synth/path_sampling.h"
 
 #include "shared/lafortune.h"
 #include "shared/material.h"
@@ -43,6 +44,7 @@ struct Renderer::Impl {
     Mesh mesh;
     Material material;
     shared::MaterialGpu gpu{}; // material_gpu(material.specular())
+    SamplingLobe lobe;         // SamplingLobe::of(material.specular()): the interreflections' lobe
     std::unique_ptr<RayScene> scene; // the engine's one Embree owner (engine/geometry)
     float epsilon = 1e-4f;
 
@@ -156,45 +158,47 @@ struct Renderer::Impl {
     }
     static double random01(std::uint64_t key, std::uint64_t counter) { return uniform01(mix64(key ^ mix64(counter))); }
 
-    // Direction of (a, b) in [0, 1)^2 on the hemisphere about unit n, with density cos / pi (Malley:
-    // uniform on the unit disc, lifted). The frame is shared/tangent_frame.h's.
-    static glm::dvec3 cosine_direction(const glm::vec3& n, double a, double b) {
-        const glm::dvec3 z(n);
-        const glm::dvec3 x = shared::f64::tangent_frame_x(z);
-        const glm::dvec3 y = glm::cross(z, x);
-        const double r = std::sqrt(a), phi = glm::two_pi<double>() * b;
-        return glm::normalize(r * std::cos(phi) * x + r * std::sin(phi) * y + std::sqrt(std::max(0.0, 1.0 - a)) * z);
-    }
-
     // The light reflected at x toward v after 1..bounces further reflections (render.h): the
-    // mean over ir.samples paths. Sample s's first direction is point s of a Hammersley set,
+    // mean over ir.samples paths. Each vertex draws its next direction from the mixture of
+    // path_sampling.h (cosine-weighted and the specular lobe) and weighs the step by
+    // f(w, v) max(0, n.w) / pdf(w). Sample s's first direction is point s of a Hammersley set,
     // ((s + 1/2) / S, radical inverse of s in base 2), moved by a random offset per pixel
-    // (Cranley-Patterson rotation), so the first bounce, most of the light, is stratified.
+    // (Cranley-Patterson rotation), so the first bounce, most of the light, is stratified; the
+    // later ones are independent.
     glm::dvec3 indirect(const Surface& x, const glm::vec3& albedo_x, const glm::dvec3& v, const PointLight& light,
                         const Interreflection& ir, std::uint64_t key) const {
         const double shift_a = random01(key, 0), shift_b = random01(key, 1);
         const double samples = static_cast<double>(ir.samples);
+        const glm::vec3 n_x = facing_normal(x);
+        const DirectionSampler first(lobe, glm::dvec3(n_x), v, mean(albedo_x), ir.lobe_sampling);
         glm::dvec3 sum(0.0);
         for (int s = 0; s < ir.samples; ++s) {
             const double radical = static_cast<double>(bit_reverse(static_cast<std::uint32_t>(s))) * 0x1.0p-32;
             double a = (s + 0.5) / samples + shift_a, b = radical + shift_b;
             a -= std::floor(a), b -= std::floor(b);
             Surface at = x;
-            glm::vec3 n = facing_normal(x), albedo = albedo_x;
+            glm::vec3 n = n_x, albedo = albedo_x;
             glm::dvec3 out = v;          // toward the previous vertex
             glm::dvec3 throughput(1.0);  // T_k of render.h
             for (int bounce = 1; bounce <= ir.bounces; ++bounce) {
+                std::optional<DirectionSampler> later;
                 if (bounce > 1) {
                     const std::uint64_t counter = 2 + 2 * (static_cast<std::uint64_t>(s) * (Interreflection::kMaxBounces + 1) + bounce);
                     a = random01(key, counter), b = random01(key, counter + 1);
+                    later.emplace(lobe, glm::dvec3(n), out, mean(albedo), ir.lobe_sampling);
                 }
-                const glm::dvec3 w = cosine_direction(n, a, b);
-                if (glm::dot(glm::dvec3(at.ng), w) <= 0.0) break; // below the surface: no light from there
+                const DirectionSampler& sampler = later ? *later : first;
+                const glm::dvec3 w = sampler.sample(a, b);
+                const double cos_w = glm::dot(glm::dvec3(n), w);
+                // Below the shading or the geometric surface (or a failed lobe sample): no light from there.
+                if (!(cos_w > 0.0) || glm::dot(glm::dvec3(at.ng), w) <= 0.0) break;
+                const double density = sampler.pdf(w);
+                if (!(density > 0.0)) break;
                 const glm::vec3 origin = glm::vec3(at.p) + epsilon * at.ng;
                 const glm::vec3 wf(w);
                 const std::optional<RayHit> rh = scene->intersect(origin, wf, 0.0f, std::numeric_limits<float>::infinity());
                 if (!rh) break; // off the object: black
-                throughput *= glm::dvec3(brdf(albedo, n, w, out)) * glm::pi<double>();
+                throughput *= glm::dvec3(brdf(albedo, n, w, out)) * (cos_w / density);
                 at = surface_at(*rh, glm::dvec3(origin), glm::dvec3(wf));
                 n = facing_normal(at);
                 albedo = albedo_at(at);
@@ -205,6 +209,8 @@ struct Renderer::Impl {
         }
         return sum / samples;
     }
+
+    static double mean(const glm::vec3& c) { return (static_cast<double>(c.x) + c.y + c.z) / 3.0; }
 
     static std::uint32_t bit_reverse(std::uint32_t v) {
         v = ((v >> 1) & 0x55555555u) | ((v & 0x55555555u) << 1);
@@ -265,6 +271,7 @@ Renderer::Renderer(Mesh mesh, Material material) : m_impl(std::make_unique<Impl>
             throw Error("synth renderer: coated material: " + *why);
     }
     m_impl->gpu = material_gpu(material.specular());
+    m_impl->lobe = SamplingLobe::of(material.specular());
     const Bounds b = mesh_bounds(mesh);
     // Scale-relative: well above float rounding at the hit, well below any feature of the object.
     m_impl->epsilon = std::max(1e-4f * b.radius(), 1e-7f);
