@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -77,8 +78,11 @@ int main(int argc, char** argv) {
     Interreflection ir{.bounces = bounces, .samples = samples, .seed = 1, .frame = 0};
     ir.lobe_sampling = std::getenv("COSINE_ONLY") == nullptr;
     sw.restart();
+    const std::clock_t cpu_start = std::clock();
     const RenderedFrame a = renderer.render(v.camera, l, threads, ir);
     const double seconds = sw.seconds();
+    // Processor time of all threads: on a busy machine, seconds / threads is what an idle one would take.
+    const double cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
     ir.seed = 2;
     const RenderedFrame b = renderer.render(v.camera, l, threads, ir);
 
@@ -93,9 +97,9 @@ int main(int argc, char** argv) {
                 if (a.color.at(x, y, c) >= 1.1f * direct.color.at(x, y, c) && a.color.at(x, y, c) > 0.0f) concave.add(diff, add);
             }
         }
-    std::printf("%s%s %d px, view %d light %d, %d bounces x %d samples%s, %d threads: %.2f s per frame (direct light only %.3f s)\n",
+    std::printf("%s%s %d px, view %d light %d, %d bounces x %d samples%s, %d threads: %.2f s per frame, %.2f s of processor time (direct light only %.3f s)\n",
                 preset.c_str(), lambertian ? " (lambertian)" : "", size, view, light, bounces, samples,
-                ir.lobe_sampling ? "" : " (cosine only)", threads, seconds, direct_seconds);
+                ir.lobe_sampling ? "" : " (cosine only)", threads, seconds, cpu_seconds, direct_seconds);
     all.print("masked");
     concave.print("where bounces add >= 10%");
     return 0;
