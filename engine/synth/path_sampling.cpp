@@ -33,7 +33,8 @@ glm::dvec3 direction_about(const glm::dvec3& axis, double c, double b) {
     return glm::normalize(s * std::cos(phi) * x + s * std::sin(phi) * y + c * axis);
 }
 
-DirectionSampler::DirectionSampler(const SamplingLobe& lobe, const glm::dvec3& n, const glm::dvec3& v, double diffuse, bool use_lobe)
+DirectionSampler::DirectionSampler(const SamplingLobe& lobe, const glm::dvec3& n, const glm::dvec3& v, double diffuse,
+                                   bool use_lobe)
     : m_lobe(lobe), m_n(n), m_v(v) {
     if (!use_lobe) m_lobe.kind = SamplingLobe::Kind::None;
     const double co = glm::dot(n, v);
@@ -71,7 +72,8 @@ glm::dvec3 DirectionSampler::sample(double a, double b) const {
         return direction_about(m_n, std::sqrt(std::max(0.0, 1.0 - u)), b);
     }
     const double u = std::min((a - m_q) / (1.0 - m_q), 1.0 - 1e-16);
-    if (m_lobe.kind == SamplingLobe::Kind::Lafortune) return direction_about(m_axis, std::pow(u, 1.0 / (m_lobe.exponent + 1.0)), b);
+    if (m_lobe.kind == SamplingLobe::Kind::Lafortune)
+        return direction_about(m_axis, std::pow(u, 1.0 / (m_lobe.exponent + 1.0)), b);
     // GGX: tan^2 of the half-vector's angle = alpha^2 u / (1 - u) (Walter et al. eq. 35).
     const double t2 = m_lobe.alpha * m_lobe.alpha * u / (1.0 - u);
     const glm::dvec3 h = direction_about(m_n, 1.0 / std::sqrt(1.0 + t2), b);

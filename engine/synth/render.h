@@ -72,10 +72,10 @@ struct Material {
 
 /// Indirect light of a frame: bounces = 0 renders direct light only, exactly as without it.
 struct Interreflection {
-    static constexpr int kMaxBounces = 4;      // no Russian roulette needed up to here
-    static constexpr int kMaxSamples = 65536;  // a bound on a frame's time, far past any need
-    int bounces = 0;  // light reflected up to this many times before the last reflection to the camera
-    int samples = 512; // paths per pixel (SynthOptions::bounce_samples; the default: docs/pipeline.md section 12)
+    static constexpr int kMaxBounces = 4;     // no Russian roulette needed up to here
+    static constexpr int kMaxSamples = 65536; // a bound on a frame's time, far past any need
+    int bounces = 0;                          // reflections before the last one, toward the camera
+    int samples = 512;                        // paths per pixel (the default: docs/pipeline.md section 12)
     std::uint64_t seed = 1;
     std::uint64_t frame = 0; // the frame's index in its capture: each frame has its own samples
     /// Draw directions from the specular lobe too (path_sampling.h); false: cosine-weighted

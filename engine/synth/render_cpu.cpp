@@ -71,9 +71,9 @@ struct Renderer::Impl {
 
     // A point a ray hit, as the shading sees it.
     struct Surface {
-        glm::dvec3 p{0.0};    // the hit along the ray (more precise than the barycentric sum far from the origin)
-        glm::vec3 n{0.0f};    // interpolated unit shading normal, as the mesh has it
-        glm::vec3 ng{0.0f};   // unit geometric normal, on the side the ray came from
+        glm::dvec3 p{0.0};  // the hit along the ray (more precise than the barycentric sum far from the origin)
+        glm::vec3 n{0.0f};  // interpolated unit shading normal, as the mesh has it
+        glm::vec3 ng{0.0f}; // unit geometric normal, on the side the ray came from
         glm::uvec3 tri{0u};
         float b0 = 0.0f, b1 = 0.0f, b2 = 0.0f;
     };
@@ -115,7 +115,8 @@ struct Renderer::Impl {
         if (!(l.cos_theta > 0.0)) return l;
         // A light behind the geometric surface seen from the ray's side cannot reach this side.
         const float reach = light.directional ? std::numeric_limits<float>::infinity() : static_cast<float>(l.d) - epsilon;
-        const bool blocked = glm::dot(glm::dvec3(s.ng), l.u) <= 0.0 || occluded(glm::vec3(s.p) + epsilon * s.ng, glm::vec3(l.u), reach);
+        const bool blocked = glm::dot(glm::dvec3(s.ng), l.u) <= 0.0 ||
+                             occluded(glm::vec3(s.p) + epsilon * s.ng, glm::vec3(l.u), reach);
         l.state = blocked ? Lighting::Shadowed : Lighting::Lit;
         return l;
     }
@@ -124,7 +125,8 @@ struct Renderer::Impl {
     glm::vec3 brdf(const glm::vec3& albedo, const glm::vec3& n, const glm::dvec3& u, const glm::dvec3& v) const {
         const double ci = glm::dot(glm::dvec3(n), u);
         const double co = glm::dot(glm::dvec3(n), v);
-        glm::vec3 f = albedo / glm::pi<float>() * shared::material_diffuse_factor(gpu, static_cast<float>(ci), static_cast<float>(co));
+        glm::vec3 f = albedo / glm::pi<float>() *
+                      shared::material_diffuse_factor(gpu, static_cast<float>(ci), static_cast<float>(co));
         if (material.coated) {
             // In double: the truth is as exact as the formula (shared/coated.h's f64 instance).
             f += glm::vec3(shared::f64::material_specular(gpu, ci, co, glm::dot(u, v)));
@@ -178,12 +180,13 @@ struct Renderer::Impl {
             a -= std::floor(a), b -= std::floor(b);
             Surface at = x;
             glm::vec3 n = n_x, albedo = albedo_x;
-            glm::dvec3 out = v;          // toward the previous vertex
-            glm::dvec3 throughput(1.0);  // T_k of render.h
+            glm::dvec3 out = v;         // toward the previous vertex
+            glm::dvec3 throughput(1.0); // T_k of render.h
             for (int bounce = 1; bounce <= ir.bounces; ++bounce) {
                 std::optional<DirectionSampler> later;
                 if (bounce > 1) {
-                    const std::uint64_t counter = 2 + 2 * (static_cast<std::uint64_t>(s) * (Interreflection::kMaxBounces + 1) + bounce);
+                    const std::uint64_t counter = 2 + 2 * (static_cast<std::uint64_t>(s) * (Interreflection::kMaxBounces + 1) +
+                                                           bounce);
                     a = random01(key, counter), b = random01(key, counter + 1);
                     later.emplace(lobe, glm::dvec3(n), out, mean(albedo), ir.lobe_sampling);
                 }
@@ -288,7 +291,8 @@ const Mesh& Renderer::mesh() const noexcept { return m_impl->mesh; }
 const Material& Renderer::material() const noexcept { return m_impl->material; }
 float Renderer::shadow_epsilon() const noexcept { return m_impl->epsilon; }
 
-RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, int threads, const Interreflection& indirect) const {
+RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, int threads,
+                               const Interreflection& indirect) const {
     const int w = camera.intrinsics.w, h = camera.intrinsics.h;
     if (w <= 0 || h <= 0) throw Error("synth renderer: the camera has no pixels");
     if (indirect.bounces < 0 || indirect.bounces > Interreflection::kMaxBounces)
@@ -305,7 +309,8 @@ RenderedFrame Renderer::render(const Camera& camera, const PointLight& light, in
     const unsigned workers = static_cast<unsigned>(std::max(threads, 1));
     std::vector<Impl::Counts> counts(parallel_workers(static_cast<std::size_t>(h), workers));
     parallel_for_chunks(static_cast<std::size_t>(h), workers, 1, [&](unsigned worker, std::size_t begin, std::size_t end) {
-        for (std::size_t y = begin; y < end; ++y) m_impl->shade_row(camera, light, indirect, static_cast<int>(y), out, counts[worker]);
+        for (std::size_t y = begin; y < end; ++y)
+            m_impl->shade_row(camera, light, indirect, static_cast<int>(y), out, counts[worker]);
     });
     for (const Impl::Counts& c : counts) {
         out.lit_pixels += c.lit;

@@ -208,7 +208,10 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
             const fs::path mask_rel = fs::path("masks") / (view_stem(view.view_index) + ".png");
             for (std::size_t l = 0; l < view.lights.size(); ++l) {
                 sw.restart();
-                const Interreflection indirect{.bounces = options.bounces, .samples = options.bounce_samples, .seed = options.seed, .frame = frame_index};
+                const Interreflection indirect{.bounces = options.bounces,
+                                               .samples = options.bounce_samples,
+                                               .seed = options.seed,
+                                               .frame = frame_index};
                 RenderedFrame frame = renderer.render(view.camera, view.lights[l], options.threads, indirect);
                 clock.add("render", sw.seconds());
                 result.shadowed_pixels += frame.shadowed_pixels;

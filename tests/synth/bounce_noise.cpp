@@ -45,8 +45,9 @@ struct Stats {
         }
         std::sort(diffs.begin(), diffs.end());
         const double rms = std::sqrt(sum_sq / static_cast<double>(pixels));
-        std::printf("  %-28s %7zu values: seed difference RMS %.3f codes (one image's noise %.3f), p99 %.3f; bounces add %.2f codes\n",
-                    what, pixels, rms, rms / std::sqrt(2.0), diffs[diffs.size() * 99 / 100], added / static_cast<double>(pixels));
+        std::printf(
+            "  %-28s %7zu values: seed difference RMS %.3f codes (one image's noise %.3f), p99 %.3f; bounces add %.2f codes\n",
+            what, pixels, rms, rms / std::sqrt(2.0), diffs[diffs.size() * 99 / 100], added / static_cast<double>(pixels));
     }
 };
 
@@ -97,7 +98,8 @@ int main(int argc, char** argv) {
                 if (a.color.at(x, y, c) >= 1.1f * direct.color.at(x, y, c) && a.color.at(x, y, c) > 0.0f) concave.add(diff, add);
             }
         }
-    std::printf("%s%s %d px, view %d light %d, %d bounces x %d samples%s, %d threads: %.2f s per frame, %.2f s of processor time (direct light only %.3f s)\n",
+    std::printf("%s%s %d px, view %d light %d, %d bounces x %d samples%s, %d threads: %.2f s per frame, %.2f s of processor time "
+                "(direct light only %.3f s)\n",
                 preset.c_str(), lambertian ? " (lambertian)" : "", size, view, light, bounces, samples,
                 ir.lobe_sampling ? "" : " (cosine only)", threads, seconds, cpu_seconds, direct_seconds);
     all.print("masked");

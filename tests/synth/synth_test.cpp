@@ -783,7 +783,8 @@ struct InsideSphere {
             const double dA = std::sin(theta) * (kPi / rings) * (2.0 * kPi / segments) * R * R;
             for (int j = 0; j < segments; ++j) {
                 const double phi = (j + 0.5) * 2.0 * kPi / segments;
-                const glm::dvec3 y = R * glm::dvec3(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
+                const glm::dvec3 y = R * glm::dvec3(std::sin(theta) * std::cos(phi), std::cos(theta),
+                                                    std::sin(theta) * std::sin(phi));
                 const glm::dvec3 to_light = light.position - y;
                 const double d = glm::length(to_light);
                 const double e0 = light.intensity[c] * glm::dot(-y / R, to_light / d) / (d * d);
@@ -808,7 +809,8 @@ TEST(SynthBounces, InsideASphereTheBouncesAddTheAnalyticIrradiance) {
     const RenderedFrame direct = renderer.render(s.camera, s.light, 2);
     ASSERT_EQ(direct.lit_pixels, 24u * 24u) << "the camera sees the lit inside everywhere";
     for (int bounces = 1; bounces <= 3; ++bounces) {
-        const RenderedFrame frame = renderer.render(s.camera, s.light, 2, {.bounces = bounces, .samples = 256, .seed = 3, .frame = 0});
+        const RenderedFrame frame = renderer.render(s.camera, s.light, 2,
+                                                    {.bounces = bounces, .samples = 256, .seed = 3, .frame = 0});
         EXPECT_EQ(frame.mask, direct.mask);
         EXPECT_EQ(frame.lit_pixels, direct.lit_pixels);
         for (int c = 0; c < 3; ++c) {
@@ -859,7 +861,8 @@ TEST(SynthBounces, SeededDeterministicAndNoiseOfTheExpectedSize) {
         const double independent = std::sqrt(2.0 * s.sample_variance(c) / samples);
         EXPECT_LT(rms, independent) << "channel " << c;
         EXPECT_GT(rms, 0.02 * independent) << "channel " << c;
-        std::printf("seed difference, channel %d: RMS %.3g = %.2f x that of %d independent samples (%.3g, %.2f %% of the indirect light)\n",
+        std::printf("seed difference, channel %d: RMS %.3g = %.2f x that of %d independent samples (%.3g, %.2f %% of the "
+                    "indirect light)\n",
                     c, rms, rms / independent, samples, independent, 100.0 * rms / s.indirect(1, c));
     }
 }
@@ -872,9 +875,11 @@ TEST(SynthBounces, SeededDeterministicAndNoiseOfTheExpectedSize) {
 // hemisphere (f = rho / pi k_d + f_s of shared/material.h), within 4 standard errors.
 TEST(SynthBounces, LobeSamplingIsADensityItsSamplesFollow) {
     const glm::dvec3 n(0.0, 0.0, 1.0);
-    const std::vector<std::pair<const char*, SpecularModel>> models = {
-        {"vase", thesis_lobe("vase")}, {"woodenpot", thesis_lobe("woodenpot")},
-        {"coated sharp", CoatedParams{1.5f, 0.08f, glm::vec3(1.0f)}}, {"coated rough", CoatedParams{1.7f, 0.4f, glm::vec3(1.0f)}}};
+    std::vector<std::pair<const char*, SpecularModel>> models;
+    models.emplace_back("vase", thesis_lobe("vase"));
+    models.emplace_back("woodenpot", thesis_lobe("woodenpot"));
+    models.emplace_back("coated sharp", CoatedParams{1.5f, 0.08f, glm::vec3(1.0f)});
+    models.emplace_back("coated rough", CoatedParams{1.7f, 0.4f, glm::vec3(1.0f)});
     const double rho = 0.4;
     for (const auto& [name, model] : models) {
         const shared::MaterialGpu gpu = material_gpu(model);
@@ -888,7 +893,8 @@ TEST(SynthBounces, LobeSamplingIsADensityItsSamplesFollow) {
                 const double ci = w.z, co = v.z;
                 if (!(ci > 0.0)) return 0.0;
                 return (rho / kPi * shared::f64::material_diffuse_factor(gpu, ci, co) +
-                        shared::f64::material_specular(gpu, ci, co, glm::dot(w, v)).y) * ci;
+                        shared::f64::material_specular(gpu, ci, co, glm::dot(w, v)).y) *
+                       ci;
             };
             // Midpoint quadrature over the sphere, finest near the poles' lobes and the horizon.
             const int rings = 1500, segments = 1500;
@@ -924,7 +930,8 @@ TEST(SynthBounces, LobeSamplingIsADensityItsSamplesFollow) {
                 sum += x, sum_sq += x * x;
             }
             const double mean = sum / count, se = std::sqrt(std::max(sum_sq / count - mean * mean, 0.0) / count);
-            EXPECT_NEAR(mean, integral, 4.0 * se + 2e-3 * integral) << name << " at " << view_deg << " degrees (q " << sampler.cosine_share() << ")";
+            EXPECT_NEAR(mean, integral, 4.0 * se + 2e-3 * integral)
+                << name << " at " << view_deg << " degrees (q " << sampler.cosine_share() << ")";
             std::printf("%-13s view %2.0f deg: q %.2f, density mass %.4f, integral %.4f, sampled %.4f +- %.4f\n", name, view_deg,
                         sampler.cosine_share(), mass, integral, mean, se);
         }
@@ -1015,16 +1022,20 @@ TEST(SynthBounces, CaptureRecordsTheBounces) {
     }
     EXPECT_GT(brighter, 100u);
 
-    for (const auto& [bounces, samples] : {std::pair{5, 8}, std::pair{-1, 8}, std::pair{1, 0}, std::pair{1, Interreflection::kMaxSamples + 1}}) {
+    for (const auto& [bounces, samples] :
+         {std::pair{5, 8}, std::pair{-1, 8}, std::pair{1, 0}, std::pair{1, Interreflection::kMaxSamples + 1}}) {
         o.bounces = bounces;
         o.bounce_samples = samples;
-        EXPECT_THROW((void)write_synthetic_capture(to_object(make_preset("sphere")), tmp / "refused", o), UsageError) << bounces << " " << samples;
+        EXPECT_THROW((void)write_synthetic_capture(to_object(make_preset("sphere")), tmp / "refused", o), UsageError)
+            << bounces << " " << samples;
     }
     EXPECT_FALSE(fs::exists(tmp / "refused"));
     const Mesh sphere = make_uv_sphere(glm::vec3(0.0f), 1.0f, 16, 8);
     const Camera cam = make_camera(8, 8, 40.0, {0, 0, 4}, {0, 0, 0});
     EXPECT_THROW((void)render_frame(sphere, uniform(0.5f), cam, PointLight{{0, 0, 3}, {1, 1, 1}}, 1, {.bounces = 5}), Error);
-    EXPECT_THROW((void)render_frame(sphere, uniform(0.5f), cam, PointLight{{0, 0, 3}, {1, 1, 1}}, 1, {.bounces = 1, .samples = 0}), Error);
+    EXPECT_THROW((void)render_frame(sphere, uniform(0.5f), cam, PointLight{{0, 0, 3}, {1, 1, 1}}, 1,
+                                    {.bounces = 1, .samples = 0}),
+                 Error);
 }
 
 // (h) A failed write leaves no output folder and no temporary folder; an existing

@@ -120,7 +120,8 @@ void run(SynthArgs& a) {
     a.options.rig = synth::parse_rig_kind(a.rig);
     if (a.options.rig == synth::RigKind::Thesis && a.light_angles_given)
         throw UsageError("--light-angles places the spread rig's lights; the thesis rig's are all 15 degrees off the camera");
-    if (a.bounce_samples_given && a.options.bounces == 0) log::warn("--bounce-samples has no effect without --bounces N (N >= 1)");
+    if (a.bounce_samples_given && a.options.bounces == 0)
+        log::warn("--bounce-samples has no effect without --bounces N (N >= 1)");
     if (!a.mesh.empty()) a.options.inputs.emplace_back(a.mesh);
     if (!a.albedo.empty()) a.options.inputs.emplace_back(a.albedo);
     const synth::SynthObject object = make_object(a);
