@@ -8,9 +8,7 @@
 
 namespace specula::synth {
 
-namespace {
-
-// SplitMix64 finaliser (Steele, Lea, Flood 2014): a bijective 64-bit mix.
+// SplitMix64 finaliser: a bijective 64-bit mix.
 std::uint64_t mix64(std::uint64_t z) {
     z += 0x9e3779b97f4a7c15ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
@@ -18,10 +16,8 @@ std::uint64_t mix64(std::uint64_t z) {
     return z ^ (z >> 31);
 }
 
-// Uniform in (0, 1): 53 random bits, never 0 (Box-Muller takes its log).
+// 53 random bits, never 0 (Box-Muller takes its log) nor 1.
 double uniform01(std::uint64_t bits) { return (static_cast<double>(bits >> 11) + 0.5) * 0x1.0p-53; }
-
-} // namespace
 
 double gaussian_deviate(std::uint64_t seed, std::uint64_t stream, std::uint64_t counter) {
     const std::uint64_t key = mix64(mix64(seed) ^ mix64(stream + 0x632be59bd9b4e019ull)) ^ counter * 0x2545f4914f6cdd1dull;

@@ -19,6 +19,13 @@ struct NoiseOptions {
 /// every channel of every pixel. `stream` separates frames of one capture.
 void apply_noise(Image& image, const NoiseOptions& noise, std::uint64_t seed, std::uint64_t stream);
 
+/// SplitMix64's finaliser (Steele, Lea, Flood 2014): a bijective 64-bit mix, the hash of every
+/// counter-based random number of synth (this noise and the renderer's path samples, render.h).
+[[nodiscard]] std::uint64_t mix64(std::uint64_t z);
+
+/// Uniform in (0, 1) from 64 random bits: 53 of them, never exactly 0 or 1.
+[[nodiscard]] double uniform01(std::uint64_t bits);
+
 /// Standard normal deviate number `counter` of (seed, stream): a pure function.
 [[nodiscard]] double gaussian_deviate(std::uint64_t seed, std::uint64_t stream, std::uint64_t counter);
 

@@ -13,6 +13,22 @@
 //   coated:    k_d = T(n.u) T(n.v) / T(1)^2, f_s = tint F D G1 G1 / (4 (n.u) (n.v))
 //              (shared/coated.h), material_specular in double.
 // No noise and no clipping here (noise.h).
+//
+// Interreflections (Interreflection, bounces N >= 1): the pixel adds the light the object
+// reflects onto itself, by path tracing from the primary hit x (the direct term above is
+// unchanged). Each of S paths leaves x in a direction w drawn from a mixture of cosine-weighted
+// directions and the material's specular lobe (path_sampling.h), with density pdf(w); at the
+// point y it hits it picks up the direct light at y (the formula above, with v = -w), and it
+// continues from y in the same way, up to N bounces:
+//     pixel += 1/S sum over paths of  sum_k T_k * f_{y_k}(u, -w_k) I max(0, n.u) / d^2
+//     T_1 = f_x(w_1, v) (n.w_1) / pdf(w_1),  T_{k+1} = T_k * f_{y_k}(w_{k+1}, -w_k) (n.w_{k+1}) / pdf(w_{k+1})
+// (with cosine sampling alone, (n.w) / pdf(w) = pi). At each vertex the shading normal is
+// taken on the side the ray arrived from. Paths that leave the object see black (no
+// environment); directions below the geometric surface carry no light. The first direction of
+// each path is stratified (a Hammersley set, rotated per pixel); the rest are independent. A
+// pixel's random numbers depend only on (seed, frame, pixel): images do not depend on the
+// thread count. Unbiased: light reflected by a glossy point toward a diffuse one (a caustic of
+// the highlight) is found only by chance, and is the noise that remains.
 #include "material/lafortune.h"
 #include "material/material.h"
 #include "capture/camera.h"
@@ -54,6 +70,19 @@ struct Material {
 /// ((i + 0.5) / w, (j + 0.5) / h); v = 0 is the top row (glTF); u repeats, v clamps.
 [[nodiscard]] glm::vec3 sample_albedo(const Image& texture, const glm::vec2& uv);
 
+/// Indirect light of a frame: bounces = 0 renders direct light only, exactly as without it.
+struct Interreflection {
+    static constexpr int kMaxBounces = 4;     // no Russian roulette needed up to here
+    static constexpr int kMaxSamples = 65536; // a bound on a frame's time, far past any need
+    int bounces = 0;                          // reflections before the last one, toward the camera
+    int samples = 512;                        // paths per pixel (the default: docs/pipeline.md section 12)
+    std::uint64_t seed = 1;
+    std::uint64_t frame = 0; // the frame's index in its capture: each frame has its own samples
+    /// Draw directions from the specular lobe too (path_sampling.h); false: cosine-weighted
+    /// only (the same mean with more noise on glossy materials: for tests and comparisons).
+    bool lobe_sampling = true;
+};
+
 struct RenderedFrame {
     Image color;                     // linear RGB radiance, no noise, no clipping
     std::vector<std::uint8_t> mask;  // w * h, 255 where the centre ray hits the object
@@ -72,8 +101,10 @@ public:
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
 
-    /// Renders one frame: `threads` threads over rows (core/parallel.h; at least 1).
-    [[nodiscard]] RenderedFrame render(const Camera& camera, const PointLight& light, int threads = 2) const;
+    /// Renders one frame: `threads` threads over rows (core/parallel.h; at least 1). Throws Error
+    /// when `indirect` has bounces outside [0, kMaxBounces] or, with bounces, samples outside [1, kMaxSamples].
+    [[nodiscard]] RenderedFrame render(const Camera& camera, const PointLight& light, int threads = 2,
+                                       const Interreflection& indirect = {}) const;
 
     /// Only the object mask of a view (primary rays, no shading).
     [[nodiscard]] std::vector<std::uint8_t> render_mask(const Camera& camera, int threads = 2) const;
@@ -90,6 +121,6 @@ private:
 
 /// Convenience: builds a Renderer and renders one frame.
 [[nodiscard]] RenderedFrame render_frame(const Mesh& mesh, const Material& material, const Camera& camera,
-                                         const PointLight& light, int threads = 2);
+                                         const PointLight& light, int threads = 2, const Interreflection& indirect = {});
 
 } // namespace specula::synth

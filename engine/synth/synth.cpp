@@ -137,6 +137,12 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
     if (options.threads < 1 || options.threads > 256) throw UsageError("--threads must be between 1 and 256");
     if (!(options.noise_sigma >= 0.0) || !(options.shot_noise >= 0.0) || !std::isfinite(options.noise_sigma) || !std::isfinite(options.shot_noise))
         throw UsageError("--noise and --shot-noise must be finite and non-negative");
+    if (options.bounces < 0 || options.bounces > Interreflection::kMaxBounces)
+        throw UsageError("--bounces must be between 0 (direct light only) and " + std::to_string(Interreflection::kMaxBounces) +
+                         ", not " + std::to_string(options.bounces));
+    if (options.bounce_samples < 1 || options.bounce_samples > Interreflection::kMaxSamples)
+        throw UsageError("--bounce-samples must be between 1 and " + std::to_string(Interreflection::kMaxSamples) + ", not " +
+                         std::to_string(options.bounce_samples));
     // The output folder is checked and locked before any work (core/output_dir.h).
     OutputFolder folder(out, {.option = "--out", .force = options.force, .inputs = options.inputs});
     StageClock clock;
@@ -202,7 +208,11 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
             const fs::path mask_rel = fs::path("masks") / (view_stem(view.view_index) + ".png");
             for (std::size_t l = 0; l < view.lights.size(); ++l) {
                 sw.restart();
-                RenderedFrame frame = renderer.render(view.camera, view.lights[l], options.threads);
+                const Interreflection indirect{.bounces = options.bounces,
+                                               .samples = options.bounce_samples,
+                                               .seed = options.seed,
+                                               .frame = frame_index};
+                RenderedFrame frame = renderer.render(view.camera, view.lights[l], options.threads, indirect);
                 clock.add("render", sw.seconds());
                 result.shadowed_pixels += frame.shadowed_pixels;
                 for (std::uint8_t m : frame.mask) result.object_pixels += m != 0;
@@ -276,6 +286,11 @@ SynthResult write_synthetic_capture(const SynthObject& object, const fs::path& o
             {"generator", "specula synth"},
         };
         if (!material.coated) desc.ground_truth["lobe"] = lobe_to_json(material.lobe);
+        // Only with interreflections: captures of direct light stay as they were.
+        if (options.bounces > 0) {
+            desc.ground_truth["bounces"] = options.bounces;
+            desc.ground_truth["bounce_samples"] = options.bounce_samples;
+        }
         sw.restart();
         write_capture_json(desc);
         clock.add("capture.json", sw.seconds());

@@ -36,8 +36,13 @@ struct SynthOptions {
     double noise_sigma = 0.0; // Gaussian read noise, relative to full scale 1.0
     double shot_noise = 0.0;  // variance = shot_noise * value
     double exposure = 1.0;
+    /// Interreflections (render.h, Interreflection): 0 (direct light only, the images as they
+    /// always were) to Interreflection::kMaxBounces bounces, with bounce_samples paths per pixel
+    /// (at least 1). Their random numbers come from `seed` and the frame's index.
+    int bounces = 0;
+    int bounce_samples = Interreflection{}.samples;
     ImageFormat format = ImageFormat::Png8;
-    std::uint64_t seed = 1;
+    std::uint64_t seed = 1; // sensor noise and interreflection samples
     int threads = 2;
     bool lambertian = false; // zero the lobe (lafortune family only: refused for a coated material)
     bool force = false;      // replace an existing non-empty output folder (only once the new one is complete)
