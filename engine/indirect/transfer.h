@@ -51,9 +51,16 @@ struct IndirectTransfer {
     [[nodiscard]] std::size_t entry_count() const noexcept { return entries.size(); }
 };
 
-/// Throws Error when the matrix is malformed (offsets not rising, a source out of range, a
-/// weight not finite or negative, a row whose weights sum above 1 + 1e-4).
+/// Throws Error when the matrix is malformed (row_begin not rows + 1 offsets from 0 to the
+/// entry count, offsets not rising, a source out of range or not above the row's previous one,
+/// a weight not finite or negative, a row whose weights sum above 1 + 1e-4); the message names
+/// the row and the entry.
 void validate_transfer(const IndirectTransfer& transfer);
+
+/// The checks both gathers below make first: validate_transfer, then that radiosity and out
+/// hold `frames` x rows values each (Error naming `who` otherwise).
+void validate_gather(const IndirectTransfer& transfer, std::size_t radiosity_values, std::uint32_t frames,
+                     std::size_t out_values, const char* who);
 
 /// The per-frame step, for `frames` frames at once: with radiosity laid out frame by frame
 /// (radiosity[f * rows + j], rgb in xyz, w ignored),
