@@ -3,7 +3,8 @@
 // them hitting, so ~30 entries a row, sources uniform over the object: the worst case for the
 // radiosity reads). Not a test. Entries/s counts entry x frame products (one multiply-add of
 // an rgb value each). The Vulkan time is the whole run (uploads, dispatches, downloads); "gpu"
-// is the dispatches' own time from timestamps. Validation is off (it only adds host time).
+// is the dispatches' own time from timestamps, and the worst relative difference of the
+// Vulkan values to the reference's is printed. Validation is off (it only adds host time).
 //   indirect_bench [reps=3] [threads=2] [rows,frames ...]   (default sizes: 20000,1 20000,16
 //                  200000,1 200000,16 1000000,16; 1M particles' entries exceed lavapipe's
 //                  128 MiB binding, so that size runs split)
@@ -14,6 +15,7 @@
 #include "random_transfer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
@@ -44,7 +46,12 @@ void bench(std::uint32_t rows, std::uint32_t frames, int reps, unsigned threads,
     std::printf("%8u rows %6.1f entries/row %3u frames  cpu    %9.2f ms  %7.1f M entries/s\n", rows,
                 double(t.entry_count()) / rows, frames, tc * 1e3, products / tc * 1e-6);
     if (vk == nullptr) return;
-    vk->run(t, b, frames, out); // warm-up
+    std::vector<glm::vec4> ref = out;
+    vk->run(t, b, frames, out); // warm-up, and a check against the reference (at this size the real binding cap may split)
+    double worst = 0.0;
+    for (std::size_t i = 0; i < out.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            if (ref[i][c] > 0.0f) worst = std::max(worst, std::abs(double(out[i][c]) - ref[i][c]) / ref[i][c]);
     double gpu_ms = 1e30;
     const double tv = best_of(reps, [&] {
         vk->run(t, b, frames, out);
@@ -54,7 +61,8 @@ void bench(std::uint32_t rows, std::uint32_t frames, int reps, unsigned threads,
     std::printf("%8u rows %6.1f entries/row %3u frames  vulkan %9.2f ms  %7.1f M entries/s", rows,
                 double(t.entry_count()) / rows, frames, tv * 1e3, products / tv * 1e-6);
     if (s.gpu_ms) std::printf("  (gpu %.2f ms: %.1f M entries/s)", gpu_ms, products / (gpu_ms * 1e-3) * 1e-6);
-    std::printf("  %u row chunks, %u frame batches\n", s.row_chunks, s.frame_batches);
+    std::printf("  %u row chunks, %u frame batches; worst relative difference to the cpu %.2g\n", s.row_chunks, s.frame_batches,
+                worst);
 }
 
 } // namespace
