@@ -24,6 +24,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -51,9 +52,16 @@ struct IndirectTransfer {
     [[nodiscard]] std::size_t entry_count() const noexcept { return entries.size(); }
 };
 
-/// Throws Error when the matrix is malformed (offsets not rising, a source out of range, a
-/// weight not finite or negative, a row whose weights sum above 1 + 1e-4).
+/// Throws Error when the matrix is malformed (row_begin not rows + 1 offsets from 0 to the
+/// entry count, offsets not rising, a source out of range or not above the row's previous one,
+/// a weight not finite or negative, a row whose weights sum above 1 + 1e-4); the message names
+/// the row and the entry.
 void validate_transfer(const IndirectTransfer& transfer);
+
+/// The checks both gathers below make first: validate_transfer, then that radiosity and out
+/// hold `frames` x rows values each (Error naming `who` otherwise).
+void validate_gather(const IndirectTransfer& transfer, std::size_t radiosity_values, std::uint32_t frames,
+                     std::size_t out_values, const char* who);
 
 /// The per-frame step, for `frames` frames at once: with radiosity laid out frame by frame
 /// (radiosity[f * rows + j], rgb in xyz, w ignored),
@@ -62,16 +70,28 @@ void validate_transfer(const IndirectTransfer& transfer);
 void gather_indirect_cpu(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
                          std::span<glm::vec4> out, unsigned threads = 2);
 
-/// The Vulkan kernel of the same step (shaders/indirect/indirect_gather.comp). Splits the rows
-/// and the frames into dispatches whose buffers stay within the device's storage-buffer range.
+/// How the last IndirectGatherVk::run split its work.
+struct IndirectGatherStats {
+    std::uint32_t row_chunks = 0;    ///< chunks of rows whose entries fit one binding
+    std::uint32_t frame_batches = 0; ///< batches of frames whose radiosity fits one binding
+    std::optional<double> gpu_ms;    ///< time of the dispatches; nullopt without timestamps
+};
+
+/// The Vulkan kernel of the same step (shaders/indirect/indirect_gather.comp), accumulating in
+/// float in entry order. Splits the rows and the frames into dispatches whose buffers stay
+/// within the device's storage-buffer range, or within `max_binding_bytes` when that is lower
+/// (0: the device's range; tests lower it to reach the split without 128 MiB buffers). Throws
+/// gpu::LimitError when one frame's radiosity (rows x 16 bytes) exceeds that range (every other
+/// binding can be cut below it: transfer_vk.cpp).
 class IndirectGatherVk {
 public:
-    explicit IndirectGatherVk(gpu::Context& ctx);
+    explicit IndirectGatherVk(gpu::Context& ctx, std::uint64_t max_binding_bytes = 0);
     ~IndirectGatherVk();
     IndirectGatherVk(const IndirectGatherVk&) = delete;
     IndirectGatherVk& operator=(const IndirectGatherVk&) = delete;
     void run(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
              std::span<glm::vec4> out);
+    [[nodiscard]] const IndirectGatherStats& last_run() const noexcept;
 
 private:
     struct Impl;

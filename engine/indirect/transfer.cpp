@@ -1,0 +1,94 @@
+// The transfer matrix's checks and the C++ reference of the per-frame gather (transfer.h).
+#include "indirect/transfer.h"
+
+#include "core/error.h"
+#include "core/parallel.h"
+
+#include <cmath>
+#include <string>
+
+namespace specula {
+
+namespace {
+
+// Rows per chunk of the parallel loop: ~30 entries a row, so a chunk is ~100k entries times
+// the frames, long enough that handing chunks out costs nothing.
+constexpr std::size_t kRowsPerChunk = 4096;
+
+// Rows whose weights sum above 1 + this are refused (transfer.h). Each weight is the count of
+// the row's rays that reach its source over K, rounded to float, so a row whose every ray hits
+// sums to 1 within one float rounding (6e-8 relative) per entry: ~1e-5 for hundreds of entries.
+constexpr double kRowSumSlack = 1e-4;
+
+[[noreturn]] void refuse(const std::string& what) { throw Error("indirect transfer: " + what); }
+
+std::string entry_name(std::uint32_t row, std::size_t k) {
+    return "row " + std::to_string(row) + ", entry " + std::to_string(k);
+}
+
+} // namespace
+
+void validate_transfer(const IndirectTransfer& t) {
+    if (t.row_begin.size() != std::size_t{t.rows} + 1)
+        refuse("row_begin holds " + std::to_string(t.row_begin.size()) + " offsets, " + std::to_string(t.rows) +
+               " rows need " + std::to_string(std::size_t{t.rows} + 1));
+    if (t.row_begin.front() != 0) refuse("row_begin[0] is " + std::to_string(t.row_begin.front()) + ", not 0");
+    if (t.row_begin.back() != t.entries.size())
+        refuse("row_begin[" + std::to_string(t.rows) + "] is " + std::to_string(t.row_begin.back()) + ", but there are " +
+               std::to_string(t.entries.size()) + " entries");
+    // The offsets first: with them rising from 0 to the entry count, every row's entries are in range.
+    for (std::uint32_t i = 0; i < t.rows; ++i)
+        if (t.row_begin[i + 1] < t.row_begin[i])
+            refuse("row_begin falls at row " + std::to_string(i) + " (" + std::to_string(t.row_begin[i]) + " then " +
+                   std::to_string(t.row_begin[i + 1]) + ")");
+    for (std::uint32_t i = 0; i < t.rows; ++i) {
+        const std::uint32_t begin = t.row_begin[i], end = t.row_begin[i + 1];
+        double sum = 0.0;
+        for (std::size_t k = begin; k < end; ++k) {
+            const TransferEntry& e = t.entries[k];
+            if (e.source >= t.rows)
+                refuse(entry_name(i, k) + ": source " + std::to_string(e.source) + " out of range (" +
+                       std::to_string(t.rows) + " particles)");
+            if (k > begin && e.source <= t.entries[k - 1].source)
+                refuse(entry_name(i, k) + ": source " + std::to_string(e.source) + " not above the previous entry's " +
+                       std::to_string(t.entries[k - 1].source) + " (a row's sources rise)");
+            if (!std::isfinite(e.weight) || e.weight < 0.0f)
+                refuse(entry_name(i, k) + ": weight " + std::to_string(e.weight) + " is not a finite value >= 0");
+            sum += e.weight;
+        }
+        if (sum > 1.0 + kRowSumSlack)
+            refuse("row " + std::to_string(i) + ": weights sum to " + std::to_string(sum) +
+                   ", above 1 (a row is a fraction of its particle's rays)");
+    }
+}
+
+void validate_gather(const IndirectTransfer& t, std::size_t radiosity, std::uint32_t frames, std::size_t out,
+                     const char* who) {
+    validate_transfer(t);
+    const std::size_t want = std::size_t{frames} * t.rows;
+    if (radiosity != want || out != want)
+        throw Error(std::string(who) + ": " + std::to_string(frames) + " frames of " + std::to_string(t.rows) +
+                    " particles need " + std::to_string(want) + " radiosity and output values, got " +
+                    std::to_string(radiosity) + " and " + std::to_string(out));
+}
+
+void gather_indirect_cpu(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+                         std::span<glm::vec4> out, unsigned threads) {
+    validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_cpu");
+    const std::size_t rows = t.rows;
+    parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
+        for (std::size_t i = first; i < last; ++i) {
+            const TransferEntry* begin = t.entries.data() + t.row_begin[i];
+            const TransferEntry* end = t.entries.data() + t.row_begin[i + 1];
+            for (std::size_t f = 0; f < frames; ++f) {
+                const glm::vec4* b = radiosity.data() + f * rows;
+                glm::dvec3 sum(0.0);
+                for (const TransferEntry* e = begin; e != end; ++e)
+                    sum += static_cast<double>(e->weight) * glm::dvec3(b[e->source]);
+                out[f * rows + i] = glm::vec4(glm::vec3(sum), 0.0f);
+            }
+        }
+    });
+}
+
+} // namespace specula
