@@ -1,0 +1,284 @@
+#include "indirect/indirect.h"
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/timer.h"
+
+#include "shared/material.h"
+
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace specula {
+
+namespace {
+
+// The mean cosine of a cosine-weighted hemisphere (indirect.h).
+constexpr float kMeanCosine = 2.0f / 3.0f;
+
+// splitmix64 (Steele, Lea and Flood 2014): a counter-based hash, so a ray's numbers depend on
+// (seed, particle, ray) alone and not on the thread that casts it.
+std::uint64_t mix(std::uint64_t z) {
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+float unit(std::uint64_t bits) { return static_cast<float>(bits >> 40) * (1.0f / 16777216.0f); } // [0, 1)
+
+// An orthonormal basis around a unit normal (Duff et al. 2017, "Building an orthonormal basis,
+// revisited", JCGT 6(1)).
+void basis(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float c = n.x * n.y * a;
+    t = glm::vec3(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
+    b = glm::vec3(c, sign + n.y * n.y * a, -n.y);
+}
+
+// The atlas point (texel coordinates) of barycentrics (u, v) of a triangle.
+glm::vec2 atlas_point(const Atlas& atlas, std::uint32_t triangle, float u, float v) {
+    const glm::dvec2 c0 = atlas.corner_texel(triangle, 0), c1 = atlas.corner_texel(triangle, 1), c2 = atlas.corner_texel(triangle, 2);
+    return glm::vec2(c0 + static_cast<double>(u) * (c1 - c0) + static_cast<double>(v) * (c2 - c0));
+}
+
+glm::vec3 face_normal(const Mesh& mesh, std::uint32_t triangle) {
+    const glm::uvec3 t = mesh.triangles[triangle];
+    return glm::normalize(glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]));
+}
+
+} // namespace
+
+IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
+                                const Atlas& atlas, const TransferOptions& options, TransferStats* stats) {
+    const Stopwatch clock;
+    if (particles.size() >= std::numeric_limits<std::uint32_t>::max())
+        throw Error("indirect light: " + std::to_string(particles.size()) + " particles exceed the transfer's 32-bit indices");
+    if (options.rays == 0) throw Error("indirect light: a transfer needs at least one ray per particle");
+    const std::uint32_t grid = static_cast<std::uint32_t>(std::ceil(std::sqrt(static_cast<double>(options.rays))));
+    const std::uint32_t rays = grid * grid;
+    // Which particle holds each texel (the particles own distinct texels, atlas.h).
+    std::vector<std::uint32_t> holder(static_cast<std::size_t>(atlas.width) * atlas.height, Atlas::kEmpty);
+    for (std::size_t i = 0; i < particles.size(); ++i)
+        holder[static_cast<std::size_t>(particles[i].texel_y()) * atlas.width + particles[i].texel_x()] = static_cast<std::uint32_t>(i);
+
+    IndirectTransfer out;
+    out.rows = static_cast<std::uint32_t>(particles.size());
+    out.rays_per_particle = rays;
+    std::vector<std::vector<TransferEntry>> rows(particles.size());
+    const unsigned workers = parallel_workers(particles.size(), std::max(options.threads, 1u), 256);
+    std::vector<TransferStats> counts(workers);
+    parallel_for_chunks(particles.size(), std::max(options.threads, 1u), 256, [&](unsigned worker, std::size_t begin, std::size_t end) {
+        TransferStats& st = counts[worker];
+        std::vector<std::uint32_t> sources;
+        for (std::size_t i = begin; i < end; ++i) {
+            const Particle& p = particles[i];
+            const glm::vec3 n = p.n();
+            glm::vec3 ng = face_normal(mesh, p.triangle);
+            if (glm::dot(ng, n) < 0.0f) ng = -ng;
+            const glm::vec3 origin = p.p() + scene.ray_offset() * ng;
+            glm::vec3 t, b;
+            basis(n, t, b);
+            sources.clear();
+            std::uint32_t cast = 0;
+            for (std::uint32_t s = 0; s < rays; ++s) {
+                const std::uint64_t h = mix(options.seed ^ mix((static_cast<std::uint64_t>(i) << 24) ^ s));
+                const float u1 = (static_cast<float>(s % grid) + unit(h)) / static_cast<float>(grid);
+                const float u2 = (static_cast<float>(s / grid) + unit(mix(h))) / static_cast<float>(grid);
+                // Cosine-weighted (Malley's method): a uniform point on the disc, lifted to the hemisphere.
+                const float r = std::sqrt(u1), phi = glm::two_pi<float>() * u2;
+                const glm::vec3 dir = r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0f, 1.0f - u1)) * n;
+                if (glm::dot(dir, ng) <= 0.0f) {
+                    ++st.below_surface;
+                    continue;
+                }
+                ++st.rays;
+                ++cast;
+                const std::optional<RayHit> hit = scene.intersect(origin, dir, 0.0f, std::numeric_limits<float>::infinity());
+                if (!hit) continue;
+                if (glm::dot(face_normal(mesh, hit->triangle), dir) >= 0.0f) {
+                    ++st.back_faces;
+                    continue;
+                }
+                const glm::vec2 q = atlas_point(atlas, hit->triangle, hit->u, hit->v);
+                const auto x = static_cast<std::int64_t>(std::floor(q.x)), y = static_cast<std::int64_t>(std::floor(q.y));
+                const std::uint32_t j = x >= 0 && y >= 0 && x < atlas.width && y < atlas.height
+                                            ? holder[static_cast<std::size_t>(y) * atlas.width + static_cast<std::size_t>(x)]
+                                            : Atlas::kEmpty;
+                if (j == Atlas::kEmpty) {
+                    ++st.unmapped;
+                    continue;
+                }
+                ++st.hits;
+                sources.push_back(j);
+            }
+            // Each ray cast stands for 1 / cast of the hemisphere: the directions under the face
+            // (where the interpolated normal tilts away from it) are left to the others, rather
+            // than counted as black.
+            const float weight = cast > 0 ? 1.0f / static_cast<float>(cast) : 0.0f;
+            std::sort(sources.begin(), sources.end());
+            std::vector<TransferEntry>& row = rows[i];
+            for (std::size_t k = 0; k < sources.size();) {
+                std::size_t e = k;
+                while (e < sources.size() && sources[e] == sources[k]) ++e;
+                row.push_back({sources[k], weight * static_cast<float>(e - k)});
+                k = e;
+            }
+        }
+    });
+    out.row_begin.assign(particles.size() + 1, 0);
+    for (std::size_t i = 0; i < rows.size(); ++i) out.row_begin[i + 1] = out.row_begin[i] + static_cast<std::uint32_t>(rows[i].size());
+    out.entries.reserve(out.row_begin.back());
+    for (std::vector<TransferEntry>& row : rows) {
+        out.entries.insert(out.entries.end(), row.begin(), row.end());
+        std::vector<TransferEntry>().swap(row);
+    }
+    if (stats != nullptr) {
+        *stats = {};
+        for (const TransferStats& c : counts) {
+            stats->rays += c.rays;
+            stats->hits += c.hits;
+            stats->below_surface += c.below_surface;
+            stats->back_faces += c.back_faces;
+            stats->unmapped += c.unmapped;
+        }
+        stats->seconds = clock.seconds();
+    }
+    return out;
+}
+
+ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene, const Atlas& atlas,
+                                  unsigned threads) {
+    ViewAtlasMap map;
+    map.width = camera.intrinsics.w;
+    map.height = camera.intrinsics.h;
+    const std::size_t n = static_cast<std::size_t>(std::max(map.width, 0)) * static_cast<std::size_t>(std::max(map.height, 0));
+    map.texel.assign(n, glm::vec2(-1.0f));
+    map.cos_view.assign(n, 0.0f);
+    const glm::vec3 eye(camera.center());
+    parallel_for(static_cast<std::size_t>(std::max(map.height, 0)), std::max(threads, 1u), [&](std::size_t y) {
+        for (int x = 0; x < map.width; ++x) {
+            const glm::vec3 dir(camera.ray_direction(x + 0.5, static_cast<double>(y) + 0.5));
+            const std::optional<RayHit> hit = scene.intersect(eye, dir, 0.0f, std::numeric_limits<float>::infinity());
+            if (!hit) continue;
+            const std::size_t k = y * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(x);
+            map.texel[k] = atlas_point(atlas, hit->triangle, hit->u, hit->v);
+            const SurfacePoint sp = surface_point(mesh, hit->triangle, glm::dvec2(hit->u, hit->v));
+            map.cos_view[k] = std::max(0.0f, -glm::dot(sp.normal, glm::normalize(dir)));
+        }
+    });
+    return map;
+}
+
+namespace {
+
+void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo) {
+    if (s.visibility == nullptr || s.atlas == nullptr || s.transfer == nullptr)
+        throw Error("indirect light: the scene lacks its visibility, atlas or transfer");
+    if (s.transfer->rows != s.particles.size() || albedo.size() != s.particles.size() ||
+        s.visibility->particle_count != s.particles.size())
+        throw Error("indirect light: the transfer, the albedo and the visibility must have one entry per particle");
+    for (const std::size_t f : frames)
+        if (f >= s.lights.size() || f >= s.frame_view.size() || f >= s.visibility->frame_count ||
+            s.frame_view[f] >= s.view_maps.size())
+            throw Error("indirect light: frame " + std::to_string(f) + " has no light, view or visibility");
+}
+
+void gather(const IndirectScene& s, std::span<const glm::vec4> b, std::uint32_t frames, std::span<glm::vec4> e,
+            const IndirectOptions& o) {
+    if (o.kernel != nullptr) {
+        o.kernel->run(*s.transfer, b, frames, e);
+    } else {
+        gather_indirect_cpu(*s.transfer, b, frames, e, o.threads);
+    }
+}
+
+} // namespace
+
+std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<const std::size_t> frames,
+                                           std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
+                                           const IndirectOptions& o) {
+    check_scene(s, frames, albedo);
+    const std::size_t rows = s.particles.size();
+    const shared::MaterialGpu m = material_gpu(material);
+    const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
+    std::vector<glm::vec4> radiosity(frames.size() * rows), e(frames.size() * rows), total(frames.size() * rows, glm::vec4(0.0f));
+    // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely.
+    parallel_for_chunks(rows, std::max(o.threads, 1u), 1024, [&](unsigned, std::size_t begin, std::size_t end) {
+        for (std::size_t k = 0; k < frames.size(); ++k) {
+            const PointLight& light = s.lights[frames[k]];
+            for (std::size_t j = begin; j < end; ++j) {
+                glm::vec4& out = radiosity[k * rows + j];
+                out = glm::vec4(0.0f);
+                if (!s.visibility->lights(j, frames[k])) continue;
+                const glm::dvec3 to_light = light.position - glm::dvec3(s.particles[j].p());
+                const double d2 = glm::dot(to_light, to_light);
+                const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
+                if (!(cos_in > 0.0)) continue;
+                const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
+                out = glm::vec4(albedo[j] * kd * glm::vec3(light.intensity * (cos_in / d2)), 0.0f);
+            }
+        }
+    });
+    for (std::uint32_t bounce = 1; bounce <= o.bounces; ++bounce) {
+        gather(s, radiosity, static_cast<std::uint32_t>(frames.size()), e, o);
+        for (std::size_t k = 0; k < e.size(); ++k) {
+            total[k] += e[k];
+            radiosity[k] = glm::vec4(albedo[k % rows] * kd_bounce, 0.0f) * e[k];
+        }
+    }
+    return total;
+}
+
+void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
+                     const std::optional<SpecularModel>& material, const IndirectOptions& o,
+                     const std::function<void(std::size_t, const Image&)>& sink) {
+    check_scene(s, frames, albedo);
+    const std::size_t rows = s.particles.size();
+    const Atlas& atlas = *s.atlas;
+    const shared::MaterialGpu m = material_gpu(material);
+    const unsigned threads = std::max(o.threads, 1u);
+    Image radiance(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
+    const std::size_t batch = std::max<std::uint32_t>(o.batch_frames, 1u);
+    for (std::size_t first = 0; first < frames.size(); first += batch) {
+        const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
+        const std::vector<glm::vec4> e = indirect_irradiance(s, part, albedo, material, o);
+        for (std::size_t k = 0; k < part.size(); ++k) {
+            // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty texels).
+            for (std::size_t i = 0; i < rows; ++i) {
+                const glm::vec3 l = albedo[i] * glm::one_over_pi<float>() * glm::vec3(e[k * rows + i]);
+                for (int c = 0; c < 3; ++c)
+                    radiance.at(static_cast<int>(s.particles[i].texel_x()), static_cast<int>(s.particles[i].texel_y()), c) = l[c];
+            }
+            const ViewAtlasMap& map = s.view_maps[s.frame_view[part[k]]];
+            Image out(map.width, map.height, 3, 0.0f);
+            parallel_for(static_cast<std::size_t>(map.height), threads, [&](std::size_t y) {
+                for (int x = 0; x < map.width; ++x) {
+                    const std::size_t p = y * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(x);
+                    const glm::vec2 q = map.texel[p];
+                    if (q.x < 0.0f) continue;
+                    // Bilinear, texel (i, j) centred at (i + 0.5, j + 0.5), clamped at the atlas's edges.
+                    const float fx = std::clamp(q.x - 0.5f, 0.0f, static_cast<float>(atlas.width - 1));
+                    const float fy = std::clamp(q.y - 0.5f, 0.0f, static_cast<float>(atlas.height - 1));
+                    const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+                    const int x1 = std::min(x0 + 1, static_cast<int>(atlas.width) - 1), y1 = std::min(y0 + 1, static_cast<int>(atlas.height) - 1);
+                    const float ax = fx - static_cast<float>(x0), ay = fy - static_cast<float>(y0);
+                    const float kd = shared::material_diffuse_factor(m, kMeanCosine, map.cos_view[p]);
+                    for (int c = 0; c < 3; ++c) {
+                        const float top = (1.0f - ax) * radiance.at(x0, y0, c) + ax * radiance.at(x1, y0, c);
+                        const float bottom = (1.0f - ax) * radiance.at(x0, y1, c) + ax * radiance.at(x1, y1, c);
+                        out.at(x, static_cast<int>(y), c) = kd * ((1.0f - ay) * top + ay * bottom);
+                    }
+                }
+            });
+            sink(part[k], out);
+        }
+    }
+}
+
+} // namespace specula

@@ -1,0 +1,105 @@
+#pragma once
+// Indirect light of a capture (issue 16; the model and its reference in transfer.h): the
+// transfer of the particles' hemispheres (built once, Embree rays), each view's pixels mapped
+// to the atlas (built once, one ray per pixel centre), and per frame the indirect radiance
+// image that the current albedo estimate sends toward the frame's camera.
+//
+// Per frame f, with rho the albedo per particle and k_d the material's diffuse factor
+// (shared/material.h; 1 for the lafortune family):
+//   direct irradiance     E0_j = I max(0, N_j.u_j) / d_j^2 where the visibility says frame f
+//                         lights particle j, else 0 (the stand-in point light of a directional one)
+//   sources, bounce 1     B1_j = rho_j k_d(N_j.u_j, 2/3) E0_j
+//   bounce b              E_b = T B_b,   B_{b+1} = rho k_d(2/3, 2/3) E_b
+//   indirect irradiance   E_ind = E_1 + ... + E_bounces
+//   radiance, particle i  L_i = rho_i / pi E_ind_i   (held in an atlas image, texel of particle i)
+//   radiance, pixel       L(x) = bilinear(L, the atlas point pixel x's centre ray hits) k_d(2/3, N.v)
+// 2/3 is the mean cosine of a cosine-weighted hemisphere: light that arrives from all over the
+// hemisphere meets the coating's Fresnel transmittance (the coated family's k_d) at that mean
+// angle, and a source's diffuse light leaves at it. The sources are diffuse: the specular part
+// of the light a surface sends to another one is left out (stated in the report).
+#include "capture/capture.h"
+#include "core/image.h"
+#include "geometry/atlas.h"
+#include "geometry/particles.h"
+#include "geometry/ray_scene.h"
+#include "indirect/transfer.h"
+#include "material/material.h"
+#include "visibility/visibility.h"
+
+#include <glm/glm.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <vector>
+
+namespace specula {
+
+struct TransferOptions {
+    /// Rays per particle, stratified on a g x g grid of the cosine-weighted hemisphere
+    /// (g = ceil(sqrt(rays)): the count is rounded up to a square).
+    std::uint32_t rays = 64;
+    unsigned threads = 2;
+    std::uint64_t seed = 1; ///< the strata's jitter: a hash of (seed, particle, ray)
+};
+
+struct TransferStats {
+    std::uint64_t rays = 0;          ///< cast
+    std::uint64_t hits = 0;          ///< that reached the object's front side and a particle
+    std::uint64_t below_surface = 0; ///< directions under the particle's face (not cast)
+    std::uint64_t back_faces = 0;    ///< hits on the back of a face (the inside of the object: ignored)
+    std::uint64_t unmapped = 0;      ///< hits on a texel that holds no particle
+    double seconds = 0.0;
+};
+
+/// The transfer of `particles` (transfer.h): deterministic for a seed, whatever the thread count.
+[[nodiscard]] IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
+                                              const Atlas& atlas, const TransferOptions& options,
+                                              TransferStats* stats = nullptr);
+
+/// One view's pixels on the atlas: per pixel (row-major), the atlas point (texel coordinates)
+/// that the ray through its centre hits first, and the cosine N.v there; x = -1 where it misses.
+struct ViewAtlasMap {
+    int width = 0;
+    int height = 0;
+    std::vector<glm::vec2> texel;
+    std::vector<float> cos_view;
+};
+[[nodiscard]] ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene,
+                                                const Atlas& atlas, unsigned threads = 2);
+
+struct IndirectOptions {
+    std::uint32_t bounces = 2;
+    /// The Vulkan kernel of the gather (transfer.h), or null: the C++ reference runs it.
+    IndirectGatherVk* kernel = nullptr;
+    unsigned threads = 2;
+    std::uint32_t batch_frames = 8;  ///< frames gathered at once
+};
+
+/// What the indirect light of a capture needs, built once (geometry and cameras only).
+struct IndirectScene {
+    std::span<const Particle> particles;
+    const Visibility* visibility = nullptr; ///< its `lit` bits: which frames light each particle
+    std::span<const PointLight> lights;     ///< per frame
+    std::span<const std::uint32_t> frame_view; ///< per frame: index into view_maps
+    const Atlas* atlas = nullptr;
+    const IndirectTransfer* transfer = nullptr;
+    std::span<const ViewAtlasMap> view_maps; ///< per view
+};
+
+/// Per frame of `frames`: the indirect irradiance of every particle (E_ind above; w = 0),
+/// out[k * particles + i] for frames[k].
+[[nodiscard]] std::vector<glm::vec4> indirect_irradiance(const IndirectScene& scene, std::span<const std::size_t> frames,
+                                                         std::span<const glm::vec3> albedo,
+                                                         const std::optional<SpecularModel>& material,
+                                                         const IndirectOptions& options);
+
+/// Per frame of `frames`, in order: the indirect radiance image (linear RGB, the size of the
+/// frame's view, 0 where no surface is seen), handed to `sink` (called from one thread).
+void indirect_images(const IndirectScene& scene, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
+                     const std::optional<SpecularModel>& material, const IndirectOptions& options,
+                     const std::function<void(std::size_t frame, const Image& image)>& sink);
+
+} // namespace specula

@@ -1,0 +1,221 @@
+// Indirect light (engine/indirect): the transfer against closed-form form factors, the bounces
+// against the closed sphere's interior, the images against the particles, determinism.
+#include "indirect/indirect.h"
+
+#include "synth/shapes.h"
+
+#include <gtest/gtest.h>
+
+#include <glm/gtc/constants.hpp>
+
+#include <cmath>
+#include <numeric>
+
+namespace specula {
+namespace {
+
+// Form factor from a point to a parallel rectangle [0, a] x [0, b] at height h whose corner is
+// straight above the point (Howell's catalogue, C-11): odd in a and in b, so signed extents
+// add up to any rectangle above any point.
+double corner_form_factor(double a, double b, double h) {
+    const double x = a / h, y = b / h;
+    const double sx = std::sqrt(1.0 + x * x), sy = std::sqrt(1.0 + y * y);
+    return (x / sx * std::atan(y / sx) + y / sy * std::atan(x / sy)) / (2.0 * glm::pi<double>());
+}
+double rectangle_form_factor(glm::dvec2 p, glm::dvec2 lo, glm::dvec2 hi, double h) {
+    return corner_form_factor(hi.x - p.x, hi.y - p.y, h) - corner_form_factor(lo.x - p.x, hi.y - p.y, h) -
+           corner_form_factor(hi.x - p.x, lo.y - p.y, h) + corner_form_factor(lo.x - p.x, lo.y - p.y, h);
+}
+
+struct Scene {
+    Mesh mesh;
+    Atlas atlas;
+    ParticleSet particles;
+    RayScene rays;
+    // A 256 x 256 atlas: some 40,000 particles, enough to resolve the light, quick to gather.
+    explicit Scene(Mesh m)
+        : mesh(std::move(m)), atlas(build_atlas(mesh, {}, AtlasOptions{.max_width = 256, .max_height = 256})),
+          particles(build_particles(mesh, atlas)), rays(mesh) {}
+};
+
+// A floor (z = 0, facing up) under a square plate (z = h, facing down).
+constexpr float kFloor = 2.0f, kPlate = 0.5f, kHeight = 0.5f;
+Mesh floor_and_plate() {
+    Mesh m = synth::make_quad({-kFloor, -kFloor, 0.0f}, {2 * kFloor, 0, 0}, {0, 2 * kFloor, 0});
+    synth::append_mesh(m, synth::make_quad({-kPlate, -kPlate, kHeight}, {0, 2 * kPlate, 0}, {2 * kPlate, 0, 0}));
+    return m;
+}
+
+TEST(IndirectTransfer, MatchesTheFormFactorOfAParallelRectangle) {
+    const Scene s(floor_and_plate());
+    TransferStats stats;
+    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 256}, &stats);
+    validate_transfer(t);
+    ASSERT_EQ(t.rows, s.particles.particles.size());
+    EXPECT_EQ(t.rays_per_particle, 256u);
+    EXPECT_EQ(stats.back_faces, 0u);
+    // The plate's particles shine (radiosity 1), the floor's do not.
+    const std::size_t n = s.particles.particles.size();
+    std::vector<glm::vec4> b(n, glm::vec4(0.0f));
+    std::size_t plate = 0;
+    for (std::size_t j = 0; j < n; ++j)
+        if (s.particles.particles[j].n().z < -0.5f) {
+            b[j] = glm::vec4(1.0f, 2.0f, 3.0f, 0.0f);
+            ++plate;
+        }
+    ASSERT_GT(plate, 100u);
+    std::vector<glm::vec4> e(n);
+    gather_indirect_cpu(t, b, 1, e);
+    double sum_error = 0.0, sum_square = 0.0, sum_truth = 0.0;
+    std::size_t checked = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Particle& p = s.particles.particles[i];
+        if (p.n().z < 0.5f || p.is_gutter()) continue;
+        const double f = rectangle_form_factor({p.p().x, p.p().y}, {-kPlate, -kPlate}, {kPlate, kPlate}, kHeight);
+        // Per particle: 256 rays on a 16 x 16 grid of strata. The plate is a sharp-edged target:
+        // the strata its edge crosses (up to about 4 x 16) each hit or miss by chance, a standard
+        // deviation of up to sqrt(64 / 4) / 256 = 0.016; 0.07 is over 4 of them.
+        EXPECT_NEAR(e[i].x, f, 0.07) << "floor particle at (" << p.p().x << ", " << p.p().y << ")";
+        EXPECT_FLOAT_EQ(e[i].y, 2.0f * e[i].x);
+        EXPECT_FLOAT_EQ(e[i].z, 3.0f * e[i].x);
+        sum_error += e[i].x - f;
+        sum_square += (e[i].x - f) * (e[i].x - f);
+        sum_truth += f;
+        ++checked;
+    }
+    ASSERT_GT(checked, 1000u);
+    // Unbiased: over the floor the errors cancel to well under 1% of the light received, and
+    // their spread stays within that bound on the standard deviation.
+    EXPECT_LT(std::abs(sum_error) / sum_truth, 0.01);
+    EXPECT_LT(std::sqrt(sum_square / static_cast<double>(checked)), 0.016);
+}
+
+TEST(IndirectTransfer, IsTheSameForAnyThreadCount) {
+    const Scene s(floor_and_plate());
+    const IndirectTransfer a = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 16, .threads = 1});
+    const IndirectTransfer b = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 16, .threads = 3});
+    EXPECT_EQ(a.row_begin, b.row_begin);
+    ASSERT_EQ(a.entries.size(), b.entries.size());
+    for (std::size_t k = 0; k < a.entries.size(); ++k) {
+        EXPECT_EQ(a.entries[k].source, b.entries[k].source);
+        EXPECT_EQ(a.entries[k].weight, b.entries[k].weight);
+    }
+    // Another seed draws other rays.
+    const IndirectTransfer c = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 16, .seed = 2});
+    EXPECT_NE(a.row_begin, c.row_begin);
+}
+
+// The inside of a closed sphere of albedo rho, lit by a point light of intensity I at its centre:
+// every point gets E0 = I / R^2, and every point sees the whole sphere, so each bounce is uniform:
+// E_b = rho^b E0 (the geometric series of the sphere's form factor, 1 to the whole sphere).
+Mesh inside_of_sphere(float radius) {
+    Mesh m = synth::make_uv_sphere({0, 0, 0}, radius, 48, 24);
+    for (glm::uvec3& t : m.triangles) std::swap(t.y, t.z);
+    for (glm::vec3& n : m.normals) n = -n;
+    return m;
+}
+
+Visibility all_lit(std::size_t particles, std::uint32_t frames) {
+    Visibility v;
+    v.particle_count = static_cast<std::uint32_t>(particles);
+    v.frame_count = frames;
+    v.view_count = 1;
+    v.frame_words = (frames + 31) / 32;
+    v.lit.assign(particles * v.frame_words, 0xFFFFFFFFu);
+    v.seen.assign(particles, 1u);
+    return v;
+}
+
+TEST(IndirectLight, BouncesInsideAClosedSphereAddUpToTheGeometricSeries) {
+    const float radius = 2.0f;
+    const Scene s(inside_of_sphere(radius));
+    TransferStats stats;
+    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 16}, &stats);
+    const std::size_t n = s.particles.particles.size();
+    // Nearly every ray reaches a particle (a few land on the texels between charts).
+    EXPECT_GT(static_cast<double>(stats.hits), 0.999 * static_cast<double>(stats.rays))
+        << stats.rays << " rays, " << stats.hits << " hits, " << stats.unmapped << " unmapped, " << stats.back_faces
+        << " back faces, " << stats.below_surface << " below";
+    const Visibility vis = all_lit(n, 1);
+    const std::vector<PointLight> lights = {PointLight{glm::dvec3(0.0), glm::dvec3(8.0, 4.0, 2.0), std::nullopt}};
+    const std::vector<std::uint32_t> frame_view = {0};
+    const std::vector<ViewAtlasMap> maps(1);
+    const IndirectScene scene{.particles = s.particles.particles, .visibility = &vis, .lights = lights, .frame_view = frame_view,
+                              .atlas = &s.atlas, .transfer = &t, .view_maps = maps};
+    const glm::vec3 rho(0.6f, 0.5f, 0.4f);
+    const std::vector<glm::vec3> albedo(n, rho);
+    const std::size_t frame[] = {0};
+    for (std::uint32_t bounces = 1; bounces <= 3; ++bounces) {
+        const std::vector<glm::vec4> e = indirect_irradiance(scene, frame, albedo, std::nullopt, {.bounces = bounces});
+        glm::dvec3 series(0.0), power(1.0);
+        for (std::uint32_t b = 1; b <= bounces; ++b) {
+            power *= glm::dvec3(rho);
+            series += power;
+        }
+        const glm::dvec3 expected = series * glm::dvec3(8.0, 4.0, 2.0) / double(radius * radius);
+        std::size_t off = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c)
+                if (std::abs(e[i][c] - expected[c]) > 0.02 * expected[c]) ++off;
+        // A uniform radiosity gathers exactly whatever the rays; what is left is the faceted
+        // sphere's own: its flat triangles sit up to 0.2% inside the radius, with interpolated
+        // normals a little off the centre, so E0 varies by about 1% over the particles.
+        EXPECT_EQ(off, 0u) << bounces << " bounces";
+    }
+}
+
+TEST(IndirectLight, ImagesShowTheLightOfTheSurfaceEachPixelSees) {
+    const Scene s(floor_and_plate());
+    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 256});
+    const std::size_t n = s.particles.particles.size();
+    // A light far under the plate gives its underside a uniform irradiance E0 (it faces the light
+    // at 1e4 times the plate's size: cos and distance are constant to 1e-4); the floor faces away
+    // from it. So the floor gets rho E0 F from the plate, F the form factor above.
+    const Visibility vis = all_lit(n, 1);
+    const double e0 = 1.0;
+    const std::vector<PointLight> lights = {PointLight{glm::dvec3(0.0, 0.0, -1e4), glm::dvec3(e0 * 1e8), std::nullopt}};
+    const std::vector<std::uint32_t> frame_view = {0};
+    const Camera camera(Intrinsics{64, 64, 60.0, 60.0, 32.0, 32.0},
+                        look_at_camera_to_world({1.2, 0.3, 0.35}, {0.0, 0.0, 0.0}, {0, 0, 1}));
+    const std::vector<ViewAtlasMap> maps = {build_view_atlas_map(camera, s.mesh, s.rays, s.atlas)};
+    const IndirectScene scene{.particles = s.particles.particles, .visibility = &vis, .lights = lights, .frame_view = frame_view,
+                              .atlas = &s.atlas, .transfer = &t, .view_maps = maps};
+    const float rho = 0.5f;
+    const std::vector<glm::vec3> albedo(n, glm::vec3(rho));
+    const std::size_t frame[] = {0};
+    Image image;
+    indirect_images(scene, frame, albedo, std::nullopt, {.bounces = 1}, [&](std::size_t f, const Image& im) {
+        EXPECT_EQ(f, 0u);
+        image = im;
+    });
+    ASSERT_EQ(image.width, 64);
+    // Each pixel that sees the floor shows rho / pi rho E0 F at the point its centre ray hits.
+    std::size_t checked = 0;
+    double sum_error = 0.0, sum_truth = 0.0;
+    for (int y = 0; y < 64; y += 2)
+        for (int x = 0; x < 64; x += 2) {
+            const glm::dvec3 dir = camera.ray_direction(x + 0.5, y + 0.5);
+            const std::optional<RayHit> hit = s.rays.intersect(glm::vec3(camera.center()), glm::vec3(dir), 0.0f, 1e30f);
+            const std::size_t k = static_cast<std::size_t>(y) * 64 + static_cast<std::size_t>(x);
+            EXPECT_EQ(hit.has_value(), maps[0].texel[k].x >= 0.0f);
+            if (!hit) {
+                EXPECT_EQ(image.at(x, y, 0), 0.0f);
+                continue;
+            }
+            const glm::dvec3 point = camera.center() + static_cast<double>(hit->t) * dir;
+            if (point.z > 0.1) continue; // the plate's top: nothing above it
+            const double f = rectangle_form_factor({point.x, point.y}, {-kPlate, -kPlate}, {kPlate, kPlate}, kHeight);
+            const double expected = rho / glm::pi<double>() * rho * e0 * f;
+            // The form factor test's bound on a particle's F (0.07), in radiance; the 4 particles a
+            // pixel mixes are nearer the truth than one.
+            EXPECT_NEAR(image.at(x, y, 0), expected, rho / glm::pi<double>() * rho * e0 * 0.07) << "pixel " << x << ", " << y;
+            sum_error += image.at(x, y, 0) - expected;
+            sum_truth += expected;
+            ++checked;
+        }
+    EXPECT_GT(checked, 200u);
+    EXPECT_LT(std::abs(sum_error) / sum_truth, 0.02);
+}
+
+} // namespace
+} // namespace specula
