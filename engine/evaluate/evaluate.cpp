@@ -145,6 +145,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
 
     std::vector<metrics::FrameMetrics> train_masked, train_full, test_masked, test_full;
     std::vector<metrics::FrameMetrics> train_masked_d, train_full_d, test_masked_d, test_full_d; // display values
+    std::vector<metrics::FrameMetrics> direct_train, direct_test, direct_train_d, direct_test_d; // add_light: without it
     const metrics::MetricsOptions display_options = metrics::display_metrics_options(options.metrics);
     std::optional<metrics::DisplayEncoder> encoder; // rebuilt when a frame's encoding differs
     std::set<std::string> encodings;
@@ -202,12 +203,21 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
             const metrics::MetricsInputs in{a, b, pixels};
             return metrics_vk ? metrics_vk->run(in, o) : metrics::image_metrics_cpu(in, o);
         };
-        fe.masked = run_metrics(cap, ren, masked, options.metrics);
-        fe.full = run_metrics(cap, ren, full, options.metrics);
         // Display values: both images as the capture stores its own (metrics/display_values.h).
         const metrics::DisplayEncoding encoding = metrics::display_encoding_of(captured.file_info, desc.color_space);
         if (!encoder || encoder->encoding() != encoding) encoder.emplace(encoding);
-        const Image cap_display = (*encoder)(cap), ren_display = (*encoder)(ren);
+        const Image cap_display = (*encoder)(cap);
+        if (options.add_light) {
+            // The render as the bundle's renderer draws it, scored before the added light.
+            fe.masked_direct = run_metrics(cap, ren, masked, options.metrics);
+            fe.masked_display_direct = run_metrics(cap_display, (*encoder)(ren), masked, display_options);
+            options.add_light(fi, ren);
+            if (std::isfinite(captured.saturation))
+                for (float& v : ren.pixels) v = std::min(v, captured.saturation);
+        }
+        fe.masked = run_metrics(cap, ren, masked, options.metrics);
+        fe.full = run_metrics(cap, ren, full, options.metrics);
+        const Image ren_display = (*encoder)(ren);
         fe.masked_display = run_metrics(cap_display, ren_display, masked, display_options);
         fe.full_display = run_metrics(cap_display, ren_display, full, display_options);
         fe.display_encoding = encoding.name();
@@ -222,12 +232,20 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
             train_full.push_back(fe.full);
             train_masked_d.push_back(fe.masked_display);
             train_full_d.push_back(fe.full_display);
+            if (fe.masked_direct) {
+                direct_train.push_back(*fe.masked_direct);
+                direct_train_d.push_back(*fe.masked_display_direct);
+            }
             ++result.train_frames;
         } else {
             test_masked.push_back(fe.masked);
             test_full.push_back(fe.full);
             test_masked_d.push_back(fe.masked_display);
             test_full_d.push_back(fe.full_display);
+            if (fe.masked_direct) {
+                direct_test.push_back(*fe.masked_direct);
+                direct_test_d.push_back(*fe.masked_display_direct);
+            }
             ++result.test_frames;
         }
 
@@ -259,6 +277,14 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     result.display_metrics.train_full = metrics::summarize(train_full_d, display_options);
     result.display_metrics.test_masked = metrics::summarize(test_masked_d, display_options);
     result.display_metrics.test_full = metrics::summarize(test_full_d, display_options);
+    if (options.add_light) {
+        result.direct_metrics.emplace();
+        result.direct_metrics->train_masked = metrics::summarize(direct_train, options.metrics);
+        result.direct_metrics->test_masked = metrics::summarize(direct_test, options.metrics);
+        result.direct_display_metrics.emplace();
+        result.direct_display_metrics->train_masked = metrics::summarize(direct_train_d, display_options);
+        result.direct_display_metrics->test_masked = metrics::summarize(direct_test_d, display_options);
+    }
     result.display_encoding = encodings.size() == 1 ? *encodings.begin() : encodings.empty() ? "" : "mixed";
     result.display_first = !encodings.empty() && all_srgb_integer;
     result.timings.total_s = total.seconds();
@@ -277,6 +303,17 @@ nlohmann::json to_json(const EvaluationResult& r, const std::filesystem::path& f
     if (r.test_frames > 0)
         j["test"] = {{"masked", summary_json(r.metrics.test_masked, r.display_metrics.test_masked, r.display_encoding)},
                      {"full", summary_json(r.metrics.test_full, r.display_metrics.test_full, r.display_encoding)}};
+    // The renders without the added light (EvaluateOptions::add_light): masked, beside the above.
+    if (r.direct_metrics) {
+        nlohmann::json direct = nlohmann::json::object();
+        if (r.train_frames > 0)
+            direct["train"] = {{"masked", summary_json(r.direct_metrics->train_masked, r.direct_display_metrics->train_masked,
+                                                       r.display_encoding)}};
+        if (r.test_frames > 0)
+            direct["test"] = {{"masked", summary_json(r.direct_metrics->test_masked, r.direct_display_metrics->test_masked,
+                                                      r.display_encoding)}};
+        j["without_added_light"] = std::move(direct);
+    }
     nlohmann::json frames = nlohmann::json::array();
     for (const FrameEvaluation& f : r.frames)
         frames.push_back({{"frame", f.frame},
@@ -331,6 +368,11 @@ std::string format_summary(const EvaluationResult& r) {
     row("train full", r.train_frames, r.metrics.train_full, r.display_metrics.train_full);
     row("test masked", r.test_frames, r.metrics.test_masked, r.display_metrics.test_masked);
     row("test full", r.test_frames, r.metrics.test_full, r.display_metrics.test_full);
+    if (r.direct_metrics) {
+        out << "without the added light (indirect):\n";
+        row("train masked", r.train_frames, r.direct_metrics->train_masked, r.direct_display_metrics->train_masked);
+        row("test masked", r.test_frames, r.direct_metrics->test_masked, r.direct_display_metrics->test_masked);
+    }
     if (!r.frames.empty()) {
         const bool quantized = !r.display_encoding.empty() && std::isdigit(static_cast<unsigned char>(r.display_encoding.back()));
         std::snprintf(line, sizeof line, "display values: %s (%s, G = 1); Q2, RMS%%, DDE%%, SSIM, NCC on linear values\n",

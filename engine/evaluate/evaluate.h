@@ -45,6 +45,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -70,6 +71,11 @@ struct EvaluateOptions {
     std::vector<std::size_t> sheet_frames;
     std::string bundle_name = "bundle";            ///< for messages and the JSON
     bool progress = true;                          ///< log::Progress on a terminal
+    /// Light the bundle's renderer does not draw, added to each frame's render before it is
+    /// scored (light that bounced off the object itself: indirect/indirect.h): called with the
+    /// frame (index into capture.desc.frames) and its render. When set, the masked figures of
+    /// the render without it are kept too (FrameEvaluation::masked_direct, direct_metrics).
+    std::function<void(std::size_t frame, Image& rendered)> add_light;
 };
 
 struct FrameEvaluation {
@@ -88,6 +94,9 @@ struct FrameEvaluation {
     std::size_t covered_pixels = 0; ///< pixels the render covers
     bool shadowed = false;          ///< the render drew cast shadows (render::FrameInfo::shadow_pass)
     std::string shadow_note;        ///< why not, when render.shadows asked for them (light too close)
+    /// With EvaluateOptions::add_light: the masked figures of the render without that light.
+    std::optional<metrics::FrameMetrics> masked_direct;
+    std::optional<metrics::FrameMetrics> masked_display_direct;
     double render_ms = 0.0;         ///< wall time of the render (incl. readback)
     double metrics_ms = 0.0;        ///< wall time of both metric runs
 };
@@ -108,6 +117,10 @@ struct EvaluationResult {
     std::vector<FrameEvaluation> frames;           ///< in capture order
     metrics::EvaluationMetrics metrics;            ///< aggregates per split and pixel set (linear values)
     metrics::EvaluationMetrics display_metrics;    ///< the same on display values (G = 1)
+    /// With EvaluateOptions::add_light: the masked aggregates of the renders without it
+    /// (linear and display values; the full-frame aggregates are left empty).
+    std::optional<metrics::EvaluationMetrics> direct_metrics;
+    std::optional<metrics::EvaluationMetrics> direct_display_metrics;
     std::string display_encoding;                  ///< the frames' encoding name, "mixed" when they differ
     bool display_first = false;                    ///< every frame is an sRGB integer file
     std::size_t train_frames = 0;                  ///< evaluated
