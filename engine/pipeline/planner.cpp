@@ -220,6 +220,60 @@ PlanDecision decide_normal_map(const LightConditioning& lc, Toggle choice) {
 
 bool decided_normal_map(const PlanDecision& d) { return d.value == "refined normals"; }
 
+// ---- indirect light ---------------------------------------------------------------------
+
+PlanDecision decide_indirect(const ConvexityReport& c, Toggle toggle, const std::optional<IndirectMeasure>& m,
+                             double estimated_seconds) {
+    PlanDecision d;
+    d.name = "indirect";
+    d.forced = toggle != Toggle::Auto;
+    d.detail = {{"convex", c.convex}, {"min_codes", kIndirectMinCodes}, {"min_shadow_ratio", kIndirectMinShadowRatio}};
+    std::string measured;
+    bool weak = false, absent = false;
+    if (m) {
+        d.detail["p99_codes"] = m->p99_codes;
+        d.detail["shadow_pixels"] = m->shadow_pixels;
+        d.detail["shadow_ratio"] = m->shadow_ratio ? nlohmann::json(*m->shadow_ratio) : nlohmann::json(nullptr);
+        weak = m->p99_codes < kIndirectMinCodes;
+        absent = m->shadow_ratio && *m->shadow_ratio < kIndirectMinShadowRatio;
+        measured = "the first solve's albedo sends " + format_text("%.2f", m->p99_codes) +
+                   " 8-bit codes of indirect light to the 99th percentile of the train frames' object pixels (threshold " +
+                   format_text("%.2g", kIndirectMinCodes) + "); " +
+                   (m->shadow_ratio ? "the " + std::to_string(m->shadow_pixels) + " unlit object pixels show " +
+                                          format_text("%.2f", *m->shadow_ratio) + " times the light it predicts there (threshold " +
+                                          format_text("%.2g", kIndirectMinShadowRatio) + ")"
+                                    : std::to_string(m->shadow_pixels) + " unlit object pixels with a prediction of a code or more: "
+                                                                         "too few to check the capture holds it (" +
+                                          std::to_string(kIndirectMinShadowPixels) + " needed)");
+    }
+    const bool on = toggle == Toggle::On || (toggle == Toggle::Auto && !c.convex && !weak && !absent);
+    d.value = on ? "inverse global illumination" : "none";
+    d.skipped = !on;
+    if (toggle == Toggle::Auto) {
+        if (c.convex) {
+            d.reason = "the mesh is convex (closed, connected, no reflex edge): no point of it sees another, so no light "
+                       "bounces off it onto itself";
+            d.avoided_seconds = estimated_seconds;
+            d.cost_basis = "estimate: the transfer's rays at the visibility stage's ray rate, and the rounds' solves at the "
+                           "first solve's time";
+        } else if (weak || absent) {
+            d.reason = "the mesh can see itself, but " + measured + (weak ? ": below what the images hold" : ": the capture does not hold it");
+            d.avoided_seconds = estimated_seconds;
+            d.cost_basis = "estimate: the rounds' solves at the first solve's time (the transfer was built to measure)";
+        } else {
+            d.reason = "the mesh can see itself (" + c.reason + ")" + (m ? "; " + measured : std::string());
+        }
+    } else {
+        d.reason = std::string("--indirect ") + (on ? "on" : "off") +
+                   (c.convex ? " (the planner would leave it out: the mesh is convex)"
+                    : m      ? " (" + measured + ")"
+                             : " (the planner would measure the indirect light: the mesh can see itself)");
+    }
+    return d;
+}
+
+bool decided_indirect(const PlanDecision& d) { return d.value == "inverse global illumination"; }
+
 // ---- atlas ------------------------------------------------------------------------------
 
 PlanDecision decide_atlas(const AtlasSummary& s, const AtlasOptions& o, std::size_t particles, double particle_stage_seconds) {

@@ -17,6 +17,10 @@
 //                       energy than the noise (specular/residuals.h)
 //   factorization_grid  no finer than the lobe's width needs              --factorization-grid H,D
 //                       (factorization/resolution.h)
+//   indirect            light that bounced off the object, removed from    --indirect on|off
+//                       the captures before the solves, added to the
+//                       renders, where the mesh can see itself and that
+//                       light is above the images' quantization
 //
 // Each decision says whether it was automatic or forced, why, and what it cost or saved:
 // when auto skips or coarsens work, `avoided_seconds` is an ESTIMATE of the time that work
@@ -118,6 +122,37 @@ inline constexpr double kNormalMapMinRcond = 0.05;
 /// view (the 20 x 6 rig, the thesis's ring) tilt a photometric normal toward each highlight.
 [[nodiscard]] PlanDecision decide_normal_map(const LightConditioning& lc, Toggle choice);
 [[nodiscard]] bool decided_normal_map(const PlanDecision& d);
+
+// ---- indirect light ---------------------------------------------------------------------
+/// Light that bounced off the object (indirect/indirect.h) counts when it changes the captured
+/// pixels by at least this many codes of an 8-bit sRGB image at the 99th percentile of the
+/// train frames' object pixels: half a code is below what the images can hold.
+inline constexpr double kIndirectMinCodes = 0.5;
+/// Rounds of the inverse global illumination (solve, indirect light from its albedo, solve on
+/// the captures less that light) and the albedo change, relative, that ends them sooner.
+inline constexpr std::uint32_t kIndirectRounds = 3;
+inline constexpr double kIndirectTolerance = 0.005;
+/// Does the capture hold the light the model predicts? In the object pixels of the train frames
+/// that no light reaches directly (their surface faces away from it, or a shadow ray is blocked), a capture
+/// shows only light that bounced off the object (and the room's): the least-squares ratio of the
+/// captured values to the predicted indirect light is about 1 for a real object, 0 for a capture
+/// rendered with direct light only. Measured over at least kIndirectMinShadowPixels such pixels
+/// whose predicted light is at least one 8-bit code.
+inline constexpr std::size_t kIndirectMinShadowPixels = 500;
+inline constexpr double kIndirectMinShadowRatio = 0.5;
+struct IndirectMeasure {
+    double p99_codes = 0.0;             ///< the predicted light's change of the object pixels, 99th percentile (codes)
+    std::size_t shadow_pixels = 0;      ///< unlit object pixels with a prediction of at least one code
+    std::optional<double> shadow_ratio; ///< captured / predicted there (least squares), from kIndirectMinShadowPixels on
+};
+/// Auto: left out when the mesh is convex (it cannot see itself: no ray leaves one point of it
+/// toward another); when the indirect light that the first solve's albedo sends stays under
+/// kIndirectMinCodes; or when the unlit pixels show less than kIndirectMinShadowRatio of it
+/// (the capture does not hold it). On otherwise. `measure` is absent when not measured (convex,
+/// or forced off); `estimated_seconds` is the cost of the rays and the rounds (avoided when left out).
+[[nodiscard]] PlanDecision decide_indirect(const ConvexityReport& convexity, Toggle toggle,
+                                          const std::optional<IndirectMeasure>& measure, double estimated_seconds);
+[[nodiscard]] bool decided_indirect(const PlanDecision& d);
 
 // ---- atlas ------------------------------------------------------------------------------
 

@@ -56,6 +56,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const GeometryStage geometry = geometry_stage(run, capture);
     const VisibilityStage visibility = visibility_stage(run, capture, geometry);
     DiffuseStage diffuse = diffuse_stage(run, capture, geometry, visibility, lambert);
+    const IndirectStage indirect = indirect_stage(run, capture, geometry, visibility, diffuse); // may correct `diffuse`'s images
     const SpecularStage specular = specular_stage(run, diffuse); // joint rounds update `diffuse`
     atlas_decision(run, geometry);
     const RefineStage refine = refine_stage(run, capture, geometry, diffuse);
@@ -63,8 +64,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const NormalMapStage normals = normal_map_stage(run, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);
     record_specular_cost(run, specular, factorization);
-    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals);
-    const std::optional<evaluate::EvaluationResult> evaluation = evaluation_stage(run, capture, bundle);
+    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals, indirect);
+    const std::optional<evaluate::EvaluationResult> evaluation =
+        evaluation_stage(run, capture, bundle, indirect_light_of(indirect, geometry, visibility, texture, factorization));
 
     result.total_seconds = total.seconds();
     result.report = report_json(run, ReportInputs{.capture = capture,
@@ -72,6 +74,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                                   .geometry = geometry,
                                                   .visibility = visibility,
                                                   .diffuse = diffuse,
+                                                  .indirect = indirect,
                                                   .specular = specular,
                                                   .refine = refine,
                                                   .texture = texture,

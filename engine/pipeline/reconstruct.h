@@ -78,6 +78,12 @@ struct ReconstructConfig {
     /// Refined normals as a normal map in the bundle (planner.h decide_normal_map): auto on
     /// for photometric rigs (a view with many well-spread lights).
     Toggle normal_map = Toggle::Auto;
+    /// Light that bounced off the object (planner.h decide_indirect; indirect/indirect.h): auto
+    /// where the mesh can see itself and that light is above the images' quantization.
+    Toggle indirect = Toggle::Auto;
+    std::uint32_t indirect_bounces = 2;   ///< bounces of the indirect light (1: one bounce)
+    std::uint32_t indirect_rays = 64;     ///< rays per particle of the transfer (rounded up to a square)
+    std::uint32_t indirect_rounds = kIndirectRounds; ///< at most this many rounds of solve and indirect light
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan
     /// device; left out, with the reason, when none can be had).

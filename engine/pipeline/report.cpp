@@ -317,6 +317,47 @@ json normal_map_json(const PipelineRun& run, const NormalMapStage& n, const Bund
             {"seconds", run.seconds("photometric solve (normal map)")}}; // the encoding is part of the bundle stage
 }
 
+// The indirect light (null when left out): the method, the transfer, the rounds, and the
+// evaluation's figures with and without it.
+json indirect_json(const IndirectStage& s, const std::optional<evaluate::EvaluationResult>& ev) {
+    if (!s.on()) return nullptr;
+    json rounds = json::array();
+    for (const IndirectRound& r : s.rounds) rounds.push_back({{"albedo_change", r.albedo_change}, {"seconds", r.seconds}});
+    json j = {{"method", "inverse global illumination (Yu, Debevec, Malik and Hawkins 1999): the light that the albedo "
+                         "estimate sends from particle to particle through a transfer of stratified cosine-weighted rays, "
+                         "removed from the train frames before each solve and added to the evaluation's renders"},
+              {"sources", "diffuse: the specular part of the light one surface sends to another is left out"},
+              {"viewer", "specula-view and the bundle show direct light only"},
+              {"bounces", s.options.bounces},
+              {"gather", s.backend_reason},
+              {"rays_per_particle", s.transfer->rays_per_particle},
+              {"transfer_entries", s.transfer->entry_count()},
+              {"rays_cast", s.transfer_stats.rays},
+              {"rays_reaching_the_object", s.transfer_stats.hits},
+              {"transfer_seconds", s.transfer_stats.seconds},
+              {"p99_codes_first_solve", s.measure ? json(s.measure->p99_codes) : json(nullptr)},
+              {"shadow_ratio", s.measure && s.measure->shadow_ratio ? json(*s.measure->shadow_ratio) : json(nullptr)},
+              {"rounds", rounds},
+              {"seconds", s.seconds}};
+    if (ev && ev->direct_metrics) {
+        const auto split = [&](const metrics::MetricsSummary& with, const metrics::MetricsSummary& with_d,
+                               const metrics::MetricsSummary& without, const metrics::MetricsSummary& without_d) {
+            return json{{"with", {{"psnr_linear", with.psnr}, {"psnr_display", with_d.psnr}, {"q1_linear", with.q1}, {"q1_display", with_d.q1}}},
+                        {"without", {{"psnr_linear", without.psnr}, {"psnr_display", without_d.psnr}, {"q1_linear", without.q1},
+                                     {"q1_display", without_d.q1}}}};
+        };
+        json e = json::object();
+        if (ev->train_frames > 0)
+            e["train_masked"] = split(ev->metrics.train_masked, ev->display_metrics.train_masked, ev->direct_metrics->train_masked,
+                                      ev->direct_display_metrics->train_masked);
+        if (ev->test_frames > 0)
+            e["test_masked"] = split(ev->metrics.test_masked, ev->display_metrics.test_masked, ev->direct_metrics->test_masked,
+                                     ev->direct_display_metrics->test_masked);
+        j["evaluation"] = e;
+    }
+    return j;
+}
+
 } // namespace
 
 json report_json(PipelineRun& run, const ReportInputs& in) {
@@ -347,6 +388,7 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
               {"gutter", in.geometry.particles.gutter}}},
             {"visibility", visibility_json(in.visibility.visibility.stats)},
             {"diffuse", lambert_json(in.diffuse.solve, in.diffuse.options, run.particle_backend())},
+            {"indirect", indirect_json(in.indirect, in.evaluation)},
             {"albedo_refinement", refinement_json(run, in.refine)},
             {"specular", specular_json(in.specular, run.config.joint_tolerance)},
             {"factorization", factorization_json(run, in.factorization)},

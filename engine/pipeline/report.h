@@ -17,6 +17,7 @@ struct ReportInputs {
     const GeometryStage& geometry;
     const VisibilityStage& visibility;
     const DiffuseStage& diffuse;
+    const IndirectStage& indirect;
     const SpecularStage& specular;
     const RefineStage& refine;
     const AlbedoTexture& texture;

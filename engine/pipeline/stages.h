@@ -13,7 +13,9 @@
 #include "geometry/atlas.h"
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
+#include "indirect/indirect.h"
 #include "pipeline/joint.h"
+#include "pipeline/planner.h"
 #include "pipeline/run.h"
 #include "refine/albedo_refine.h"
 #include "specular/lafortune_fit.h"
@@ -21,6 +23,8 @@
 #include "visibility/visibility.h"
 
 #include <cstddef>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,6 +63,30 @@ struct DiffuseStage {
 };
 [[nodiscard]] DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                          const VisibilityStage& visibility, const LambertOptions& options);
+
+/// 5b. Light that bounced off the object (planner.h decide_indirect; indirect/indirect.h): where
+///     it counts, the transfer and the views' atlas maps are built once, then each round removes
+///     from the train frames the indirect light that the current albedo sends, and solves again
+///     (Yu et al. 1999). `diffuse` then reads the corrected images, which this stage holds.
+struct IndirectRound {
+    double albedo_change = 0.0; ///< RMS of the albedo's change over the solved particles, relative to their RMS albedo
+    double seconds = 0.0;       ///< the indirect images and the solve
+};
+struct IndirectStage {
+    std::optional<IndirectTransfer> transfer;    ///< absent: left out
+    TransferStats transfer_stats;
+    std::vector<ViewAtlasMap> view_maps;         ///< per view
+    std::vector<FrameImage> corrected;           ///< per frame: the train frames less their indirect light
+    std::vector<IndirectRound> rounds;
+    std::optional<IndirectMeasure> measure;      ///< what the planner decided from (planner.h)
+    IndirectOptions options;                     ///< its kernel: `gather`'s, or null (the C++ reference)
+    std::shared_ptr<IndirectGatherVk> gather;    ///< the Vulkan gather, on a GPU
+    std::string backend_reason;                  ///< why the gather runs where it does
+    double seconds = 0.0;                        ///< transfer, maps and rounds
+    [[nodiscard]] bool on() const noexcept { return transfer.has_value() && !corrected.empty(); }
+};
+[[nodiscard]] IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                                           const VisibilityStage& visibility, DiffuseStage& diffuse);
 
 /// 6. Residual samples and their energy, then (when the residuals hold specular energy, or
 ///    forced) the material: every applicable family (or the forced one) is estimated jointly
@@ -139,11 +167,20 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 /// 10. The bundle object.glb: mesh with atlas coordinates, albedo, lobe, cube-maps.
 [[nodiscard]] Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                   const AlbedoTexture& texture, const FactorizationStage& factorization,
-                                  const NormalMapStage& normals);
+                                  const NormalMapStage& normals, const IndirectStage& indirect);
 
 /// 11. Self-evaluation: every frame re-rendered from the bundle and scored (writes evaluation.json
 ///     and sheets/). Absent when left out (--no-evaluate, or no device).
 [[nodiscard]] std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture,
-                                                                         const Bundle& bundle);
+                                                                         const Bundle& bundle,
+                                                                         const std::function<void(std::size_t, Image&)>& add_light = {});
+
+/// The indirect light of each frame for the evaluation (evaluate::EvaluateOptions::add_light):
+/// from the final albedo texture and material; empty when the stage was left out.
+[[nodiscard]] std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& indirect,
+                                                                        const GeometryStage& geometry,
+                                                                        const VisibilityStage& visibility,
+                                                                        const AlbedoTexture& texture,
+                                                                        const FactorizationStage& factorization);
 
 } // namespace specula
