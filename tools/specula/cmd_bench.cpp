@@ -4,13 +4,17 @@
 // `specula bench sweep CAPTURE`: the pipeline over a grid of accuracy/time knobs
 // (engine/pipeline/sweep.h): a table (CSV, JSON) and a plot (SVG) of test-frame error
 // against run time with the default and the Pareto front marked.
+// `specula bench indirect CAPTURE...`: reconstruct with the indirect light off and on, the
+// stage's cost and the whole run's ratio beside the test-frame error of both.
 #include "commands.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "pipeline/reconstruct.h"
 #include "pipeline/sweep.h"
 #include "specular/lafortune_fit_cases.h"
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -82,6 +86,48 @@ void run_sweep_command(const BenchSweepArgs& a) {
                 a.out.c_str());
 }
 
+struct BenchIndirectArgs {
+    std::vector<std::string> captures;
+    std::string out;
+    unsigned threads = 2;
+};
+
+// The stage times of a run whose names start with `prefix`, summed.
+double stage_seconds(const ReconstructResult& r, const std::string& prefix) {
+    double s = 0.0;
+    for (const StageRecord& st : r.stages)
+        if (st.name.rfind(prefix, 0) == 0) s += st.seconds;
+    return s;
+}
+
+void run_indirect_command(const BenchIndirectArgs& a) {
+    std::printf("%-24s %10s %10s %10s %10s %10s %7s %12s %12s\n", "capture", "particles", "transfer s", "rounds s", "off s", "on s",
+                "ratio", "test off dB", "test on dB");
+    for (const std::string& capture : a.captures) {
+        const std::string name = std::filesystem::path(capture).filename().string();
+        ReconstructResult result[2];
+        for (int on = 0; on < 2; ++on) {
+            ReconstructConfig c;
+            c.capture = capture;
+            c.out_dir = std::filesystem::path(a.out) / (name + (on ? "-on" : "-off"));
+            c.force = true;
+            c.threads = a.threads;
+            c.indirect = on ? Toggle::On : Toggle::Off;
+            result[on] = reconstruct(c);
+        }
+        const auto test_psnr = [](const ReconstructResult& r) {
+            const nlohmann::json& e = r.report["evaluation"];
+            return e.is_object() && e.contains("test") ? e["test"]["masked"]["psnr_display"].get<double>() : 0.0;
+        };
+        const double off = result[0].total_seconds, on = result[1].total_seconds;
+        std::printf("%-24s %10zu %10.2f %10.2f %10.2f %10.2f %7.3f %12.2f %12.2f\n", name.c_str(),
+                    result[1].report["particles"]["count"].get<std::size_t>(), stage_seconds(result[1], "indirect transfer"),
+                    stage_seconds(result[1], "indirect light") + stage_seconds(result[1], "diffuse solve (indirect round"), off, on,
+                    on / off, test_psnr(result[0]), test_psnr(result[1]));
+        std::fflush(stdout);
+    }
+}
+
 } // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -145,6 +191,18 @@ void add_bench_command(CLI::App& app) {
     sweep->add_option("--threads", sa->threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
     sweep->add_flag("--keep-points", sa->keep, "Keep every point's outputs in OUT/points/NN");
     sweep->callback([sa] { run_sweep_command(*sa); });
+
+    auto ia = std::make_shared<BenchIndirectArgs>();
+    CLI::App* indirect = bench->add_subcommand(
+        "indirect",
+        "The cost and the gain of the indirect light (issue 16) on each CAPTURE: `reconstruct` with --indirect off\n"
+        "and on, and one line each: the particles, the transfer's and the rounds' seconds, the whole run's\n"
+        "seconds and their ratio, and the masked test-frame PSNR (display values) of both. The outputs go to\n"
+        "OUT/<capture>-off and OUT/<capture>-on.");
+    indirect->add_option("capture", ia->captures, "Capture folders (or capture.json files); need test frames")->required();
+    indirect->add_option("-o,--out", ia->out, "Output folder (created if missing)")->required();
+    indirect->add_option("--threads", ia->threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
+    indirect->callback([ia] { run_indirect_command(*ia); });
 }
 
 } // namespace specula::cli
