@@ -9,7 +9,6 @@
 #include <glm/gtc/constants.hpp>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -46,6 +45,47 @@ glm::vec2 atlas_point(const Atlas& atlas, std::uint32_t triangle, float u, float
     const glm::dvec2 c0 = atlas.corner_texel(triangle, 0), c1 = atlas.corner_texel(triangle, 1), c2 = atlas.corner_texel(triangle, 2);
     return glm::vec2(c0 + static_cast<double>(u) * (c1 - c0) + static_cast<double>(v) * (c2 - c0));
 }
+
+// The specular lobe's directional albedo a_s(c) = integral of f_s(u, w) N.w dw over the
+// hemisphere, u at cosine c to the normal: the share of a source's light that its lobe reflects
+// (spread diffusely here: the transfer keeps no directions), and by reciprocity what a receiver's
+// lobe sends toward the camera at cosine c of light that arrives from all over its hemisphere.
+// Tabulated at kSteps cosines by a stratified cosine-weighted quadrature (64 x 64 strata:
+// integral = pi x the mean of f_s), clamped to [0, 1] (a fitted lobe need not conserve energy).
+class LobeAlbedo {
+public:
+    explicit LobeAlbedo(const std::optional<SpecularModel>& material) {
+        const shared::MaterialGpu m = material_gpu(material);
+        m_zero = !material || is_zero(*material);
+        if (m_zero) return;
+        constexpr int kGrid = 64;
+        for (int k = 0; k < kSteps; ++k) {
+            const float c = std::max(1e-3f, static_cast<float>(k) / (kSteps - 1));
+            const glm::vec3 u(std::sqrt(1.0f - c * c), 0.0f, c);
+            glm::dvec3 sum(0.0);
+            for (int i = 0; i < kGrid; ++i)
+                for (int j = 0; j < kGrid; ++j) {
+                    const float r2 = (static_cast<float>(i) + 0.5f) / kGrid, phi = glm::two_pi<float>() * (static_cast<float>(j) + 0.5f) / kGrid;
+                    const float r = std::sqrt(r2);
+                    const glm::vec3 w(r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0f - r2));
+                    sum += glm::dvec3(shared::material_specular(m, c, w.z, glm::dot(u, w)));
+                }
+            m_table[k] = glm::clamp(glm::vec3(glm::pi<double>() * sum / double(kGrid * kGrid)), 0.0f, 1.0f);
+        }
+    }
+    [[nodiscard]] bool zero() const noexcept { return m_zero; }
+    [[nodiscard]] glm::vec3 operator()(float c) const {
+        if (m_zero) return glm::vec3(0.0f);
+        const float x = std::clamp(c, 0.0f, 1.0f) * (kSteps - 1);
+        const int k = std::min(static_cast<int>(x), kSteps - 2);
+        return glm::mix(m_table[k], m_table[k + 1], x - static_cast<float>(k));
+    }
+
+private:
+    static constexpr int kSteps = 33;
+    bool m_zero = true;
+    glm::vec3 m_table[kSteps]{};
+};
 
 glm::vec3 face_normal(const Mesh& mesh, std::uint32_t triangle) {
     const glm::uvec3 t = mesh.triangles[triangle];
@@ -206,7 +246,9 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
     check_scene(s, frames, albedo);
     const std::size_t rows = s.particles.size();
     const shared::MaterialGpu m = material_gpu(material);
+    const LobeAlbedo lobe(material);
     const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
+    const glm::vec3 lobe_bounce = lobe(kMeanCosine);
     std::vector<glm::vec4> radiosity(frames.size() * rows), e(frames.size() * rows), total(frames.size() * rows, glm::vec4(0.0f));
     // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely.
     parallel_for_chunks(rows, std::max(o.threads, 1u), 1024, [&](unsigned, std::size_t begin, std::size_t end) {
@@ -221,7 +263,7 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
                 const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
                 if (!(cos_in > 0.0)) continue;
                 const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
-                out = glm::vec4(albedo[j] * kd * glm::vec3(light.intensity * (cos_in / d2)), 0.0f);
+                out = glm::vec4((albedo[j] * kd + lobe(static_cast<float>(cos_in))) * glm::vec3(light.intensity * (cos_in / d2)), 0.0f);
             }
         }
     });
@@ -229,7 +271,7 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
         gather(s, radiosity, static_cast<std::uint32_t>(frames.size()), e, o);
         for (std::size_t k = 0; k < e.size(); ++k) {
             total[k] += e[k];
-            radiosity[k] = glm::vec4(albedo[k % rows] * kd_bounce, 0.0f) * e[k];
+            radiosity[k] = glm::vec4(albedo[k % rows] * kd_bounce + lobe_bounce, 0.0f) * e[k];
         }
     }
     return total;
@@ -242,8 +284,11 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
     const std::size_t rows = s.particles.size();
     const Atlas& atlas = *s.atlas;
     const shared::MaterialGpu m = material_gpu(material);
+    const LobeAlbedo lobe(material);
     const unsigned threads = std::max(o.threads, 1u);
+    // Per texel: rho E / pi (the diffuse term) and, with a lobe, E / pi (what the lobe reflects).
     Image radiance(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
+    Image irradiance = lobe.zero() ? Image() : Image(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
     const std::size_t batch = std::max<std::uint32_t>(o.batch_frames, 1u);
     for (std::size_t first = 0; first < frames.size(); first += batch) {
         const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
@@ -251,9 +296,12 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
         for (std::size_t k = 0; k < part.size(); ++k) {
             // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty texels).
             for (std::size_t i = 0; i < rows; ++i) {
-                const glm::vec3 l = albedo[i] * glm::one_over_pi<float>() * glm::vec3(e[k * rows + i]);
-                for (int c = 0; c < 3; ++c)
-                    radiance.at(static_cast<int>(s.particles[i].texel_x()), static_cast<int>(s.particles[i].texel_y()), c) = l[c];
+                const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(e[k * rows + i]);
+                const int x = static_cast<int>(s.particles[i].texel_x()), y = static_cast<int>(s.particles[i].texel_y());
+                for (int c = 0; c < 3; ++c) {
+                    radiance.at(x, y, c) = albedo[i][c] * l[c];
+                    if (!lobe.zero()) irradiance.at(x, y, c) = l[c];
+                }
             }
             const ViewAtlasMap& map = s.view_maps[s.frame_view[part[k]]];
             Image out(map.width, map.height, 3, 0.0f);
@@ -269,11 +317,14 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
                     const int x1 = std::min(x0 + 1, static_cast<int>(atlas.width) - 1), y1 = std::min(y0 + 1, static_cast<int>(atlas.height) - 1);
                     const float ax = fx - static_cast<float>(x0), ay = fy - static_cast<float>(y0);
                     const float kd = shared::material_diffuse_factor(m, kMeanCosine, map.cos_view[p]);
-                    for (int c = 0; c < 3; ++c) {
-                        const float top = (1.0f - ax) * radiance.at(x0, y0, c) + ax * radiance.at(x1, y0, c);
-                        const float bottom = (1.0f - ax) * radiance.at(x0, y1, c) + ax * radiance.at(x1, y1, c);
-                        out.at(x, static_cast<int>(y), c) = kd * ((1.0f - ay) * top + ay * bottom);
-                    }
+                    const auto bilinear = [&](const Image& im, int c) {
+                        const float top = (1.0f - ax) * im.at(x0, y0, c) + ax * im.at(x1, y0, c);
+                        const float bottom = (1.0f - ax) * im.at(x0, y1, c) + ax * im.at(x1, y1, c);
+                        return (1.0f - ay) * top + ay * bottom;
+                    };
+                    const glm::vec3 a = lobe(map.cos_view[p]);
+                    for (int c = 0; c < 3; ++c)
+                        out.at(x, static_cast<int>(y), c) = kd * bilinear(radiance, c) + (lobe.zero() ? 0.0f : a[c] * bilinear(irradiance, c));
                 }
             });
             sink(part[k], out);

@@ -15,8 +15,13 @@
 //   radiance, pixel       L(x) = bilinear(L, the atlas point pixel x's centre ray hits) k_d(2/3, N.v)
 // 2/3 is the mean cosine of a cosine-weighted hemisphere: light that arrives from all over the
 // hemisphere meets the coating's Fresnel transmittance (the coated family's k_d) at that mean
-// angle, and a source's diffuse light leaves at it. The sources are diffuse: the specular part
-// of the light a surface sends to another one is left out (stated in the report).
+// angle, and a source's diffuse light leaves at it.
+// With a specular model, its lobe's directional albedo a_s(c) (the integral of f_s(u, w) N.w over
+// the hemisphere, u at cosine c) adds to every source's reflectance, spread diffusely (the
+// transfer keeps no directions): B1_j += a_s(N_j.u_j) E0_j, B_{b+1} += a_s(2/3) E_b; and a
+// receiver's lobe reflects the light that arrives from all over its hemisphere toward the
+// camera: L(x) += a_s(N.v) bilinear(E_ind / pi). Where a glossy lobe sends its light matters
+// (a highlight of one wall seen on another); that, the transfer leaves out.
 #include "capture/capture.h"
 #include "core/image.h"
 #include "geometry/atlas.h"

@@ -322,11 +322,13 @@ json normal_map_json(const PipelineRun& run, const NormalMapStage& n, const Bund
 json indirect_json(const IndirectStage& s, const std::optional<evaluate::EvaluationResult>& ev) {
     if (!s.on()) return nullptr;
     json rounds = json::array();
-    for (const IndirectRound& r : s.rounds) rounds.push_back({{"albedo_change", r.albedo_change}, {"seconds", r.seconds}});
+    for (const IndirectRound& r : s.rounds)
+        rounds.push_back({{"albedo_change", r.albedo_change}, {"seconds", r.seconds}, {"with_material", r.material}});
     json j = {{"method", "inverse global illumination (Yu, Debevec, Malik and Hawkins 1999): the light that the albedo "
                          "estimate sends from particle to particle through a transfer of stratified cosine-weighted rays, "
                          "removed from the train frames before each solve and added to the evaluation's renders"},
-              {"sources", "diffuse: the specular part of the light one surface sends to another is left out"},
+              {"sources", "diffuse, with the fitted lobe's directional albedo spread diffusely: where a glossy lobe "
+                          "sends its light (a highlight of one surface seen on another) is left out"},
               {"viewer", "specula-view and the bundle show direct light only"},
               {"bounces", s.options.bounces},
               {"gather", s.backend_reason},

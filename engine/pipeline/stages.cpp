@@ -309,6 +309,25 @@ void remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, c
     measure->p99_codes = *k;
 }
 
+// One round: the diffuse solve on the corrected frames, and how far the albedo moved from
+// `albedo` (which becomes the new one).
+IndirectRound solve_round(PipelineRun& run, const GeometryStage& geometry, DiffuseStage& diffuse, std::vector<glm::vec3>& albedo,
+                          const std::string& tag) {
+    diffuse.solve = run_solve(run, diffuse.inputs, diffuse.options, "diffuse solve" + tag);
+    std::vector<glm::vec3> next =
+        particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
+    double moved = 0.0, size = 0.0;
+    for (std::size_t p = 0; p < next.size(); ++p) {
+        if (!(diffuse.solve.particles[p].status & shared::kLambertOk)) continue;
+        moved += glm::dot(next[p] - albedo[p], next[p] - albedo[p]);
+        size += glm::dot(next[p], next[p]);
+    }
+    IndirectRound r{.albedo_change = size > 0.0 ? std::sqrt(moved / size) : 0.0, .seconds = 0.0, .material = false};
+    albedo = std::move(next);
+    log::info("indirect" + tag + format_text(": the albedo changed by %.3f%% (RMS, relative)", 100.0 * r.albedo_change));
+    return r;
+}
+
 } // namespace
 
 IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
@@ -361,7 +380,8 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
     s.measure = run.stage("indirect light", [&] {
         IndirectMeasure m;
-        remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility, *visibility.scene, &m);
+        remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
+                              *visibility.scene, &m);
         return m;
     });
     const PlanDecision& d = run.plan().add(decide_indirect(convexity, config.indirect, s.measure, estimate));
@@ -376,23 +396,14 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     for (std::uint32_t round = 1; round <= std::max(config.indirect_rounds, 1u); ++round) {
         const Stopwatch round_clock;
         const std::string tag = " (indirect round " + std::to_string(round) + ")";
-        diffuse.solve = run_solve(run, diffuse.inputs, diffuse.options, "diffuse solve" + tag);
-        std::vector<glm::vec3> next =
-            particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
-        double moved = 0.0, size = 0.0;
-        for (std::size_t p = 0; p < next.size(); ++p) {
-            if (!(diffuse.solve.particles[p].status & shared::kLambertOk)) continue;
-            moved += glm::dot(next[p] - albedo[p], next[p] - albedo[p]);
-            size += glm::dot(next[p], next[p]);
-        }
-        IndirectRound r{.albedo_change = size > 0.0 ? std::sqrt(moved / size) : 0.0, .seconds = 0.0};
-        albedo = std::move(next);
-        log::info(format_text("indirect round %.0f: the albedo changed by %.3f%% (RMS, relative)", double(round), 100.0 * r.albedo_change));
+        IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
         const bool last = r.albedo_change < kIndirectTolerance || round >= config.indirect_rounds;
         if (!last) {
             // The next round's images: the captures less the light this round's albedo sends.
-            run.stage("indirect light" + tag,
-                      [&] { remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility, *visibility.scene, nullptr); });
+            run.stage("indirect light" + tag, [&] {
+                remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
+                                      *visibility.scene, nullptr);
+            });
         }
         r.seconds = round_clock.seconds();
         s.rounds.push_back(r);
@@ -400,6 +411,24 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     }
     s.seconds = clock.seconds();
     return s;
+}
+
+void indirect_update_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                           const VisibilityStage& visibility, IndirectStage& indirect, DiffuseStage& diffuse) {
+    if (!indirect.on() || !diffuse.options.material || is_zero(*diffuse.options.material)) return;
+    const Stopwatch clock;
+    std::vector<glm::vec3> albedo =
+        particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
+    const std::string tag = " (indirect round with the material)";
+    run.stage("indirect light" + tag, [&] {
+        remove_indirect_light(indirect, indirect_scene(indirect, geometry, visibility), capture, albedo, diffuse.options.material,
+                              indirect.corrected, visibility.visibility, *visibility.scene, nullptr);
+    });
+    IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
+    r.seconds = clock.seconds();
+    r.material = true;
+    indirect.rounds.push_back(r);
+    indirect.seconds += r.seconds;
 }
 
 namespace {

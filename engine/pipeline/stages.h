@@ -71,6 +71,7 @@ struct DiffuseStage {
 struct IndirectRound {
     double albedo_change = 0.0; ///< RMS of the albedo's change over the solved particles, relative to their RMS albedo
     double seconds = 0.0;       ///< the indirect images and the solve
+    bool material = false;      ///< the round after the specular stages, with the fitted material's lobe (indirect_update_stage)
 };
 struct IndirectStage {
     std::optional<IndirectTransfer> transfer;    ///< absent: left out
@@ -87,6 +88,12 @@ struct IndirectStage {
 };
 [[nodiscard]] IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                            const VisibilityStage& visibility, DiffuseStage& diffuse);
+
+/// 6b. After the specular stages, when the indirect light is on and a material was fitted: one
+///     more round with the material known (its lobe reflects light between the surfaces too,
+///     indirect/indirect.h), which updates `diffuse`'s solve before the refinement.
+void indirect_update_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                           const VisibilityStage& visibility, IndirectStage& indirect, DiffuseStage& diffuse);
 
 /// 6. Residual samples and their energy, then (when the residuals hold specular energy, or
 ///    forced) the material: every applicable family (or the forced one) is estimated jointly
