@@ -4,8 +4,10 @@
 #include "core/error.h"
 #include "core/parallel.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace specula {
 
@@ -76,17 +78,29 @@ void gather_indirect_cpu(const IndirectTransfer& t, std::span<const glm::vec4> r
                          std::span<glm::vec4> out, unsigned threads) {
     validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_cpu");
     const std::size_t rows = t.rows;
+    // The sources' values particle by particle, the frames of one particle side by side: an
+    // entry then reads one or two cache lines for all the frames, not one line per frame
+    // (frame-major, the sources are scattered over `frames` arrays of rows x 16 bytes). The same
+    // sums in the same order.
+    std::vector<glm::vec4> by_source;
+    if (frames > 1) {
+        by_source.resize(rows * frames);
+        parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
+            for (std::size_t j = first; j < last; ++j)
+                for (std::size_t f = 0; f < frames; ++f) by_source[j * frames + f] = radiosity[f * rows + j];
+        });
+    }
+    const glm::vec4* source = frames > 1 ? by_source.data() : radiosity.data();
     parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
+        std::vector<glm::dvec3> sum(frames);
         for (std::size_t i = first; i < last; ++i) {
-            const TransferEntry* begin = t.entries.data() + t.row_begin[i];
-            const TransferEntry* end = t.entries.data() + t.row_begin[i + 1];
-            for (std::size_t f = 0; f < frames; ++f) {
-                const glm::vec4* b = radiosity.data() + f * rows;
-                glm::dvec3 sum(0.0);
-                for (const TransferEntry* e = begin; e != end; ++e)
-                    sum += static_cast<double>(e->weight) * glm::dvec3(b[e->source]);
-                out[f * rows + i] = glm::vec4(glm::vec3(sum), 0.0f);
+            std::fill(sum.begin(), sum.end(), glm::dvec3(0.0));
+            for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
+                const TransferEntry e = t.entries[k];
+                const glm::vec4* b = source + static_cast<std::size_t>(e.source) * frames;
+                for (std::size_t f = 0; f < frames; ++f) sum[f] += static_cast<double>(e.weight) * glm::dvec3(b[f]);
             }
+            for (std::size_t f = 0; f < frames; ++f) out[f * rows + i] = glm::vec4(glm::vec3(sum[f]), 0.0f);
         }
     });
 }

@@ -129,8 +129,12 @@ inline constexpr double kNormalMapMinRcond = 0.05;
 /// train frames' object pixels: half a code is below what the images can hold.
 inline constexpr double kIndirectMinCodes = 0.5;
 /// Rounds of the inverse global illumination (solve, indirect light from its albedo, solve on
-/// the captures less that light) and the albedo change, relative, that ends them sooner.
-inline constexpr std::uint32_t kIndirectRounds = 3;
+/// the captures less that light) and the albedo change, relative, that ends them sooner. The
+/// estimate alternates about its fixed point, each round about 0.4 times the last on the knot
+/// (9.6%, then 3.5%, 2.0%); the round with the material after the specular stages is one more.
+/// Knot, 2 bounces, 512 px: 2 rounds 35.80 dB masked test PSNR and 2.70% RMSE in the hollows,
+/// 3 rounds 35.82 dB and 2.56%, for one more pass of 10 s and a solve of 3 s.
+inline constexpr std::uint32_t kIndirectRounds = 2;
 inline constexpr double kIndirectTolerance = 0.005;
 /// Does the capture hold the light the model predicts? In the object pixels of the train frames
 /// that no light reaches directly (their surface faces away from it, or a shadow ray is blocked), a capture

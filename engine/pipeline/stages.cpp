@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <memory>
 #include <utility>
 
@@ -894,15 +895,28 @@ std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& 
                                                            const VisibilityStage& visibility, const AlbedoTexture& texture,
                                                            const FactorizationStage& factorization) {
     if (!indirect.on()) return {};
-    // The final albedo (refined, inpainted) and material: what the bundle renders.
-    auto albedo = std::make_shared<std::vector<glm::vec3>>(particle_albedo(geometry, texture.image));
-    return [&indirect, &geometry, &visibility, albedo, material = factorization.material](std::size_t frame, Image& rendered) {
-        const std::size_t frames[] = {frame};
-        indirect_images(indirect_scene(indirect, geometry, visibility), frames, *albedo, material, indirect.options,
-                        [&](std::size_t, const Image& light) {
-                            for (std::size_t k = 0; k < rendered.pixels.size() && k < light.pixels.size(); ++k)
-                                rendered.pixels[k] += light.pixels[k];
-                        });
+    // The final albedo (refined, inpainted) and material: what the bundle renders. The evaluation
+    // asks frame by frame in capture order; the gather is cheaper a batch of frames at a time, so
+    // each call past the cached ones computes the next options.batch_frames frames.
+    struct Cache {
+        std::vector<glm::vec3> albedo;
+        std::map<std::size_t, Image> images;
+    };
+    auto cache = std::make_shared<Cache>();
+    cache->albedo = particle_albedo(geometry, texture.image);
+    return [&indirect, &geometry, &visibility, cache, material = factorization.material](std::size_t frame, Image& rendered) {
+        if (!cache->images.contains(frame)) {
+            cache->images.clear();
+            std::vector<std::size_t> batch;
+            const std::size_t frames = visibility.inputs.lights.size();
+            for (std::size_t f = frame; f < frames && batch.size() < std::max<std::uint32_t>(indirect.options.batch_frames, 1u); ++f)
+                batch.push_back(f);
+            indirect_images(indirect_scene(indirect, geometry, visibility), batch, cache->albedo, material, indirect.options,
+                            [&](std::size_t f, const Image& light) { cache->images.emplace(f, light); });
+        }
+        const Image& light = cache->images.at(frame);
+        for (std::size_t k = 0; k < rendered.pixels.size() && k < light.pixels.size(); ++k) rendered.pixels[k] += light.pixels[k];
+        cache->images.erase(frame);
     };
 }
 
