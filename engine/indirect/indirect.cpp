@@ -260,6 +260,7 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
                 if (!s.visibility->lights(j, frames[k])) continue;
                 const glm::dvec3 to_light = light.position - glm::dvec3(s.particles[j].p());
                 const double d2 = glm::dot(to_light, to_light);
+                if (!(d2 > 0.0)) continue; // a light on the surface lights nothing through it (never a division by 0)
                 const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
                 if (!(cos_in > 0.0)) continue;
                 const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
