@@ -234,7 +234,7 @@ void gather(const IndirectScene& s, std::span<const glm::vec4> b, std::uint32_t 
     if (o.kernel != nullptr) {
         o.kernel->run(*s.transfer, b, frames, e);
     } else {
-        gather_indirect_cpu(*s.transfer, b, frames, e, o.threads);
+        gather_indirect_float(*s.transfer, b, frames, e, o.threads);
     }
 }
 

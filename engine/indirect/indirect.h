@@ -77,7 +77,7 @@ struct ViewAtlasMap {
 
 struct IndirectOptions {
     std::uint32_t bounces = 2;
-    /// The Vulkan kernel of the gather (transfer.h), or null: the C++ reference runs it.
+    /// The Vulkan kernel of the gather (transfer.h), or null: gather_indirect_float runs it.
     IndirectGatherVk* kernel = nullptr;
     unsigned threads = 2;
     std::uint32_t batch_frames = 8;  ///< frames gathered at once

@@ -74,35 +74,56 @@ void validate_gather(const IndirectTransfer& t, std::size_t radiosity, std::uint
                     std::to_string(radiosity) + " and " + std::to_string(out));
 }
 
-void gather_indirect_cpu(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames,
-                         std::span<glm::vec4> out, unsigned threads) {
-    validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_cpu");
-    const std::size_t rows = t.rows;
-    // The sources' values particle by particle, the frames of one particle side by side: an
-    // entry then reads one or two cache lines for all the frames, not one line per frame
-    // (frame-major, the sources are scattered over `frames` arrays of rows x 16 bytes). The same
-    // sums in the same order.
-    std::vector<glm::vec4> by_source;
-    if (frames > 1) {
-        by_source.resize(rows * frames);
-        parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
-            for (std::size_t j = first; j < last; ++j)
-                for (std::size_t f = 0; f < frames; ++f) by_source[j * frames + f] = radiosity[f * rows + j];
-        });
-    }
-    const glm::vec4* source = frames > 1 ? by_source.data() : radiosity.data();
+namespace {
+
+// The sources' values particle by particle, the frames of one particle side by side: an entry
+// then reads one or two cache lines for all the frames, not one line per frame (frame-major,
+// the sources are scattered over `frames` arrays of rows x 16 bytes). Empty for one frame.
+std::vector<glm::vec4> by_source(std::span<const glm::vec4> radiosity, std::size_t rows, std::uint32_t frames, unsigned threads) {
+    std::vector<glm::vec4> out;
+    if (frames <= 1) return out;
+    out.resize(rows * frames);
     parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
-        std::vector<glm::dvec3> sum(frames);
+        for (std::size_t j = first; j < last; ++j)
+            for (std::size_t f = 0; f < frames; ++f) out[j * frames + f] = radiosity[f * rows + j];
+    });
+    return out;
+}
+
+// Both gathers: Sum (a glm vector of doubles or floats) accumulates each row's terms in entry order.
+template <typename Sum>
+void gather(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames, std::span<glm::vec4> out,
+            unsigned threads) {
+    const std::size_t rows = t.rows;
+    const std::vector<glm::vec4> transposed = by_source(radiosity, rows, frames, threads);
+    const glm::vec4* source = frames > 1 ? transposed.data() : radiosity.data();
+    parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
+        std::vector<Sum> sum(frames);
         for (std::size_t i = first; i < last; ++i) {
-            std::fill(sum.begin(), sum.end(), glm::dvec3(0.0));
+            std::fill(sum.begin(), sum.end(), Sum(0));
             for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
                 const TransferEntry e = t.entries[k];
                 const glm::vec4* b = source + static_cast<std::size_t>(e.source) * frames;
-                for (std::size_t f = 0; f < frames; ++f) sum[f] += static_cast<double>(e.weight) * glm::dvec3(b[f]);
+                for (std::size_t f = 0; f < frames; ++f) sum[f] += static_cast<typename Sum::value_type>(e.weight) * Sum(b[f]);
             }
+            // w: 0 whatever the radiosity's w held (transfer.h).
             for (std::size_t f = 0; f < frames; ++f) out[f * rows + i] = glm::vec4(glm::vec3(sum[f]), 0.0f);
         }
     });
+}
+
+} // namespace
+
+void gather_indirect_cpu(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+                         std::span<glm::vec4> out, unsigned threads) {
+    validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_cpu");
+    gather<glm::dvec3>(t, radiosity, frames, out, threads);
+}
+
+void gather_indirect_float(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+                           std::span<glm::vec4> out, unsigned threads) {
+    validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_float");
+    gather<glm::vec4>(t, radiosity, frames, out, threads);
 }
 
 } // namespace specula

@@ -79,6 +79,13 @@ struct IndirectGatherStats {
     std::optional<double> gpu_ms;    ///< time of the dispatches; nullopt without timestamps
 };
 
+/// The same step as the pipeline runs it on the CPU: accumulates in float, in entry order (the
+/// Vulkan kernel's arithmetic), four lanes at a time; within (n + 2) 2^-24 S of the reference for a
+/// row of n entries whose exact sum is S (tests/indirect/transfer_test.cpp). The reference's
+/// double sums cost about twice as much.
+void gather_indirect_float(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
+                           std::span<glm::vec4> out, unsigned threads = 2);
+
 /// The Vulkan kernel of the same step (shaders/indirect/indirect_gather.comp), accumulating in
 /// float in entry order. Splits the rows and the frames into dispatches whose buffers stay
 /// within the device's storage-buffer range, or within `max_binding_bytes` when that is lower

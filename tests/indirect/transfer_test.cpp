@@ -1,6 +1,7 @@
 // The transfer matrix's checks (validate_transfer, validate_gather) and the gather's C++
 // reference on a matrix small enough to sum by hand.
 #include "indirect/transfer.h"
+#include "random_transfer.h"
 
 #include "core/error.h"
 
@@ -130,6 +131,33 @@ TEST(IndirectTransfer, GatherChecksItsSpans) {
 //   frame 1: E_0 = (0 + 0.5, 8 + 0.25, 1 + 0.75) = (0.5, 8.25, 1.75)
 //            E_2 = (0.125 + 0, 0 + 12, 0.25 + 1.5) = (0.125, 12, 1.75)
 // (every product and sum is exact in float and double).
+// The float gather the pipeline runs on the CPU against the reference: every value within the
+// bound of a float sum of n non-negative terms, (n + 2) 2^-24 S (the kernel's bound,
+// tests/kernels/indirect_gather_test.cpp), on rows of 0 to 300 entries, for 1 and 11 frames.
+TEST(IndirectTransfer, FloatGatherStaysWithinTheBoundOfAFloatSum) {
+    const IndirectTransfer t = test::random_transfer(
+        {.rows = 3000, .rays = 300, .hit_fraction = 0.3, .min_hits = 0, .max_hits = 300, .empty_rows = 0.05, .seed = 7});
+    for (const std::uint32_t frames : {1u, 11u}) {
+        const std::vector<glm::vec4> b = test::random_radiosity(t.rows, frames, 3);
+        std::vector<glm::vec4> ref(b.size(), glm::vec4(-1.0f)), fast(b.size(), glm::vec4(-1.0f));
+        gather_indirect_cpu(t, b, frames, ref);
+        gather_indirect_float(t, b, frames, fast, 3);
+        std::size_t failures = 0;
+        for (std::uint32_t f = 0; f < frames; ++f)
+            for (std::uint32_t i = 0; i < t.rows; ++i) {
+                const std::size_t at = std::size_t{f} * t.rows + i, n = t.row_begin[i + 1] - t.row_begin[i];
+                for (int c = 0; c < 3; ++c) {
+                    double sum = 0.0;
+                    for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k)
+                        sum += double(t.entries[k].weight) * b[std::size_t{f} * t.rows + t.entries[k].source][c];
+                    if (std::abs(double(fast[at][c]) - double(ref[at][c])) > double(n + 2) * 0x1p-24 * sum) ++failures;
+                }
+                if (fast[at].w != 0.0f) ++failures;
+            }
+        EXPECT_EQ(failures, 0u) << frames << " frames";
+    }
+}
+
 TEST(IndirectTransfer, GatherOnAHandMadeMatrix) {
     const IndirectTransfer t = hand_made();
     const std::vector<glm::vec4> b = {{1, 2, 4, 9}, {8, 0, 2, 9}, {4, 4, 0, 9}, {0.5f, 0, 1, 9}, {0, 16, 2, 9}, {2, 1, 3, 9}};
