@@ -120,6 +120,7 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
             const Particle& p = particles[i];
             const glm::vec3 n = p.n();
             glm::vec3 ng = face_normal(mesh, p.triangle);
+            if (!std::isfinite(ng.x + ng.y + ng.z)) ng = n; // a degenerate triangle has no face: its particle's normal stands in
             if (glm::dot(ng, n) < 0.0f) ng = -ng;
             const glm::vec3 origin = p.p() + scene.ray_offset() * ng;
             glm::vec3 t, b;

@@ -37,7 +37,7 @@ class Context;
 }
 
 /// One entry of a transfer row (std430, 8 bytes): the source particle and its weight (the
-/// fraction of the row's rays that reached it).
+/// fraction of the row's cast rays that reached it).
 struct TransferEntry {
     std::uint32_t source = 0;
     float weight = 0.0f;
