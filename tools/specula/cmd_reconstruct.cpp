@@ -168,8 +168,10 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--indirect", args->indirect,
                     "Light that bounced off the object itself (inverse global illumination, Yu et al. 1999): removed\n"
                     "from the train frames before the solves (the albedo of concave parts is otherwise too bright) and\n"
-                    "added to the evaluation's renders. auto: on when the mesh can see itself (not convex) and that light\n"
-                    "changes the captures by >= 0.5 8-bit codes at the 99th percentile; the viewer shows direct light only")
+                    "added to the evaluation's renders. auto: on when the mesh can see itself (not convex), that light\n"
+                    "changes the captures by >= 0.5 8-bit codes at the 99th percentile, and the pixels no light reaches\n"
+                    "directly show at least half of it (a capture rendered with direct light only shows none); the viewer,\n"
+                    "`render` and `evaluate` show direct light only")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
     cmd->add_option("--indirect-bounces", args->config.indirect_bounces, "Bounces of the indirect light")
