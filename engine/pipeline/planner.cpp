@@ -257,7 +257,8 @@ PlanDecision decide_indirect(const ConvexityReport& c, Toggle toggle, const std:
             d.cost_basis = "estimate: the transfer's rays at the visibility stage's ray rate, and the rounds' solves at the "
                            "first solve's time";
         } else if (weak || absent) {
-            d.reason = "the mesh can see itself, but " + measured + (weak ? ": below what the images hold" : ": the capture does not hold it");
+            d.reason = "the mesh can see itself, but " + measured +
+                       (weak ? ": below what the images hold" : ": the capture does not hold that light, or not where the model puts it");
             d.avoided_seconds = estimated_seconds;
             d.cost_basis = "estimate: the rounds' solves at the first solve's time (the transfer was built to measure)";
         } else {

@@ -398,7 +398,15 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         const Stopwatch round_clock;
         const std::string tag = " (indirect round " + std::to_string(round) + ")";
         IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
-        const bool last = r.albedo_change < kIndirectTolerance || round >= config.indirect_rounds;
+        // The estimate alternates about its fixed point, each move smaller than the last; one that
+        // grows does not settle: the capture's indirect light is not what the model predicts.
+        const bool growing = !s.rounds.empty() && r.albedo_change > s.rounds.back().albedo_change;
+        if (growing)
+            run.warn(format_text("indirect light: the rounds do not settle (the albedo moved by %.1f%%, then %.1f%%)",
+                                 100.0 * s.rounds.back().albedo_change, 100.0 * r.albedo_change) +
+                     ": the light the object sends itself is not what the transfer predicts there (a glossy lobe's light "
+                     "from one wall to another, which it spreads diffusely?); compare --indirect off");
+        const bool last = growing || r.albedo_change < kIndirectTolerance || round >= config.indirect_rounds;
         if (!last) {
             // The next round's images: the captures less the light this round's albedo sends.
             run.stage("indirect light" + tag, [&] {
