@@ -239,15 +239,11 @@ void gather(const IndirectScene& s, std::span<const glm::vec4> b, std::uint32_t 
     }
 }
 
-} // namespace
-
-std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<const std::size_t> frames,
-                                           std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
-                                           const IndirectOptions& o) {
-    check_scene(s, frames, albedo);
+// indirect_irradiance on a checked scene, with the material packed and its lobe's table built
+// once by the caller (indirect_images calls it batch after batch).
+std::vector<glm::vec4> bounces(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
+                               const shared::MaterialGpu& m, const LobeAlbedo& lobe, const IndirectOptions& o) {
     const std::size_t rows = s.particles.size();
-    const shared::MaterialGpu m = material_gpu(material);
-    const LobeAlbedo lobe(material);
     const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
     const glm::vec3 lobe_bounce = lobe(kMeanCosine);
     std::vector<glm::vec4> radiosity(frames.size() * rows), e(frames.size() * rows), total(frames.size() * rows, glm::vec4(0.0f));
@@ -279,6 +275,15 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
     return total;
 }
 
+} // namespace
+
+std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<const std::size_t> frames,
+                                           std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
+                                           const IndirectOptions& o) {
+    check_scene(s, frames, albedo);
+    return bounces(s, frames, albedo, material_gpu(material), LobeAlbedo(material), o);
+}
+
 void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
                      const std::optional<SpecularModel>& material, const IndirectOptions& o,
                      const std::function<void(std::size_t, const Image&)>& sink) {
@@ -294,7 +299,7 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
     const std::size_t batch = std::max<std::uint32_t>(o.batch_frames, 1u);
     for (std::size_t first = 0; first < frames.size(); first += batch) {
         const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
-        const std::vector<glm::vec4> e = indirect_irradiance(s, part, albedo, material, o);
+        const std::vector<glm::vec4> e = bounces(s, part, albedo, m, lobe, o);
         for (std::size_t k = 0; k < part.size(); ++k) {
             // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty texels).
             for (std::size_t i = 0; i < rows; ++i) {

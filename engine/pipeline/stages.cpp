@@ -227,6 +227,11 @@ std::vector<glm::vec3> particle_albedo(const GeometryStage& g, const Image& text
     return out;
 }
 
+// The albedo of the particles as a solve gives it, inpainted where the solve has none.
+std::vector<glm::vec3> solved_albedo(const GeometryStage& g, const LambertOutputs& solve) {
+    return particle_albedo(g, make_albedo_texture(g.atlas, g.particles.particles, solve).image);
+}
+
 IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, const VisibilityStage& v) {
     return IndirectScene{.particles = g.particles.particles,
                          .visibility = &v.visibility,
@@ -315,8 +320,7 @@ void remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, c
 IndirectRound solve_round(PipelineRun& run, const GeometryStage& geometry, DiffuseStage& diffuse, std::vector<glm::vec3>& albedo,
                           const std::string& tag) {
     diffuse.solve = run_solve(run, diffuse.inputs, diffuse.options, "diffuse solve" + tag);
-    std::vector<glm::vec3> next =
-        particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
+    std::vector<glm::vec3> next = solved_albedo(geometry, diffuse.solve);
     double moved = 0.0, size = 0.0;
     for (std::size_t p = 0; p < next.size(); ++p) {
         if (!(diffuse.solve.particles[p].status & shared::kLambertOk)) continue;
@@ -377,8 +381,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
                           double(s.transfer->entry_count()) / std::max<double>(1.0, s.transfer->rows),
                           100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
-    std::vector<glm::vec3> albedo =
-        particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
+    std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     s.measure = run.stage("indirect light", [&] {
         IndirectMeasure m;
         remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
@@ -426,8 +429,7 @@ void indirect_update_stage(PipelineRun& run, const Capture& capture, const Geome
                            const VisibilityStage& visibility, IndirectStage& indirect, DiffuseStage& diffuse) {
     if (!indirect.on() || !diffuse.options.material || is_zero(*diffuse.options.material)) return;
     const Stopwatch clock;
-    std::vector<glm::vec3> albedo =
-        particle_albedo(geometry, make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve).image);
+    std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     const std::string tag = " (indirect round with the material)";
     run.stage("indirect light" + tag, [&] {
         remove_indirect_light(indirect, indirect_scene(indirect, geometry, visibility), capture, albedo, diffuse.options.material,
