@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 
@@ -32,11 +33,22 @@ struct AlbedoComparison {
     std::size_t concave_points = 0;
 };
 
-/// A point counts where the truth stays within this of its value 2 truth texels away in u and v.
+/// A point counts where the truth stays within this of its value 2 truth texels and 2 atlas
+/// texels away in u and v.
 inline constexpr float kFlatTolerance = 0.01f;
 
+/// One compared point, for a caller that looks closer (bench/concave_albedo --points).
+struct PointError {
+    glm::vec3 position;
+    double area = 0.0;         ///< its share of the triangle's area (the weight)
+    double hemisphere = 0.0;   ///< the fraction of its hemisphere that sees the object
+    glm::vec3 truth;
+    glm::vec3 error;           ///< estimate - truth
+};
+
 inline AlbedoComparison compare_albedo(const std::filesystem::path& capture_dir, const std::filesystem::path& bundle_file,
-                                       double concave_fraction = 0.25) {
+                                       double concave_fraction = 0.25,
+                                       const std::function<void(const PointError&)>& each_point = {}) {
     const Capture capture = load_capture(capture_dir, {.load_mesh = true, .load_images = false});
     const Image truth = read_image(capture.desc.dir / "truth" / "albedo.exr", ColorSpace::Linear);
     const Bundle bundle = read_bundle(bundle_file);
@@ -64,6 +76,17 @@ inline AlbedoComparison compare_albedo(const std::filesystem::path& capture_dir,
         const float area = 0.5f * glm::length(ng);
         if (!(area > 0.0f)) continue;
         ng = glm::normalize(ng);
+        // Truth texels per atlas texel, along one side: the square root of the triangle's area
+        // ratio in the two textures (texels).
+        const auto texel_area = [](const glm::vec2& a, const glm::vec2& b, const glm::vec2& c, const Image& im) {
+            const glm::vec2 s(float(im.width), float(im.height));
+            const glm::vec2 u = (b - a) * s, v = (c - a) * s;
+            return 0.5f * std::abs(u.x * v.y - u.y * v.x);
+        };
+        const float truth_area = texel_area(mesh.texcoords[tri.x], mesh.texcoords[tri.y], mesh.texcoords[tri.z], truth);
+        const float atlas_area =
+            texel_area(bundle.mesh.texcoords[btri.x], bundle.mesh.texcoords[btri.y], bundle.mesh.texcoords[btri.z], bundle.albedo);
+        const float truth_per_atlas_texel = atlas_area > 0.0f ? std::sqrt(truth_area / atlas_area) : 1.0f;
         for (const glm::dvec3& b : corners) {
             const glm::vec3 p = float(b.x) * p0 + float(b.y) * p1 + float(b.z) * p2;
             const glm::vec3 origin = p + scene.ray_offset() * ng;
@@ -94,8 +117,11 @@ inline AlbedoComparison compare_albedo(const std::filesystem::path& capture_dir,
                                        float(b.z) * bundle.mesh.texcoords[btri.z];
             // Away from the truth's edges: a texture's edge is blurred by any sampling of it (the
             // solve's bilinear taps, the atlas's texels), which is another error than this one's.
+            // So the truth must be flat over 2 of its texels and over 2 of the atlas's texels,
+            // whichever reach farther (in concave parts, seen at a slant, the cameras' footprint
+            // and so the atlas's texels are larger than the truth's).
             const glm::vec3 centre = synth::sample_albedo(truth, uv_truth);
-            const glm::vec2 step(2.0f / float(truth.width), 2.0f / float(truth.height));
+            const glm::vec2 step = std::max(2.0f, 2.0f * truth_per_atlas_texel) / glm::vec2(float(truth.width), float(truth.height));
             bool flat = true;
             for (const glm::vec2 o : {glm::vec2(step.x, 0), glm::vec2(-step.x, 0), glm::vec2(0, step.y), glm::vec2(0, -step.y)}) {
                 const glm::vec3 d = glm::abs(synth::sample_albedo(truth, uv_truth + o) - centre);
@@ -104,6 +130,7 @@ inline AlbedoComparison compare_albedo(const std::filesystem::path& capture_dir,
             if (!flat) continue;
             const glm::vec3 e = synth::sample_albedo(bundle.albedo, uv_atlas) - centre;
             const double sq = glm::dot(e, e) / 3.0, w = area;
+            if (each_point) each_point(PointError{p, area / 4.0, hits / 64.0, centre, e});
             sum_all += w * sq;
             w_all += w;
             ++out.points;
