@@ -11,7 +11,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <string>
+#include <unordered_map>
 
 namespace specula {
 
@@ -92,6 +94,47 @@ glm::vec3 face_normal(const Mesh& mesh, std::uint32_t triangle) {
     return glm::normalize(glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]));
 }
 
+// Each row's particles, in particle order: row r's are members[begin[r], begin[r + 1]).
+struct RowMembers {
+    std::vector<std::uint32_t> begin, members;
+};
+RowMembers row_members(std::span<const std::uint32_t> row_of, std::uint32_t rows, std::size_t particles) {
+    RowMembers m;
+    m.begin.assign(std::size_t{rows} + 1, 0);
+    m.members.resize(particles);
+    if (row_of.empty()) {
+        std::iota(m.begin.begin(), m.begin.end(), 0u);
+        std::iota(m.members.begin(), m.members.end(), 0u);
+        return m;
+    }
+    for (const std::uint32_t r : row_of) ++m.begin[r + 1];
+    std::partial_sum(m.begin.begin(), m.begin.end(), m.begin.begin());
+    std::vector<std::uint32_t> next(m.begin.begin(), m.begin.end() - 1);
+    for (std::size_t i = 0; i < particles; ++i) m.members[next[row_of[i]]++] = static_cast<std::uint32_t>(i);
+    return m;
+}
+
+// The rows of a transfer with blocks of `block` x `block` texels: per particle its row, the rows
+// numbered in the order of their first particle. Empty for block 1 (row i is particle i).
+std::vector<std::uint32_t> block_rows(std::span<const Particle> particles, const Atlas& atlas, std::uint32_t block,
+                                      std::uint32_t& rows) {
+    rows = static_cast<std::uint32_t>(particles.size());
+    if (block <= 1) return {};
+    // A block never spans two charts (or two patches): their texels may neighbour in the atlas
+    // while their surfaces lie apart.
+    std::unordered_map<std::uint64_t, std::uint32_t> ids;
+    ids.reserve(particles.size() / (std::size_t{block} * block) + 1);
+    std::vector<std::uint32_t> row_of(particles.size());
+    for (std::size_t i = 0; i < particles.size(); ++i) {
+        const Particle& p = particles[i];
+        const std::uint64_t group = atlas.chart_of.empty() ? p.triangle : atlas.chart_of[p.triangle];
+        const std::uint64_t key = (group << 30) | (std::uint64_t{p.texel_y() / block} << 15) | (p.texel_x() / block);
+        row_of[i] = ids.try_emplace(key, static_cast<std::uint32_t>(ids.size())).first->second;
+    }
+    rows = static_cast<std::uint32_t>(ids.size());
+    return row_of;
+}
+
 } // namespace
 
 IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
@@ -100,34 +143,40 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
     if (particles.size() >= std::numeric_limits<std::uint32_t>::max())
         throw Error("indirect light: " + std::to_string(particles.size()) + " particles exceed the transfer's 32-bit indices");
     if (options.rays == 0) throw Error("indirect light: a transfer needs at least one ray per particle");
+    if (options.block == 0 || options.block > 64) throw Error("indirect light: a transfer's blocks are 1 to 64 texels wide");
     const std::uint32_t grid = static_cast<std::uint32_t>(std::ceil(std::sqrt(static_cast<double>(options.rays))));
     const std::uint32_t rays = grid * grid;
-    // Which particle holds each texel (the particles own distinct texels, atlas.h).
+    IndirectTransfer out;
+    out.rays_per_row = rays;
+    out.row_of = block_rows(particles, atlas, options.block, out.rows);
+    const RowMembers rm = row_members(out.row_of, out.rows, particles.size());
+    // Which row holds each texel (the particles own distinct texels, atlas.h).
     std::vector<std::uint32_t> holder(static_cast<std::size_t>(atlas.width) * atlas.height, Atlas::kEmpty);
     for (std::size_t i = 0; i < particles.size(); ++i)
-        holder[static_cast<std::size_t>(particles[i].texel_y()) * atlas.width + particles[i].texel_x()] = static_cast<std::uint32_t>(i);
+        holder[static_cast<std::size_t>(particles[i].texel_y()) * atlas.width + particles[i].texel_x()] =
+            out.row_of.empty() ? static_cast<std::uint32_t>(i) : out.row_of[i];
 
-    IndirectTransfer out;
-    out.rows = static_cast<std::uint32_t>(particles.size());
-    out.rays_per_particle = rays;
-    std::vector<std::vector<TransferEntry>> rows(particles.size());
-    const unsigned workers = parallel_workers(particles.size(), std::max(options.threads, 1u), 256);
+    std::vector<std::vector<TransferEntry>> rows(out.rows);
+    const unsigned workers = parallel_workers(out.rows, std::max(options.threads, 1u), 256);
     std::vector<TransferStats> counts(workers);
-    parallel_for_chunks(particles.size(), std::max(options.threads, 1u), 256, [&](unsigned worker, std::size_t begin, std::size_t end) {
+    parallel_for_chunks(out.rows, std::max(options.threads, 1u), 256, [&](unsigned worker, std::size_t begin, std::size_t end) {
         TransferStats& st = counts[worker];
         std::vector<std::uint32_t> sources;
         for (std::size_t i = begin; i < end; ++i) {
-            const Particle& p = particles[i];
-            const glm::vec3 n = p.n();
-            glm::vec3 ng = face_normal(mesh, p.triangle);
-            if (!std::isfinite(ng.x + ng.y + ng.z)) ng = n; // a degenerate triangle has no face: its particle's normal stands in
-            if (glm::dot(ng, n) < 0.0f) ng = -ng;
-            const glm::vec3 origin = p.p() + scene.ray_offset() * ng;
-            glm::vec3 t, b;
-            basis(n, t, b);
+            const std::uint32_t first = rm.begin[i], count = rm.begin[i + 1] - first;
             sources.clear();
             std::uint32_t cast = 0;
             for (std::uint32_t s = 0; s < rays; ++s) {
+                // The row's particles take the rays in turn, shifted by one each grid row, so that
+                // each gets strata at every radius and every angle.
+                const Particle& p = particles[rm.members[first + (s % grid + s / grid) % count]];
+                const glm::vec3 n = p.n();
+                glm::vec3 ng = face_normal(mesh, p.triangle);
+                if (!std::isfinite(ng.x + ng.y + ng.z)) ng = n; // a degenerate triangle has no face: its particle's normal stands in
+                if (glm::dot(ng, n) < 0.0f) ng = -ng;
+                const glm::vec3 origin = p.p() + scene.ray_offset() * ng;
+                glm::vec3 t, b;
+                basis(n, t, b);
                 const std::uint64_t h = mix(options.seed ^ mix((static_cast<std::uint64_t>(i) << 24) ^ s));
                 const float u1 = (static_cast<float>(s % grid) + unit(h)) / static_cast<float>(grid);
                 const float u2 = (static_cast<float>(s / grid) + unit(mix(h))) / static_cast<float>(grid);
@@ -172,7 +221,7 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
             }
         }
     });
-    out.row_begin.assign(particles.size() + 1, 0);
+    out.row_begin.assign(std::size_t{out.rows} + 1, 0);
     for (std::size_t i = 0; i < rows.size(); ++i) out.row_begin[i + 1] = out.row_begin[i] + static_cast<std::uint32_t>(rows[i].size());
     out.entries.reserve(out.row_begin.back());
     for (std::vector<TransferEntry>& row : rows) {
@@ -188,6 +237,7 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
             stats->back_faces += c.back_faces;
             stats->unmapped += c.unmapped;
         }
+        stats->block = options.block;
         stats->seconds = clock.seconds();
     }
     return out;
@@ -221,59 +271,88 @@ namespace {
 void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo) {
     if (s.visibility == nullptr || s.atlas == nullptr || s.transfer == nullptr)
         throw Error("indirect light: the scene lacks its visibility, atlas or transfer");
-    if (s.transfer->rows != s.particles.size() || albedo.size() != s.particles.size() ||
-        s.visibility->particle_count != s.particles.size())
+    const IndirectTransfer& t = *s.transfer;
+    const std::size_t n = s.particles.size();
+    if ((t.row_of.empty() ? t.rows : t.row_of.size()) != n || albedo.size() != n || s.visibility->particle_count != n)
         throw Error("indirect light: the transfer, the albedo and the visibility must have one entry per particle");
+    validate_transfer(t);
     for (const std::size_t f : frames)
         if (f >= s.lights.size() || f >= s.frame_view.size() || f >= s.visibility->frame_count ||
             s.frame_view[f] >= s.view_maps.size())
             throw Error("indirect light: frame " + std::to_string(f) + " has no light, view or visibility");
 }
 
-void gather(const IndirectScene& s, std::span<const glm::vec4> b, std::uint32_t frames, std::span<glm::vec4> e,
-            const IndirectOptions& o) {
-    if (o.kernel != nullptr) {
-        o.kernel->run(*s.transfer, b, frames, e);
-    } else {
-        gather_indirect_float(*s.transfer, b, frames, e, o.threads);
-    }
-}
+// What the bounces need of a checked scene, built once per call: the material, its lobe's
+// table, each row's particles and their mean albedo, and the buffers of one batch of frames.
+struct Bouncer {
+    const IndirectScene& s;
+    std::span<const glm::vec3> albedo;
+    shared::MaterialGpu m;
+    LobeAlbedo lobe;
+    IndirectOptions o;
+    RowMembers rows;
+    std::vector<glm::vec3> row_albedo;
+    std::vector<glm::vec4> radiosity, e, total;
 
-// indirect_irradiance on a checked scene, with the material packed and its lobe's table built
-// once by the caller (indirect_images calls it batch after batch).
-std::vector<glm::vec4> bounces(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
-                               const shared::MaterialGpu& m, const LobeAlbedo& lobe, const IndirectOptions& o) {
-    const std::size_t rows = s.particles.size();
-    const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
-    const glm::vec3 lobe_bounce = lobe(kMeanCosine);
-    std::vector<glm::vec4> radiosity(frames.size() * rows), e(frames.size() * rows), total(frames.size() * rows, glm::vec4(0.0f));
-    // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely.
-    parallel_for_chunks(rows, std::max(o.threads, 1u), 1024, [&](unsigned, std::size_t begin, std::size_t end) {
-        for (std::size_t k = 0; k < frames.size(); ++k) {
-            const PointLight& light = s.lights[frames[k]];
-            for (std::size_t j = begin; j < end; ++j) {
-                glm::vec4& out = radiosity[k * rows + j];
-                out = glm::vec4(0.0f);
-                if (!s.visibility->lights(j, frames[k])) continue;
-                const glm::dvec3 to_light = light.position - glm::dvec3(s.particles[j].p());
-                const double d2 = glm::dot(to_light, to_light);
-                if (!(d2 > 0.0)) continue; // a light on the surface lights nothing through it (never a division by 0)
-                const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
-                if (!(cos_in > 0.0)) continue;
-                const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
-                out = glm::vec4((albedo[j] * kd + lobe(static_cast<float>(cos_in))) * glm::vec3(light.intensity * (cos_in / d2)), 0.0f);
+    Bouncer(const IndirectScene& scene, std::span<const glm::vec3> a, const std::optional<SpecularModel>& material,
+            const IndirectOptions& options)
+        : s(scene), albedo(a), m(material_gpu(material)), lobe(material), o(options),
+          rows(row_members(scene.transfer->row_of, scene.transfer->rows, scene.particles.size())),
+          row_albedo(scene.transfer->rows) {
+        for (std::size_t r = 0; r < row_albedo.size(); ++r) {
+            glm::vec3 sum(0.0f);
+            for (std::uint32_t k = rows.begin[r]; k < rows.begin[r + 1]; ++k) sum += albedo[rows.members[k]];
+            row_albedo[r] = sum / static_cast<float>(rows.begin[r + 1] - rows.begin[r]);
+        }
+    }
+    [[nodiscard]] std::uint32_t row(std::size_t particle) const {
+        return s.transfer->row_of.empty() ? static_cast<std::uint32_t>(particle) : s.transfer->row_of[particle];
+    }
+
+    // The indirect irradiance of every row for `frames`: total[k * rows + r] for frames[k].
+    void run(std::span<const std::size_t> frames) {
+        const std::size_t n = s.transfer->rows, values = frames.size() * n;
+        radiosity.resize(values);
+        e.resize(values);
+        total.assign(values, glm::vec4(0.0f));
+        const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
+        const glm::vec3 lobe_bounce = lobe(kMeanCosine);
+        // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely, the
+        // mean over each row's particles.
+        parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
+            for (std::size_t k = 0; k < frames.size(); ++k) {
+                const PointLight& light = s.lights[frames[k]];
+                for (std::size_t r = begin; r < end; ++r) {
+                    glm::vec3 sum(0.0f);
+                    for (std::uint32_t q = rows.begin[r]; q < rows.begin[r + 1]; ++q) {
+                        const std::uint32_t j = rows.members[q];
+                        if (!s.visibility->lights(j, frames[k])) continue;
+                        const glm::dvec3 to_light = light.position - glm::dvec3(s.particles[j].p());
+                        const double d2 = glm::dot(to_light, to_light);
+                        if (!(d2 > 0.0)) continue; // a light on the surface lights nothing through it (never a division by 0)
+                        const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
+                        if (!(cos_in > 0.0)) continue;
+                        const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
+                        sum += (albedo[j] * kd + lobe(static_cast<float>(cos_in))) * glm::vec3(light.intensity * (cos_in / d2));
+                    }
+                    radiosity[k * n + r] = glm::vec4(sum / static_cast<float>(rows.begin[r + 1] - rows.begin[r]), 0.0f);
+                }
+            }
+        });
+        for (std::uint32_t bounce = 1; bounce <= o.bounces; ++bounce) {
+            if (o.kernel != nullptr) {
+                o.kernel->run(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e);
+            } else {
+                detail::gather_indirect_float_unchecked(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e,
+                                                        o.threads);
+            }
+            for (std::size_t k = 0; k < values; ++k) {
+                total[k] += e[k];
+                radiosity[k] = glm::vec4(row_albedo[k % n] * kd_bounce + lobe_bounce, 0.0f) * e[k];
             }
         }
-    });
-    for (std::uint32_t bounce = 1; bounce <= o.bounces; ++bounce) {
-        gather(s, radiosity, static_cast<std::uint32_t>(frames.size()), e, o);
-        for (std::size_t k = 0; k < e.size(); ++k) {
-            total[k] += e[k];
-            radiosity[k] = glm::vec4(albedo[k % rows] * kd_bounce + lobe_bounce, 0.0f) * e[k];
-        }
     }
-    return total;
-}
+};
 
 } // namespace
 
@@ -281,17 +360,24 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
                                            std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
                                            const IndirectOptions& o) {
     check_scene(s, frames, albedo);
-    return bounces(s, frames, albedo, material_gpu(material), LobeAlbedo(material), o);
+    Bouncer bouncer(s, albedo, material, o);
+    bouncer.run(frames);
+    const std::size_t n = s.particles.size(), rows = s.transfer->rows;
+    std::vector<glm::vec4> out(frames.size() * n);
+    for (std::size_t k = 0; k < frames.size(); ++k)
+        for (std::size_t i = 0; i < n; ++i) out[k * n + i] = bouncer.total[k * rows + bouncer.row(i)];
+    return out;
 }
 
 void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
                      const std::optional<SpecularModel>& material, const IndirectOptions& o,
                      const std::function<void(std::size_t, const Image&)>& sink) {
     check_scene(s, frames, albedo);
-    const std::size_t rows = s.particles.size();
+    const std::size_t n = s.particles.size(), rows = s.transfer->rows;
     const Atlas& atlas = *s.atlas;
-    const shared::MaterialGpu m = material_gpu(material);
-    const LobeAlbedo lobe(material);
+    Bouncer bouncer(s, albedo, material, o);
+    const shared::MaterialGpu& m = bouncer.m;
+    const LobeAlbedo& lobe = bouncer.lobe;
     const unsigned threads = std::max(o.threads, 1u);
     // Per texel: rho E / pi (the diffuse term) and, with a lobe, E / pi (what the lobe reflects).
     Image radiance(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
@@ -299,11 +385,11 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
     const std::size_t batch = std::max<std::uint32_t>(o.batch_frames, 1u);
     for (std::size_t first = 0; first < frames.size(); first += batch) {
         const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
-        const std::vector<glm::vec4> e = bounces(s, part, albedo, m, lobe, o);
+        bouncer.run(part);
         for (std::size_t k = 0; k < part.size(); ++k) {
             // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty texels).
-            for (std::size_t i = 0; i < rows; ++i) {
-                const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(e[k * rows + i]);
+            for (std::size_t i = 0; i < n; ++i) {
+                const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(bouncer.total[k * rows + bouncer.row(i)]);
                 const int x = static_cast<int>(s.particles[i].texel_x()), y = static_cast<int>(s.particles[i].texel_y());
                 for (int c = 0; c < 3; ++c) {
                     radiance.at(x, y, c) = albedo[i][c] * l[c];

@@ -43,9 +43,14 @@
 namespace specula {
 
 struct TransferOptions {
-    /// Rays per particle, stratified on a g x g grid of the cosine-weighted hemisphere
-    /// (g = ceil(sqrt(rays)): the count is rounded up to a square).
+    /// Rays per row (a particle, or a block), stratified on a g x g grid of the cosine-weighted
+    /// hemisphere (g = ceil(sqrt(rays)): the count is rounded up to a square).
     std::uint32_t rays = 64;
+    /// The rows: blocks of block x block texels of one chart (of one triangle's patch in the
+    /// patchwork atlas), whose particles receive and send as one (transfer.h); 1: every particle
+    /// its own row. A block's rays start from its particles in turn, each ray in its own
+    /// particle's hemisphere, so the row is the mean of its particles' rows.
+    std::uint32_t block = 2;
     unsigned threads = 2;
     std::uint64_t seed = 1; ///< the strata's jitter: a hash of (seed, particle, ray)
 };
@@ -56,10 +61,12 @@ struct TransferStats {
     std::uint64_t below_surface = 0; ///< directions under the particle's face (not cast)
     std::uint64_t back_faces = 0;    ///< hits on the back of a face (the inside of the object: ignored)
     std::uint64_t unmapped = 0;      ///< hits on a texel that holds no particle
+    std::uint32_t block = 1;         ///< the rows' blocks, texels a side (TransferOptions::block)
     double seconds = 0.0;
 };
 
-/// The transfer of `particles` (transfer.h): deterministic for a seed, whatever the thread count.
+/// The transfer of `particles` (transfer.h): deterministic for a seed, whatever the thread
+/// count. With block 1 its rows are the particles in order (row_of empty).
 [[nodiscard]] IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
                                               const Atlas& atlas, const TransferOptions& options,
                                               TransferStats* stats = nullptr);

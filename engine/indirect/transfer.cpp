@@ -50,7 +50,7 @@ void validate_transfer(const IndirectTransfer& t) {
             const TransferEntry& e = t.entries[k];
             if (e.source >= t.rows)
                 refuse(entry_name(i, k) + ": source " + std::to_string(e.source) + " out of range (" +
-                       std::to_string(t.rows) + " particles)");
+                       std::to_string(t.rows) + " rows)");
             if (k > begin && e.source <= t.entries[k - 1].source)
                 refuse(entry_name(i, k) + ": source " + std::to_string(e.source) + " not above the previous entry's " +
                        std::to_string(t.entries[k - 1].source) + " (a row's sources rise)");
@@ -62,6 +62,10 @@ void validate_transfer(const IndirectTransfer& t) {
             refuse("row " + std::to_string(i) + ": weights sum to " + std::to_string(sum) +
                    ", above 1 (a row is a fraction of its particle's rays)");
     }
+    for (std::size_t p = 0; p < t.row_of.size(); ++p)
+        if (t.row_of[p] >= t.rows)
+            refuse("particle " + std::to_string(p) + ": row " + std::to_string(t.row_of[p]) + " out of range (" +
+                   std::to_string(t.rows) + " rows)");
 }
 
 void validate_gather(const IndirectTransfer& t, std::size_t radiosity, std::uint32_t frames, std::size_t out,
@@ -123,6 +127,11 @@ void gather_indirect_cpu(const IndirectTransfer& t, std::span<const glm::vec4> r
 void gather_indirect_float(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames,
                            std::span<glm::vec4> out, unsigned threads) {
     validate_gather(t, radiosity.size(), frames, out.size(), "gather_indirect_float");
+    gather<glm::vec4>(t, radiosity, frames, out, threads);
+}
+
+void detail::gather_indirect_float_unchecked(const IndirectTransfer& t, std::span<const glm::vec4> radiosity,
+                                             std::uint32_t frames, std::span<glm::vec4> out, unsigned threads) {
     gather<glm::vec4>(t, radiosity, frames, out, threads);
 }
 

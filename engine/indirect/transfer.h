@@ -45,19 +45,25 @@ struct TransferEntry {
 static_assert(sizeof(TransferEntry) == 8, "std430 layout of TransferEntry");
 
 /// The sparse transfer matrix (compressed rows; within a row, entries by increasing source).
+/// Its rows are particles, or BLOCKS of particles (indirect.h, TransferOptions::block): the
+/// indirect light varies slowly over the surface, so a block of texels of one chart receives
+/// and sends as one, with its particles' mean radiosity, and each of its particles gets the
+/// block's irradiance.
 struct IndirectTransfer {
-    std::uint32_t rows = 0;                  ///< particles (receivers); the sources are the same particles
-    std::uint32_t rays_per_particle = 0;     ///< K
+    std::uint32_t rows = 0;                  ///< blocks (receivers); the sources are the same blocks
+    std::uint32_t rays_per_row = 0;     ///< K, cast per row (a block's rays start from its particles in turn)
     std::vector<std::uint32_t> row_begin;    ///< rows + 1 offsets into entries
     std::vector<TransferEntry> entries;
+    /// Per particle: the row (block) that receives and sends for it; empty: row i is particle i.
+    std::vector<std::uint32_t> row_of;
 
     [[nodiscard]] std::size_t entry_count() const noexcept { return entries.size(); }
 };
 
 /// Throws Error when the matrix is malformed (row_begin not rows + 1 offsets from 0 to the
 /// entry count, offsets not rising, a source out of range or not above the row's previous one,
-/// a weight not finite or negative, a row whose weights sum above 1 + 1e-4); the message names
-/// the row and the entry.
+/// a weight not finite or negative, a row whose weights sum above 1 + 1e-4, a particle's row
+/// out of range); the message names the row and the entry, or the particle.
 void validate_transfer(const IndirectTransfer& transfer);
 
 /// The checks both gathers below make first: validate_transfer, then that radiosity and out
@@ -85,6 +91,13 @@ struct IndirectGatherStats {
 /// double sums cost about twice as much.
 void gather_indirect_float(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity, std::uint32_t frames,
                            std::span<glm::vec4> out, unsigned threads = 2);
+
+namespace detail {
+/// gather_indirect_float without its checks, for a caller that has run validate_gather once for
+/// many gathers of the same transfer (indirect.cpp: every batch and bounce of a pass).
+void gather_indirect_float_unchecked(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity,
+                                     std::uint32_t frames, std::span<glm::vec4> out, unsigned threads);
+} // namespace detail
 
 /// The Vulkan kernel of the same step (shaders/indirect/indirect_gather.comp), accumulating in
 /// float in entry order. Splits the rows and the frames into dispatches whose buffers stay

@@ -136,6 +136,13 @@ inline constexpr double kIndirectMinCodes = 0.5;
 /// 3 rounds 35.82 dB and 2.56%, for one more pass of 10 s and a solve of 3 s.
 inline constexpr std::uint32_t kIndirectRounds = 2;
 inline constexpr double kIndirectTolerance = 0.005;
+/// A round subtracts rho_k S_ind from each pixel (S_ind: the indirect light's share of the
+/// shading), so it solves rho_{k+1} = I / S_dir - (S_ind / S_dir) rho_k: about the fixed point it
+/// alternates by the ratio S_ind / S_dir, and diverges where that is over 1, amplifying there any
+/// error of the predicted light. Pixels whose added light is over this share of what they show
+/// (a ratio over 1) are left out of the solves. Knot, 2 bounces, 512 px: the hollows' albedo
+/// RMSE falls from 2.54% to 2.22% (bench/concave_albedo), the test PSNR stays within 0.1 dB.
+inline constexpr float kIndirectMaxShare = 0.5f;
 /// Does the capture hold the light the model predicts? In the object pixels of the train frames
 /// that no light reaches directly (their surface faces away from it, or a shadow ray is blocked), a capture
 /// shows only light that bounced off the object (and the room's): the least-squares ratio of the

@@ -82,7 +82,8 @@ struct ReconstructConfig {
     /// where the mesh can see itself and that light is above the images' quantization.
     Toggle indirect = Toggle::Auto;
     std::uint32_t indirect_bounces = 2;   ///< bounces of the indirect light (1: one bounce)
-    std::uint32_t indirect_rays = 64;     ///< rays per particle of the transfer (rounded up to a square)
+    std::uint32_t indirect_rays = 64;     ///< rays per row of the transfer (rounded up to a square)
+    std::uint32_t indirect_block = 2;     ///< the transfer's rows: blocks of this many texels a side (1: every particle)
     std::uint32_t indirect_rounds = kIndirectRounds; ///< at most this many rounds of solve and indirect light
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan

@@ -323,7 +323,10 @@ json indirect_json(const IndirectStage& s, const std::optional<evaluate::Evaluat
     if (!s.on()) return nullptr;
     json rounds = json::array();
     for (const IndirectRound& r : s.rounds)
-        rounds.push_back({{"albedo_change", r.albedo_change}, {"seconds", r.seconds}, {"with_material", r.material}});
+        rounds.push_back({{"albedo_change", r.albedo_change},
+                          {"seconds", r.seconds},
+                          {"with_material", r.material},
+                          {"pixels_left_out", r.pixels_left_out}});
     json j = {{"method", "inverse global illumination (Yu, Debevec, Malik and Hawkins 1999): the light that the albedo "
                          "estimate sends from particle to particle through a transfer of stratified cosine-weighted rays, "
                          "removed from the train frames before each solve and added to the evaluation's renders"},
@@ -332,7 +335,9 @@ json indirect_json(const IndirectStage& s, const std::optional<evaluate::Evaluat
               {"viewer", "specula-view and the bundle show direct light only"},
               {"bounces", s.options.bounces},
               {"gather", s.backend_reason},
-              {"rays_per_particle", s.transfer->rays_per_particle},
+              {"transfer_rows", s.transfer->rows},
+              {"transfer_block_texels", s.transfer_stats.block},
+              {"rays_per_row", s.transfer->rays_per_row},
               {"transfer_entries", s.transfer->entry_count()},
               {"rays_cast", s.transfer_stats.rays},
               {"rays_reaching_the_object", s.transfer_stats.hits},

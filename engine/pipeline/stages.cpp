@@ -243,9 +243,10 @@ IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, con
 }
 
 // The train frames less the indirect light that `albedo` sends (the other frames stay empty:
-// the solves read train frames only). With `measure`, the planner's figures (IndirectMeasure) over
+// the solves read train frames only). An object pixel whose added light is over
+// kIndirectMaxShare of what it shows is flagged missing: returns how many were. With `measure`, the planner's figures (IndirectMeasure) over
 // every 4th object pixel of the train frames (the unlit ones found with the views' surface maps).
-void remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, const Capture& capture,
+std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, const Capture& capture,
                            std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
                            std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
                            IndirectMeasure* measure) {
@@ -255,7 +256,7 @@ void remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, c
     corrected.resize(capture.images.size());
     std::vector<float> codes;
     double captured_dot_predicted = 0.0, predicted_square = 0.0;
-    std::size_t shadow_pixels = 0;
+    std::size_t shadow_pixels = 0, dropped = 0;
     const auto code = [](float v) { return 255.0f * linear_to_srgb(std::clamp(v, 0.0f, 1.0f)); };
     // No light reaches the surface a pixel's centre ray hits (the view's surface map): it faces
     // away from the frame's light, or a shadow ray toward the light is blocked.
@@ -302,17 +303,29 @@ void remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, c
                     ++shadow_pixels;
                 }
             }
+            // Where the light added outweighs the direct light left, the subtraction amplifies any
+            // error of the predicted light, and the rounds, which alternate about their fixed point
+            // by that ratio, would not settle there: the sample is not used.
+            const float added = add[0] + add[1] + add[2], seen = v[0] + v[1] + v[2];
+            if (object && added > kIndirectMaxShare * seen) {
+                if (out.flags.empty()) out.flags.assign(n, 0);
+                out.flags[p] |= kMissing;
+                ++dropped;
+            }
             for (int c = 0; c < 3; ++c) v[c] -= add[c];
         }
     });
-    if (measure == nullptr) return;
+    log::info(format_text("indirect light: %.0f object pixels of the train frames left out (the light added is over %.0f%% of "
+                          "what they show)", double(dropped), 100.0 * kIndirectMaxShare));
+    if (measure == nullptr) return dropped;
     *measure = IndirectMeasure{};
     measure->shadow_pixels = shadow_pixels;
     if (shadow_pixels >= kIndirectMinShadowPixels && predicted_square > 0.0) measure->shadow_ratio = captured_dot_predicted / predicted_square;
-    if (codes.empty()) return;
+    if (codes.empty()) return dropped;
     const auto k = codes.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(codes.size() - 1));
     std::nth_element(codes.begin(), k, codes.end());
     measure->p99_codes = *k;
+    return dropped;
 }
 
 // One round: the diffuse solve on the corrected frames, and how far the albedo moved from
@@ -345,7 +358,9 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     const VisibilityStats& vs = visibility.visibility.stats;
     const double rays_done = static_cast<double>(vs.rays_cast + vs.depth_rays + vs.shadow_map_rays);
     const double ray_seconds = rays_done > 0.0 ? vs.seconds / rays_done : 0.0;
-    const double estimate = ray_seconds * static_cast<double>(geometry.particles.particles.size()) * config.indirect_rays +
+    const double blocks = static_cast<double>(geometry.particles.particles.size()) /
+                          (static_cast<double>(config.indirect_block) * config.indirect_block);
+    const double estimate = ray_seconds * blocks * config.indirect_rays +
                             config.indirect_rounds * run.seconds("diffuse solve");
     if (config.indirect == Toggle::Off || (config.indirect == Toggle::Auto && convexity.convex)) {
         const PlanDecision& d = run.plan().add(decide_indirect(convexity, config.indirect, std::nullopt, estimate));
@@ -371,21 +386,25 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     s.options = IndirectOptions{.bounces = config.indirect_bounces, .kernel = s.gather.get(), .threads = config.threads};
     run.stage("indirect transfer", [&] {
         s.transfer = build_transfer(geometry.particles.particles, capture.mesh, *visibility.scene, geometry.atlas,
-                                    TransferOptions{.rays = config.indirect_rays, .threads = config.threads}, &s.transfer_stats);
+                                    TransferOptions{.rays = config.indirect_rays, .block = config.indirect_block,
+                                                    .threads = config.threads},
+                                    &s.transfer_stats);
         for (const View& view : capture.views)
             s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas, config.threads));
     });
-    log::info(format_text("indirect transfer: %.0f rays per particle, %.0f entries (%.1f per particle), %.1f%% of the rays "
-                          "reached the object",
-                          double(s.transfer->rays_per_particle), double(s.transfer->entry_count()),
+    log::info(format_text("indirect transfer: %.0f rows (blocks of %.0f x %.0f texels), %.0f rays each, %.0f entries "
+                          "(%.1f a row), %.1f%% of the rays reached the object",
+                          double(s.transfer->rows), double(config.indirect_block), double(config.indirect_block),
+                          double(s.transfer->rays_per_row), double(s.transfer->entry_count()),
                           double(s.transfer->entry_count()) / std::max<double>(1.0, s.transfer->rows),
                           100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
+    std::size_t left_out = 0; // by the last pass: the next solve's
     s.measure = run.stage("indirect light", [&] {
         IndirectMeasure m;
-        remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
-                              *visibility.scene, &m);
+        left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected,
+                                         visibility.visibility, *visibility.scene, &m);
         return m;
     });
     const PlanDecision& d = run.plan().add(decide_indirect(convexity, config.indirect, s.measure, estimate));
@@ -401,6 +420,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         const Stopwatch round_clock;
         const std::string tag = " (indirect round " + std::to_string(round) + ")";
         IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
+        r.pixels_left_out = left_out;
         // The estimate alternates about its fixed point, each move smaller than the last; one that
         // grows does not settle: the capture's indirect light is not what the model predicts.
         const bool growing = !s.rounds.empty() && r.albedo_change > s.rounds.back().albedo_change;
@@ -413,8 +433,8 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         if (!last) {
             // The next round's images: the captures less the light this round's albedo sends.
             run.stage("indirect light" + tag, [&] {
-                remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
-                                      *visibility.scene, nullptr);
+                left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected,
+                                                 visibility.visibility, *visibility.scene, nullptr);
             });
         }
         r.seconds = round_clock.seconds();
@@ -431,11 +451,14 @@ void indirect_update_stage(PipelineRun& run, const Capture& capture, const Geome
     const Stopwatch clock;
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     const std::string tag = " (indirect round with the material)";
+    std::size_t left_out = 0;
     run.stage("indirect light" + tag, [&] {
-        remove_indirect_light(indirect, indirect_scene(indirect, geometry, visibility), capture, albedo, diffuse.options.material,
-                              indirect.corrected, visibility.visibility, *visibility.scene, nullptr);
+        left_out = remove_indirect_light(indirect, indirect_scene(indirect, geometry, visibility), capture, albedo,
+                                         diffuse.options.material, indirect.corrected, visibility.visibility,
+                                         *visibility.scene, nullptr);
     });
     IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
+    r.pixels_left_out = left_out;
     r.seconds = clock.seconds();
     r.material = true;
     indirect.rounds.push_back(r);

@@ -72,6 +72,9 @@ struct IndirectRound {
     double albedo_change = 0.0; ///< RMS of the albedo's change over the solved particles, relative to their RMS albedo
     double seconds = 0.0;       ///< the indirect images and the solve
     bool material = false;      ///< the round after the specular stages, with the fitted material's lobe (indirect_update_stage)
+    /// Object pixels of the train frames its solve did not use: the light added there is over
+    /// kIndirectMaxShare of what they show (planner.h).
+    std::size_t pixels_left_out = 0;
 };
 struct IndirectStage {
     std::optional<IndirectTransfer> transfer;    ///< absent: left out

@@ -51,10 +51,11 @@ Mesh floor_and_plate() {
 TEST(IndirectTransfer, MatchesTheFormFactorOfAParallelRectangle) {
     const Scene s(floor_and_plate());
     TransferStats stats;
-    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 256}, &stats);
+    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 256, .block = 1}, &stats);
     validate_transfer(t);
     ASSERT_EQ(t.rows, s.particles.particles.size());
-    EXPECT_EQ(t.rays_per_particle, 256u);
+    EXPECT_TRUE(t.row_of.empty());
+    EXPECT_EQ(t.rays_per_row, 256u);
     EXPECT_EQ(stats.back_faces, 0u);
     // The plate's particles shine (radiosity 1), the floor's do not.
     const std::size_t n = s.particles.particles.size();
@@ -90,6 +91,60 @@ TEST(IndirectTransfer, MatchesTheFormFactorOfAParallelRectangle) {
     // their spread stays within that bound on the standard deviation.
     EXPECT_LT(std::abs(sum_error) / sum_truth, 0.01);
     EXPECT_LT(std::sqrt(sum_square / static_cast<double>(checked)), 0.016);
+}
+
+// Blocks of 2 x 2 texels: each row holds the particles of one block of one chart, and its
+// gathered light is the mean of what its particles gather on their own.
+TEST(IndirectTransfer, ABlockGathersTheMeanOfItsParticles) {
+    const Scene s(floor_and_plate());
+    const std::span<const Particle> particles = s.particles.particles;
+    const std::size_t n = particles.size();
+    const IndirectTransfer fine = build_transfer(particles, s.mesh, s.rays, s.atlas, {.rays = 1024, .block = 1});
+    const IndirectTransfer blocks = build_transfer(particles, s.mesh, s.rays, s.atlas, {.rays = 1024, .block = 2});
+    validate_transfer(blocks);
+    ASSERT_EQ(blocks.row_of.size(), n);
+    // Between a quarter and all of the particles' count: blocks at a chart's edge hold fewer.
+    EXPECT_GE(blocks.rows, n / 4);
+    EXPECT_LT(blocks.rows, n / 2);
+    std::vector<std::uint32_t> first(blocks.rows, Atlas::kEmpty), members(blocks.rows, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t r = blocks.row_of[i];
+        ++members[r];
+        if (first[r] == Atlas::kEmpty) {
+            first[r] = static_cast<std::uint32_t>(i);
+            continue;
+        }
+        const Particle &a = particles[first[r]], &b = particles[i];
+        EXPECT_EQ(s.atlas.chart_of[a.triangle], s.atlas.chart_of[b.triangle]) << "particle " << i;
+        EXPECT_EQ(a.texel_x() / 2, b.texel_x() / 2) << "particle " << i;
+        EXPECT_EQ(a.texel_y() / 2, b.texel_y() / 2) << "particle " << i;
+    }
+    for (std::uint32_t r = 0; r < blocks.rows; ++r) EXPECT_LE(members[r], 4u) << "row " << r;
+    // The plate shines: per particle on the fine transfer, per block on the other.
+    std::vector<glm::vec4> b_fine(n, glm::vec4(0.0f)), b_block(blocks.rows, glm::vec4(0.0f));
+    for (std::size_t j = 0; j < n; ++j)
+        if (particles[j].n().z < -0.5f) {
+            b_fine[j] = glm::vec4(1.0f);
+            b_block[blocks.row_of[j]] += glm::vec4(1.0f / static_cast<float>(members[blocks.row_of[j]]));
+        }
+    std::vector<glm::vec4> e_fine(n), e_block(blocks.rows);
+    gather_indirect_cpu(fine, b_fine, 1, e_fine);
+    gather_indirect_cpu(blocks, b_block, 1, e_block);
+    std::vector<double> mean(blocks.rows, 0.0);
+    for (std::size_t i = 0; i < n; ++i) mean[blocks.row_of[i]] += e_fine[i].x / members[blocks.row_of[i]];
+    double square = 0.0;
+    std::size_t checked = 0;
+    for (std::uint32_t r = 0; r < blocks.rows; ++r) {
+        if (particles[first[r]].n().z < 0.5f) continue; // the floor's blocks
+        // Both sides hold 1024 rays a row (a block's: 256 from each of 4 particles); the plate's
+        // edge crosses up to about 4 x 32 of a row's strata: a deviation of up to sqrt(128 / 4) /
+        // 1024 = 0.006 each, 0.03 is over 3 of both together.
+        EXPECT_NEAR(e_block[r].x, mean[r], 0.03) << "row " << r;
+        square += (e_block[r].x - mean[r]) * (e_block[r].x - mean[r]);
+        ++checked;
+    }
+    ASSERT_GT(checked, 1000u);
+    EXPECT_LT(std::sqrt(square / static_cast<double>(checked)), 0.006);
 }
 
 TEST(IndirectTransfer, IsTheSameForAnyThreadCount) {

@@ -37,7 +37,7 @@ inline IndirectTransfer random_transfer(const RandomTransferOptions& o) {
     std::binomial_distribution<std::uint32_t> hits_of(o.rays, o.hit_fraction);
     IndirectTransfer t;
     t.rows = o.rows;
-    t.rays_per_particle = o.rays;
+    t.rays_per_row = o.rays;
     t.row_begin.reserve(std::size_t{o.rows} + 1);
     t.row_begin.push_back(0);
     std::map<std::uint32_t, std::uint32_t> counts; // source -> rays that reached it

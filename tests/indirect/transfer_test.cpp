@@ -23,7 +23,7 @@ namespace {
 IndirectTransfer hand_made() {
     IndirectTransfer t;
     t.rows = 3;
-    t.rays_per_particle = 4;
+    t.rays_per_row = 4;
     t.row_begin = {0, 2, 2, 4};
     t.entries = {{1, 0.5f}, {2, 0.25f}, {0, 0.25f}, {1, 0.75f}};
     return t;
@@ -50,7 +50,7 @@ void expect_refused(const IndirectTransfer& t, const std::string& naming) {
 
 TEST(IndirectTransfer, AcceptsWellFormedMatrices) {
     EXPECT_NO_THROW(validate_transfer(hand_made()));
-    EXPECT_NO_THROW(validate_transfer(IndirectTransfer{.rows = 0, .rays_per_particle = 0, .row_begin = {0}, .entries = {}}));
+    EXPECT_NO_THROW(validate_transfer(IndirectTransfer{.rows = 0, .rays_per_row = 0, .row_begin = {0}, .entries = {}}));
     // A row of exactly 1 (every ray hits), and 1 plus float rounding.
     IndirectTransfer t = hand_made();
     t.entries[2].weight = 0.25f;
@@ -82,7 +82,7 @@ TEST(IndirectTransfer, RefusesMalformedMatrices) {
     {
         IndirectTransfer t = hand_made();
         t.entries[1].source = 3;
-        expect_refused(t, "row 0, entry 1: source 3 out of range (3 particles)");
+        expect_refused(t, "row 0, entry 1: source 3 out of range (3 rows)");
     }
     {
         IndirectTransfer t = hand_made();
@@ -104,6 +104,13 @@ TEST(IndirectTransfer, RefusesMalformedMatrices) {
         IndirectTransfer t = hand_made();
         t.entries[3].weight = 0.76f;
         expect_refused(t, "row 2: weights sum to 1.01");
+    }
+    {
+        IndirectTransfer t = hand_made();
+        t.row_of = {0, 2, 1, 2, 0};
+        EXPECT_NO_THROW(validate_transfer(t));
+        t.row_of[3] = 3;
+        expect_refused(t, "particle 3: row 3 out of range (3 rows)");
     }
 }
 

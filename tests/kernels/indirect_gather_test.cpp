@@ -119,10 +119,10 @@ TEST_F(IndirectGatherConformance, MatchesReferenceOnEmptyAndDegenerateInputs) {
     // Every row empty: all zeros.
     (void)check(kernel, test::random_transfer({.rows = 300, .empty_rows = 1.0}), 2, 31, "all rows empty");
     // One particle reaching itself with every ray.
-    const IndirectTransfer one{.rows = 1, .rays_per_particle = 1, .row_begin = {0, 1}, .entries = {{0, 1.0f}}};
+    const IndirectTransfer one{.rows = 1, .rays_per_row = 1, .row_begin = {0, 1}, .entries = {{0, 1.0f}}};
     (void)check(kernel, one, 4, 32, "one particle");
     // No rows, no frames: nothing to do, nothing dispatched.
-    const IndirectTransfer none{.rows = 0, .rays_per_particle = 8, .row_begin = {0}, .entries = {}};
+    const IndirectTransfer none{.rows = 0, .rays_per_row = 8, .row_begin = {0}, .entries = {}};
     kernel.run(none, {}, 3, {});
     EXPECT_EQ(kernel.last_run().row_chunks, 0u);
     kernel.run(one, {}, 0, {});

@@ -107,13 +107,18 @@ TEST(IndirectPipeline, KnotWithBouncesIsSolvedWithItAndWithoutBouncesWithout) {
                 "RMSE %.2f%% (bias %+.2f%%) vs off %.2f%% (%+.2f%%)\n",
                 with, without, off_psnr, 100 * a_on.rmse_concave, 100 * a_on.bias_concave, 100 * a_off.rmse_concave,
                 100 * a_off.bias_concave);
-    // At 96 px the albedo's error is mostly resolution (11-12% RMSE in the hollows either way);
-    // the light the hollows get from the rest is a bias: +3.4% without, removed with.
+    // At 96 px much of the albedo's error is resolution (measured: 8.3% RMSE in the hollows
+    // without, 6.0% with); the light the hollows get from the rest is a bias: +3.6% without,
+    // -0.2% with.
     EXPECT_GT(with - off_psnr, 2.0);
     EXPECT_GT(with - without, 2.0);
     EXPECT_GT(a_off.bias_concave, 0.025);
     EXPECT_LT(std::abs(a_on.bias_concave), 0.01);
-    EXPECT_LT(a_on.rmse_concave, a_off.rmse_concave);
+    EXPECT_LT(a_on.rmse_concave, 0.85 * a_off.rmse_concave);
+    // Pixels whose added light outweighs the direct light left are left out of the solves.
+    const nlohmann::json& rounds = on.report["indirect"]["rounds"];
+    ASSERT_FALSE(rounds.empty());
+    EXPECT_GT(rounds[0]["pixels_left_out"].get<std::size_t>(), 0u);
 
     // The same knot without bounces: the unlit pixels are black, so the planner leaves it out.
     const fs::path direct = make_capture(dir, "knot", 96, 0, true);

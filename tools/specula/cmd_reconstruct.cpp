@@ -178,9 +178,15 @@ void add_reconstruct_command(CLI::App& app) {
         ->check(CLI::Range(1u, 4u))
         ->capture_default_str();
     cmd->add_option("--indirect-rays", args->config.indirect_rays,
-                    "Rays per particle of the transfer (stratified cosine-weighted hemisphere; rounded up to a square):\n"
+                    "Rays per row of the transfer (stratified cosine-weighted hemisphere; rounded up to a square):\n"
                     "more rays, less noise in the indirect light and more time")
         ->check(CLI::Range(1u, 1024u))
+        ->capture_default_str();
+    cmd->add_option("--indirect-block", args->config.indirect_block,
+                    "The transfer's rows: blocks of N x N texels of one chart that receive and send the indirect light\n"
+                    "as one (it varies slowly over the surface); 1: every particle its own row (N^2 times the rows, the\n"
+                    "rays and the gathers' time)")
+        ->check(CLI::Range(1u, 8u))
         ->capture_default_str();
     cmd->add_option("--indirect-rounds", args->config.indirect_rounds,
                     "At most this many rounds of (indirect light from the albedo, solve on the captures less it);\n"
