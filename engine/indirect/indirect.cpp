@@ -114,6 +114,26 @@ RowMembers row_members(std::span<const std::uint32_t> row_of, std::uint32_t rows
     return m;
 }
 
+// Each row's mean position and mean unit normal (the particle's own for a row of one).
+void row_frames(std::span<const Particle> particles, const RowMembers& rows, std::vector<glm::vec3>& position,
+                std::vector<glm::vec3>& normal) {
+    const std::size_t n = rows.begin.size() - 1;
+    position.assign(n, glm::vec3(0.0f));
+    normal.assign(n, glm::vec3(0.0f));
+    for (std::size_t r = 0; r < n; ++r) {
+        glm::vec3 p(0.0f), nsum(0.0f);
+        for (std::uint32_t q = rows.begin[r]; q < rows.begin[r + 1]; ++q) {
+            p += particles[rows.members[q]].p();
+            nsum += particles[rows.members[q]].n();
+        }
+        const float count = static_cast<float>(rows.begin[r + 1] - rows.begin[r]);
+        const float length = glm::length(nsum);
+        position[r] = p / count;
+        // Opposite normals in one block (a fold within a chart) cancel: the first particle's stands in.
+        normal[r] = length > 1e-3f * count ? nsum / length : particles[rows.members[rows.begin[r]]].n();
+    }
+}
+
 // The rows of a transfer with blocks of `block` x `block` texels: per particle its row, the rows
 // numbered in the order of their first particle. Empty for block 1 (row i is particle i).
 std::vector<std::uint32_t> block_rows(std::span<const Particle> particles, const Atlas& atlas, std::uint32_t block,
@@ -150,6 +170,8 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
     out.rays_per_row = rays;
     out.row_of = block_rows(particles, atlas, options.block, out.rows);
     const RowMembers rm = row_members(out.row_of, out.rows, particles.size());
+    std::vector<glm::vec3> row_position, row_normal;
+    row_frames(particles, rm, row_position, row_normal);
     // Which row holds each texel (the particles own distinct texels, atlas.h).
     std::vector<std::uint32_t> holder(static_cast<std::size_t>(atlas.width) * atlas.height, Atlas::kEmpty);
     for (std::size_t i = 0; i < particles.size(); ++i)
@@ -157,11 +179,13 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
             out.row_of.empty() ? static_cast<std::uint32_t>(i) : out.row_of[i];
 
     std::vector<std::vector<TransferEntry>> rows(out.rows);
+    std::vector<std::vector<glm::vec4>> directions(out.rows);
     const unsigned workers = parallel_workers(out.rows, std::max(options.threads, 1u), 256);
     std::vector<TransferStats> counts(workers);
     parallel_for_chunks(out.rows, std::max(options.threads, 1u), 256, [&](unsigned worker, std::size_t begin, std::size_t end) {
         TransferStats& st = counts[worker];
-        std::vector<std::uint32_t> sources;
+        // A hit: its source row and the direction from the source back toward the ray's origin.
+        std::vector<std::pair<std::uint32_t, glm::vec3>> sources;
         for (std::size_t i = begin; i < end; ++i) {
             const std::uint32_t first = rm.begin[i], count = rm.begin[i + 1] - first;
             sources.clear();
@@ -205,18 +229,24 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
                     continue;
                 }
                 ++st.hits;
-                sources.push_back(j);
+                sources.emplace_back(j, -dir);
             }
             // Each ray cast stands for 1 / cast of the hemisphere: the directions under the face
             // (where the interpolated normal tilts away from it) are left to the others, rather
             // than counted as black.
             const float weight = cast > 0 ? 1.0f / static_cast<float>(cast) : 0.0f;
-            std::sort(sources.begin(), sources.end());
+            std::sort(sources.begin(), sources.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
             std::vector<TransferEntry>& row = rows[i];
+            std::vector<glm::vec4>& toward = directions[i];
             for (std::size_t k = 0; k < sources.size();) {
                 std::size_t e = k;
-                while (e < sources.size() && sources[e] == sources[k]) ++e;
-                row.push_back({sources[k], weight * static_cast<float>(e - k)});
+                glm::vec3 sum(0.0f);
+                for (; e < sources.size() && sources[e].first == sources[k].first; ++e) sum += sources[e].second;
+                const std::uint32_t j = sources[k].first;
+                // Rays that reach one source from a row leave within a few texels' angle of each other.
+                const glm::vec3 d = glm::length(sum) > 0.0f ? glm::normalize(sum) : sources[k].second;
+                row.push_back({j, weight * static_cast<float>(e - k)});
+                toward.emplace_back(d, std::clamp(glm::dot(row_normal[j], d), -1.0f, 1.0f));
                 k = e;
             }
         }
@@ -224,9 +254,12 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
     out.row_begin.assign(std::size_t{out.rows} + 1, 0);
     for (std::size_t i = 0; i < rows.size(); ++i) out.row_begin[i + 1] = out.row_begin[i] + static_cast<std::uint32_t>(rows[i].size());
     out.entries.reserve(out.row_begin.back());
-    for (std::vector<TransferEntry>& row : rows) {
-        out.entries.insert(out.entries.end(), row.begin(), row.end());
-        std::vector<TransferEntry>().swap(row);
+    out.entry_direction.reserve(out.row_begin.back());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        out.entries.insert(out.entries.end(), rows[i].begin(), rows[i].end());
+        out.entry_direction.insert(out.entry_direction.end(), directions[i].begin(), directions[i].end());
+        std::vector<TransferEntry>().swap(rows[i]);
+        std::vector<glm::vec4>().swap(directions[i]);
     }
     if (stats != nullptr) {
         *stats = {};
@@ -291,14 +324,25 @@ struct Bouncer {
     LobeAlbedo lobe;
     IndirectOptions o;
     RowMembers rows;
-    std::vector<glm::vec3> row_albedo;
+    std::vector<glm::vec3> row_albedo, row_position, row_normal;
+    /// The lobe's first bounce sent where it goes (the transfer's entry directions), not spread.
+    bool directional = false;
     std::vector<glm::vec4> radiosity, e, total;
+    /// With `directional`, per row and frame (row-major: r * frames + k): the direction toward
+    /// the light and its cosine to the row's normal, and the mean direct irradiance of its particles.
+    std::vector<glm::vec4> light_direction, irradiance;
+    /// With `ratio`: per particle, its indirect and direct irradiance (r + g + b) summed over the
+    /// frames that light it and whose view sees it.
+    bool ratio = false;
+    std::vector<double> sum_indirect, sum_direct;
 
     Bouncer(const IndirectScene& scene, std::span<const glm::vec3> a, const std::optional<SpecularModel>& material,
             const IndirectOptions& options)
         : s(scene), albedo(a), m(material_gpu(material)), lobe(material), o(options),
           rows(row_members(scene.transfer->row_of, scene.transfer->rows, scene.particles.size())),
           row_albedo(scene.transfer->rows) {
+        directional = o.lobe_directions && !lobe.zero() && !scene.transfer->entry_direction.empty();
+        row_frames(scene.particles, rows, row_position, row_normal);
         for (std::size_t r = 0; r < row_albedo.size(); ++r) {
             glm::vec3 sum(0.0f);
             for (std::uint32_t k = rows.begin[r]; k < rows.begin[r + 1]; ++k) sum += albedo[rows.members[k]];
@@ -315,15 +359,19 @@ struct Bouncer {
         radiosity.resize(values);
         e.resize(values);
         total.assign(values, glm::vec4(0.0f));
+        if (directional) {
+            light_direction.resize(values);
+            irradiance.resize(values);
+        }
         const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
         const glm::vec3 lobe_bounce = lobe(kMeanCosine);
-        // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely, the
-        // mean over each row's particles.
+        // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely (and
+        // by the lobe, spread diffusely unless `directional`), the mean over each row's particles.
         parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
             for (std::size_t k = 0; k < frames.size(); ++k) {
                 const PointLight& light = s.lights[frames[k]];
                 for (std::size_t r = begin; r < end; ++r) {
-                    glm::vec3 sum(0.0f);
+                    glm::vec3 sum(0.0f), direct(0.0f);
                     for (std::uint32_t q = rows.begin[r]; q < rows.begin[r + 1]; ++q) {
                         const std::uint32_t j = rows.members[q];
                         if (!s.visibility->lights(j, frames[k])) continue;
@@ -333,9 +381,18 @@ struct Bouncer {
                         const double cos_in = glm::dot(glm::dvec3(s.particles[j].n()), to_light) / std::sqrt(d2);
                         if (!(cos_in > 0.0)) continue;
                         const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
-                        sum += (albedo[j] * kd + lobe(static_cast<float>(cos_in))) * glm::vec3(light.intensity * (cos_in / d2));
+                        const glm::vec3 e0(light.intensity * (cos_in / d2));
+                        sum += (albedo[j] * kd + (directional ? glm::vec3(0.0f) : lobe(static_cast<float>(cos_in)))) * e0;
+                        direct += e0;
+                        if (ratio && s.visibility->sees(j, s.frame_view[frames[k]])) sum_direct[j] += e0.x + e0.y + e0.z;
                     }
-                    radiosity[k * n + r] = glm::vec4(sum / static_cast<float>(rows.begin[r + 1] - rows.begin[r]), 0.0f);
+                    const float count = static_cast<float>(rows.begin[r + 1] - rows.begin[r]);
+                    radiosity[k * n + r] = glm::vec4(sum / count, 0.0f);
+                    if (directional) {
+                        const glm::vec3 u = glm::normalize(glm::vec3(light.position) - row_position[r]);
+                        light_direction[r * frames.size() + k] = glm::vec4(u, glm::dot(row_normal[r], u));
+                        irradiance[r * frames.size() + k] = glm::vec4(direct / count, 0.0f);
+                    }
                 }
             }
         });
@@ -346,11 +403,49 @@ struct Bouncer {
                 detail::gather_indirect_float_unchecked(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e,
                                                         o.threads);
             }
+            if (bounce == 1 && directional) add_directional_lobe(frames.size());
             for (std::size_t k = 0; k < values; ++k) {
                 total[k] += e[k];
                 radiosity[k] = glm::vec4(row_albedo[k % n] * kd_bounce + lobe_bounce, 0.0f) * e[k];
             }
         }
+        if (!ratio) return;
+        parallel_for_chunks(s.particles.size(), std::max(o.threads, 1u), 4096, [&](unsigned, std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i)
+                for (std::size_t k = 0; k < frames.size(); ++k)
+                    if (s.visibility->lights(i, frames[k]) && s.visibility->sees(i, s.frame_view[frames[k]])) {
+                        const glm::vec4& t = total[k * n + row(i)];
+                        sum_indirect[i] += t.x + t.y + t.z;
+                    }
+        });
+    }
+
+    // Bounce 1 of the lobe, where it goes: each entry's rays left source j toward row i in
+    // direction v (the transfer's entry direction), so row i gets pi w f_s(u_j, v) E0_j from it
+    // (E = pi x the cosine-weighted mean of the radiance its rays meet, transfer.h).
+    void add_directional_lobe(std::size_t frames) {
+        const IndirectTransfer& t = *s.transfer;
+        const std::size_t n = t.rows;
+        parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
+            std::vector<glm::vec3> sum(frames);
+            for (std::size_t i = begin; i < end; ++i) {
+                std::fill(sum.begin(), sum.end(), glm::vec3(0.0f));
+                for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
+                    const glm::vec4 v = t.entry_direction[k];
+                    if (!(v.w > 0.0f)) continue; // leaves the source from under its surface
+                    const std::size_t j = t.entries[k].source;
+                    const float w = glm::pi<float>() * t.entries[k].weight;
+                    for (std::size_t f = 0; f < frames; ++f) {
+                        const glm::vec4 u = light_direction[j * frames + f];
+                        const glm::vec4 e0 = irradiance[j * frames + f];
+                        if (!(u.w > 0.0f) || e0.x + e0.y + e0.z <= 0.0f) continue;
+                        const glm::vec3 fs = shared::material_specular(m, u.w, v.w, glm::dot(glm::vec3(u), glm::vec3(v)));
+                        sum[f] += w * glm::max(fs, glm::vec3(0.0f)) * glm::vec3(e0);
+                    }
+                }
+                for (std::size_t f = 0; f < frames; ++f) e[f * n + i] += glm::vec4(sum[f], 0.0f);
+            }
+        });
     }
 };
 
@@ -371,11 +466,16 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
 
 void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
                      const std::optional<SpecularModel>& material, const IndirectOptions& o,
-                     const std::function<void(std::size_t, const Image&)>& sink) {
+                     const std::function<void(std::size_t, const Image&)>& sink, std::vector<float>* ratio) {
     check_scene(s, frames, albedo);
     const std::size_t n = s.particles.size(), rows = s.transfer->rows;
     const Atlas& atlas = *s.atlas;
     Bouncer bouncer(s, albedo, material, o);
+    if (ratio != nullptr) {
+        bouncer.ratio = true;
+        bouncer.sum_indirect.assign(n, 0.0);
+        bouncer.sum_direct.assign(n, 0.0);
+    }
     const shared::MaterialGpu& m = bouncer.m;
     const LobeAlbedo& lobe = bouncer.lobe;
     const unsigned threads = std::max(o.threads, 1u);
@@ -422,6 +522,11 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
             });
             sink(part[k], out);
         }
+    }
+    if (ratio != nullptr) {
+        ratio->assign(n, 0.0f);
+        for (std::size_t i = 0; i < n; ++i)
+            if (bouncer.sum_direct[i] > 0.0) (*ratio)[i] = static_cast<float>(bouncer.sum_indirect[i] / bouncer.sum_direct[i]);
     }
 }
 

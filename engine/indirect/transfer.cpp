@@ -62,6 +62,20 @@ void validate_transfer(const IndirectTransfer& t) {
             refuse("row " + std::to_string(i) + ": weights sum to " + std::to_string(sum) +
                    ", above 1 (a row is a fraction of its particle's rays)");
     }
+    if (!t.entry_direction.empty()) {
+        if (t.entry_direction.size() != t.entries.size())
+            refuse(std::to_string(t.entry_direction.size()) + " entry directions for " + std::to_string(t.entries.size()) +
+                   " entries");
+        for (std::uint32_t i = 0; i < t.rows; ++i)
+            for (std::size_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
+                const glm::vec4& d = t.entry_direction[k];
+                const float length = glm::length(glm::vec3(d));
+                if (!std::isfinite(length) || std::abs(length - 1.0f) > 1e-3f || !(std::abs(d.w) <= 1.0f + 1e-5f))
+                    refuse(entry_name(i, k) + ": direction (" + std::to_string(d.x) + ", " + std::to_string(d.y) + ", " +
+                           std::to_string(d.z) + ") with cosine " + std::to_string(d.w) +
+                           " is not a unit vector with a cosine in [-1, 1]");
+            }
+    }
     for (std::size_t p = 0; p < t.row_of.size(); ++p)
         if (t.row_of[p] >= t.rows)
             refuse("particle " + std::to_string(p) + ": row " + std::to_string(t.row_of[p]) + " out of range (" +

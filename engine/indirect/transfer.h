@@ -56,6 +56,10 @@ struct IndirectTransfer {
     std::vector<TransferEntry> entries;
     /// Per particle: the row (block) that receives and sends for it; empty: row i is particle i.
     std::vector<std::uint32_t> row_of;
+    /// Per entry, or empty: the mean unit direction of its rays from the source toward the row's
+    /// particles (xyz) and its cosine to the source row's mean normal (w), where a glossy source
+    /// sends its light (indirect.h).
+    std::vector<glm::vec4> entry_direction;
 
     [[nodiscard]] std::size_t entry_count() const noexcept { return entries.size(); }
 };
@@ -63,7 +67,8 @@ struct IndirectTransfer {
 /// Throws Error when the matrix is malformed (row_begin not rows + 1 offsets from 0 to the
 /// entry count, offsets not rising, a source out of range or not above the row's previous one,
 /// a weight not finite or negative, a row whose weights sum above 1 + 1e-4, a particle's row
-/// out of range); the message names the row and the entry, or the particle.
+/// out of range, entry directions that are not one per entry or not finite unit vectors with a
+/// cosine in [-1, 1]); the message names the row and the entry, or the particle.
 void validate_transfer(const IndirectTransfer& transfer);
 
 /// The checks both gathers below make first: validate_transfer, then that radiosity and out

@@ -15,6 +15,7 @@
 #include "material/factor_param.h"
 #include "diffuse/lambert_solve.h"
 #include "geometry/atlas.h"
+#include "indirect/indirect.h"
 #include "pipeline/planner.h"
 #include "specular/lafortune_fit.h"
 #include "specular/coated_fit.h"
@@ -82,8 +83,9 @@ struct ReconstructConfig {
     /// where the mesh can see itself and that light is above the images' quantization.
     Toggle indirect = Toggle::Auto;
     std::uint32_t indirect_bounces = 2;   ///< bounces of the indirect light (1: one bounce)
-    std::uint32_t indirect_rays = 64;     ///< rays per row of the transfer (rounded up to a square)
+    std::uint32_t indirect_rays = kTransferRays; ///< rays per row of the transfer (rounded up to a square)
     std::uint32_t indirect_block = 2;     ///< the transfer's rows: blocks of this many texels a side (1: every particle)
+    bool indirect_lobe_directions = true; ///< the lobe's first bounce directed (IndirectOptions::lobe_directions), else spread
     std::uint32_t indirect_rounds = kIndirectRounds; ///< at most this many rounds of solve and indirect light
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)
     /// Self-evaluation: re-render every frame from the bundle and compare (needs a Vulkan

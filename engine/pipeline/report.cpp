@@ -330,8 +330,10 @@ json indirect_json(const IndirectStage& s, const std::optional<evaluate::Evaluat
     json j = {{"method", "inverse global illumination (Yu, Debevec, Malik and Hawkins 1999): the light that the albedo "
                          "estimate sends from particle to particle through a transfer of stratified cosine-weighted rays, "
                          "removed from the train frames before each solve and added to the evaluation's renders"},
-              {"sources", "diffuse, with the fitted lobe's directional albedo spread diffusely: where a glossy lobe "
-                          "sends its light (a highlight of one surface seen on another) is left out"},
+              {"sources", s.options.lobe_directions
+                              ? "diffuse; the fitted lobe's first bounce sent along each transfer ray (f_s toward it), its "
+                                "later bounces spread diffusely"
+                              : "diffuse, with the fitted lobe's directional albedo spread diffusely (--indirect-lobe spread)"},
               {"viewer", "specula-view and the bundle show direct light only"},
               {"bounces", s.options.bounces},
               {"gather", s.backend_reason},

@@ -249,7 +249,7 @@ IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, con
 std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, const Capture& capture,
                            std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
                            std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
-                           IndirectMeasure* measure) {
+                           IndirectMeasure* measure, std::vector<float>* ratio) {
     std::vector<std::size_t> frames;
     for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
         if (capture.desc.frames[f].split == Split::Train) frames.push_back(f);
@@ -314,7 +314,7 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
             }
             for (int c = 0; c < 3; ++c) v[c] -= add[c];
         }
-    });
+    }, ratio);
     log::info(format_text("indirect light: %.0f object pixels of the train frames left out (the light added is over %.0f%% of "
                           "what they show)", double(dropped), 100.0 * kIndirectMaxShare));
     if (measure == nullptr) return dropped;
@@ -328,11 +328,19 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
     return dropped;
 }
 
-// One round: the diffuse solve on the corrected frames, and how far the albedo moved from
-// `albedo` (which becomes the new one).
+// One round: the diffuse solve on the corrected frames, damped (planner.h kIndirectRounds: each
+// particle's albedo becomes (solved + R rho_k) / (1 + R), R its `ratio`, rho_k `albedo`), and how
+// far the albedo moved from `albedo` (which becomes the new one).
 IndirectRound solve_round(PipelineRun& run, const GeometryStage& geometry, DiffuseStage& diffuse, std::vector<glm::vec3>& albedo,
-                          const std::string& tag) {
+                          std::span<const float> ratio, const std::string& tag) {
     diffuse.solve = run_solve(run, diffuse.inputs, diffuse.options, "diffuse solve" + tag);
+    for (std::size_t p = 0; p < diffuse.solve.particles.size() && p < ratio.size(); ++p) {
+        LambertParticleResult& r = diffuse.solve.particles[p];
+        if (!(r.status & shared::kLambertOk) || !(ratio[p] > 0.0f)) continue;
+        const float w = 1.0f / (1.0f + ratio[p]);
+        r.albedo_best = glm::vec4(w * glm::vec3(r.albedo_best) + (1.0f - w) * albedo[p], r.albedo_best.w);
+        r.albedo_robust = glm::vec4(w * glm::vec3(r.albedo_robust) + (1.0f - w) * albedo[p], r.albedo_robust.w);
+    }
     std::vector<glm::vec3> next = solved_albedo(geometry, diffuse.solve);
     double moved = 0.0, size = 0.0;
     for (std::size_t p = 0; p < next.size(); ++p) {
@@ -383,7 +391,8 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
             s.backend_reason = "the Vulkan kernel";
         }
     }
-    s.options = IndirectOptions{.bounces = config.indirect_bounces, .kernel = s.gather.get(), .threads = config.threads};
+    s.options = IndirectOptions{.bounces = config.indirect_bounces, .kernel = s.gather.get(), .threads = config.threads,
+                                .lobe_directions = config.indirect_lobe_directions};
     run.stage("indirect transfer", [&] {
         s.transfer = build_transfer(geometry.particles.particles, capture.mesh, *visibility.scene, geometry.atlas,
                                     TransferOptions{.rays = config.indirect_rays, .block = config.indirect_block,
@@ -400,11 +409,12 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
                           100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
-    std::size_t left_out = 0; // by the last pass: the next solve's
+    std::size_t left_out = 0;  // by the last pass: the next solve's
+    std::vector<float> ratio;  // of the last pass
     s.measure = run.stage("indirect light", [&] {
         IndirectMeasure m;
         left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected,
-                                         visibility.visibility, *visibility.scene, &m);
+                                         visibility.visibility, *visibility.scene, &m, &ratio);
         return m;
     });
     const PlanDecision& d = run.plan().add(decide_indirect(convexity, config.indirect, s.measure, estimate));
@@ -419,7 +429,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     for (std::uint32_t round = 1; round <= std::max(config.indirect_rounds, 1u); ++round) {
         const Stopwatch round_clock;
         const std::string tag = " (indirect round " + std::to_string(round) + ")";
-        IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
+        IndirectRound r = solve_round(run, geometry, diffuse, albedo, ratio, tag);
         r.pixels_left_out = left_out;
         // The estimate alternates about its fixed point, each move smaller than the last; one that
         // grows does not settle: the capture's indirect light is not what the model predicts.
@@ -434,7 +444,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
             // The next round's images: the captures less the light this round's albedo sends.
             run.stage("indirect light" + tag, [&] {
                 left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected,
-                                                 visibility.visibility, *visibility.scene, nullptr);
+                                                 visibility.visibility, *visibility.scene, nullptr, &ratio);
             });
         }
         r.seconds = round_clock.seconds();
@@ -446,18 +456,23 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
 }
 
 void indirect_update_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                           const VisibilityStage& visibility, IndirectStage& indirect, DiffuseStage& diffuse) {
-    if (!indirect.on() || !diffuse.options.material || is_zero(*diffuse.options.material)) return;
+                           const VisibilityStage& visibility, const SpecularStage& specular, IndirectStage& indirect,
+                           DiffuseStage& diffuse) {
+    // The fitted material, whether or not a joint round kept it in the solve's options (a
+    // validated estimate that undid its first round keeps none).
+    const std::optional<SpecularModel> material = specular.fit ? std::optional(specular.fit->model()) : std::nullopt;
+    if (!indirect.on() || !material || is_zero(*material)) return;
     const Stopwatch clock;
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     const std::string tag = " (indirect round with the material)";
     std::size_t left_out = 0;
+    std::vector<float> ratio;
     run.stage("indirect light" + tag, [&] {
         left_out = remove_indirect_light(indirect, indirect_scene(indirect, geometry, visibility), capture, albedo,
-                                         diffuse.options.material, indirect.corrected, visibility.visibility,
-                                         *visibility.scene, nullptr);
+                                         material, indirect.corrected, visibility.visibility,
+                                         *visibility.scene, nullptr, &ratio);
     });
-    IndirectRound r = solve_round(run, geometry, diffuse, albedo, tag);
+    IndirectRound r = solve_round(run, geometry, diffuse, albedo, ratio, tag);
     r.pixels_left_out = left_out;
     r.seconds = clock.seconds();
     r.material = true;

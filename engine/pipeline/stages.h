@@ -92,11 +92,6 @@ struct IndirectStage {
 [[nodiscard]] IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                            const VisibilityStage& visibility, DiffuseStage& diffuse);
 
-/// 6b. After the specular stages, when the indirect light is on and a material was fitted: one
-///     more round with the material known (its lobe reflects light between the surfaces too,
-///     indirect/indirect.h), which updates `diffuse`'s solve before the refinement.
-void indirect_update_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                           const VisibilityStage& visibility, IndirectStage& indirect, DiffuseStage& diffuse);
 
 /// 6. Residual samples and their energy, then (when the residuals hold specular energy, or
 ///    forced) the material: every applicable family (or the forced one) is estimated jointly
@@ -128,6 +123,13 @@ struct SpecularStage {
     Backend backend = Backend::Cpu;       ///< where the per-particle passes ran
 };
 [[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse);
+
+/// 6b. After the specular stages, when the indirect light is on and a material was fitted: one
+///     more round with the material known (its lobe reflects light between the surfaces too,
+///     indirect/indirect.h), which updates `diffuse`'s solve before the refinement.
+void indirect_update_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
+                           const VisibilityStage& visibility, const SpecularStage& specular, IndirectStage& indirect,
+                           DiffuseStage& diffuse);
 
 /// The atlas decision, once the stages whose cost grows with the particle count have run.
 void atlas_decision(PipelineRun& run, const GeometryStage& geometry);

@@ -11,6 +11,7 @@
 #include <glm/gtc/constants.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 
 namespace specula {
@@ -218,6 +219,15 @@ TEST(IndirectLight, BouncesInsideAClosedSphereAddUpToTheGeometricSeries) {
         // sphere's own: its flat triangles sit up to 0.2% inside the radius, with interpolated
         // normals a little off the centre, so E0 varies by about 1% over the particles.
         EXPECT_EQ(off, 0u) << bounces << " bounces";
+        // The ratio of indirect to direct irradiance (r + g + b) the pipeline's rounds damp by.
+        std::vector<float> ratio;
+        indirect_images(scene, frame, albedo, std::nullopt, {.bounces = bounces}, [](std::size_t, const Image&) {}, &ratio);
+        ASSERT_EQ(ratio.size(), n);
+        const double expected_ratio = (expected.x + expected.y + expected.z) / (14.0 / double(radius * radius));
+        std::size_t ratio_off = 0;
+        for (const float r : ratio)
+            if (std::abs(r - expected_ratio) > 0.02 * expected_ratio) ++ratio_off;
+        EXPECT_EQ(ratio_off, 0u) << bounces << " bounces: ratio " << ratio[0] << ", expected " << expected_ratio;
     }
 }
 
@@ -321,6 +331,68 @@ TEST(IndirectLight, ImagesShowTheLightOfTheSurfaceEachPixelSees) {
         }
     EXPECT_GT(checked, 200u);
     EXPECT_LT(std::abs(sum_error) / sum_truth, 0.02);
+}
+
+// A mirror-like lobe (Lafortune Cx = -1, Cz = 1: f_s = (r.v)^N, r the mirror of u) on the
+// plate, lit straight up from far below (E0 = 1, u the plate's normal, so f_s = cos^N of the
+// angle off it), and no diffuse part: the floor right under the plate gets its light, the floor
+// that sees the plate at a slant little. A floor point at (x, y) gets
+//     E = integral over the plate of (h / r)^N E0 (h / r) (h / r) / r^2 dA
+// (cos at the plate = cos at the floor = h / r): the directed first bounce follows it; the
+// spread one (a_s(1) E0 times the form factor) does not.
+double mirror_lobe_irradiance(glm::dvec2 p, double exponent) {
+    constexpr int kSteps = 200;
+    const double step = 2.0 * kPlate / kSteps;
+    double sum = 0.0;
+    for (int i = 0; i < kSteps; ++i)
+        for (int j = 0; j < kSteps; ++j) {
+            const double x = -kPlate + (i + 0.5) * step - p.x, y = -kPlate + (j + 0.5) * step - p.y;
+            const double r2 = x * x + y * y + double(kHeight) * kHeight, c = kHeight / std::sqrt(r2);
+            sum += std::pow(c, exponent + 2.0) / r2 * step * step;
+        }
+    return sum;
+}
+
+TEST(IndirectLight, AGlossySourceSendsItsFirstBounceWhereItsLobePoints) {
+    const Scene s(floor_and_plate());
+    const IndirectTransfer t = build_transfer(s.particles.particles, s.mesh, s.rays, s.atlas, {.rays = 1024, .block = 2});
+    ASSERT_EQ(t.entry_direction.size(), t.entries.size());
+    const std::size_t n = s.particles.particles.size();
+    const Visibility vis = all_lit(n, 1);
+    const std::vector<PointLight> lights = {PointLight{glm::dvec3(0.0, 0.0, -1e4), glm::dvec3(1e8), std::nullopt}};
+    const std::vector<std::uint32_t> frame_view = {0};
+    const std::vector<ViewAtlasMap> maps(1);
+    const IndirectScene scene{.particles = s.particles.particles, .visibility = &vis, .lights = lights, .frame_view = frame_view,
+                              .atlas = &s.atlas, .transfer = &t, .view_maps = maps};
+    constexpr float kExponent = 20.0f;
+    const LafortuneRgb lobe{.cx = glm::vec3(-1.0f), .cz = glm::vec3(1.0f), .n = glm::vec3(kExponent)};
+    const std::vector<glm::vec3> albedo(n, glm::vec3(0.0f));
+    const std::size_t frame[] = {0};
+    const std::vector<glm::vec4> directed = indirect_irradiance(scene, frame, albedo, SpecularModel(lobe), {.bounces = 1});
+    const std::vector<glm::vec4> spread =
+        indirect_irradiance(scene, frame, albedo, SpecularModel(lobe), {.bounces = 1, .lobe_directions = false});
+    double directed_square = 0.0, spread_square = 0.0, truth_square = 0.0, directed_sum = 0.0, truth_sum = 0.0;
+    std::size_t checked = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Particle& p = s.particles.particles[i];
+        if (p.n().z < 0.5f || p.is_gutter() || glm::length(glm::vec2(p.p())) > 1.0f || i % 8 != 0) continue;
+        const double truth = mirror_lobe_irradiance({p.p().x, p.p().y}, kExponent);
+        directed_square += (directed[i].x - truth) * (directed[i].x - truth);
+        spread_square += (spread[i].x - truth) * (spread[i].x - truth);
+        truth_square += truth * truth;
+        directed_sum += directed[i].x;
+        truth_sum += truth;
+        ++checked;
+    }
+    ASSERT_GT(checked, 200u);
+    const double directed_rms = std::sqrt(directed_square / truth_square), spread_rms = std::sqrt(spread_square / truth_square);
+    std::printf("relative RMS error of the floor's irradiance: directed %.3f, spread %.3f\n", directed_rms, spread_rms);
+    // The directed light is where the integral puts it: its total within 3%, and each point within
+    // what 1024 rays a block leave (the lobe fills about 1/20 of a floor point's hemisphere, some 50
+    // of its rays: ~15% each); the spread light, all of the lobe's over the form factor, is not.
+    EXPECT_NEAR(directed_sum / truth_sum, 1.0, 0.03);
+    EXPECT_LT(directed_rms, 0.2);
+    EXPECT_GT(spread_rms, 2.0 * directed_rms);
 }
 
 } // namespace

@@ -112,6 +112,17 @@ TEST(IndirectTransfer, RefusesMalformedMatrices) {
         t.row_of[3] = 3;
         expect_refused(t, "particle 3: row 3 out of range (3 rows)");
     }
+    {
+        IndirectTransfer t = hand_made();
+        t.entry_direction.assign(t.entries.size(), glm::vec4(0.0f, 0.0f, 1.0f, 0.5f));
+        EXPECT_NO_THROW(validate_transfer(t));
+        t.entry_direction[2] = glm::vec4(0.0f, 0.0f, 2.0f, 0.5f);
+        expect_refused(t, "row 2, entry 2: direction (0.000000, 0.000000, 2.000000) with cosine 0.500000 is not a unit vector");
+        t.entry_direction[2] = glm::vec4(0.0f, 0.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
+        expect_refused(t, "row 2, entry 2: direction");
+        t.entry_direction.pop_back();
+        expect_refused(t, "3 entry directions for 4 entries");
+    }
 }
 
 TEST(IndirectTransfer, GatherChecksItsSpans) {

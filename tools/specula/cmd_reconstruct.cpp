@@ -22,6 +22,7 @@ struct ReconstructArgs {
     std::string tap_irradiance = "on";
     std::string normal_map = "auto";
     std::string indirect = "auto";
+    std::string indirect_lobe = "directed";
     bool force_occlusion_rays = false;
     std::vector<std::uint32_t> grid;
     std::string views = "best";
@@ -45,6 +46,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.lambert.tap_irradiance = args.tap_irradiance == "on";
     c.normal_map = args.normal_map == "on" ? Toggle::On : args.normal_map == "off" ? Toggle::Off : Toggle::Auto;
     c.indirect = args.indirect == "on" ? Toggle::On : args.indirect == "off" ? Toggle::Off : Toggle::Auto;
+    c.indirect_lobe_directions = args.indirect_lobe == "directed";
     if (args.force_occlusion_rays && args.occlusion_rays == "off")
         throw UsageError("--force-occlusion-rays contradicts --occlusion-rays off");
     if (!args.grid.empty()) {
@@ -170,7 +172,7 @@ void add_reconstruct_command(CLI::App& app) {
                     "from the train frames before the solves (the albedo of concave parts is otherwise too bright) and\n"
                     "added to the evaluation's renders. auto: on when the mesh can see itself (not convex), that light\n"
                     "changes the captures by >= 0.5 8-bit codes at the 99th percentile, and the pixels no light reaches\n"
-                    "directly show at least half of it (a capture rendered with direct light only shows none); the viewer,\n"
+                    "directly show at least a quarter of it (a capture rendered with direct light only shows none); the viewer,\n"
                     "`render` and `evaluate` show direct light only")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
@@ -179,8 +181,14 @@ void add_reconstruct_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--indirect-rays", args->config.indirect_rays,
                     "Rays per row of the transfer (stratified cosine-weighted hemisphere; rounded up to a square):\n"
-                    "more rays, less noise in the indirect light and more time")
+                    "more rays, less noise in the indirect light (most in a glossy lobe's directed light) and more time")
         ->check(CLI::Range(1u, 1024u))
+        ->capture_default_str();
+    cmd->add_option("--indirect-lobe", args->indirect_lobe,
+                    "The fitted lobe's first bounce: directed (each transfer ray's source sends f_s toward it: a glossy\n"
+                    "wall lights the wall its highlight faces) or spread (the lobe's directional albedo, spread diffusely:\n"
+                    "less noise from few rays, the wrong place for a glossy lobe's light)")
+        ->check(CLI::IsMember({"directed", "spread"}))
         ->capture_default_str();
     cmd->add_option("--indirect-block", args->config.indirect_block,
                     "The transfer's rows: blocks of N x N texels of one chart that receive and send the indirect light\n"
