@@ -301,6 +301,13 @@ ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const 
 
 namespace {
 
+void check_frames(const IndirectScene& s, std::span<const std::size_t> frames) {
+    for (const std::size_t f : frames)
+        if (f >= s.lights.size() || f >= s.frame_view.size() || f >= s.visibility->frame_count ||
+            s.frame_view[f] >= s.view_maps.size())
+            throw Error("indirect light: frame " + std::to_string(f) + " has no light, view or visibility");
+}
+
 void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo) {
     if (s.visibility == nullptr || s.atlas == nullptr || s.transfer == nullptr)
         throw Error("indirect light: the scene lacks its visibility, atlas or transfer");
@@ -309,10 +316,7 @@ void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, st
     if ((t.row_of.empty() ? t.rows : t.row_of.size()) != n || albedo.size() != n || s.visibility->particle_count != n)
         throw Error("indirect light: the transfer, the albedo and the visibility must have one entry per particle");
     validate_transfer(t);
-    for (const std::size_t f : frames)
-        if (f >= s.lights.size() || f >= s.frame_view.size() || f >= s.visibility->frame_count ||
-            s.frame_view[f] >= s.view_maps.size())
-            throw Error("indirect light: frame " + std::to_string(f) + " has no light, view or visibility");
+    check_frames(s, frames);
 }
 
 // What the bounces need of a checked scene, built once per call: the material, its lobe's
@@ -328,9 +332,11 @@ struct Bouncer {
     /// The lobe's first bounce sent where it goes (the transfer's entry directions), not spread.
     bool directional = false;
     std::vector<glm::vec4> radiosity, e, total;
-    /// With `directional`, per row and frame (row-major: r * frames + k): the direction toward
-    /// the light and its cosine to the row's normal, and the mean direct irradiance of its particles.
-    std::vector<glm::vec4> light_direction, irradiance;
+    /// With `directional`, per row and frame (row-major: r * frames + k, 16 bytes: the lobe's
+    /// gather reads one or two cache lines per entry): the direction toward the light (xyz) and
+    /// the mean of I max(0, N.u) / d^2 / I over the row's particles (w; the direct irradiance is
+    /// the light's intensity times it).
+    std::vector<glm::vec4> light_geometry;
     /// With `ratio`: per particle, its indirect and direct irradiance (r + g + b) summed over the
     /// frames that light it and whose view sees it.
     bool ratio = false;
@@ -359,10 +365,7 @@ struct Bouncer {
         radiosity.resize(values);
         e.resize(values);
         total.assign(values, glm::vec4(0.0f));
-        if (directional) {
-            light_direction.resize(values);
-            irradiance.resize(values);
-        }
+        if (directional) light_geometry.resize(values);
         const float kd_bounce = shared::material_diffuse_factor(m, kMeanCosine, kMeanCosine);
         const glm::vec3 lobe_bounce = lobe(kMeanCosine);
         // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely (and
@@ -371,7 +374,8 @@ struct Bouncer {
             for (std::size_t k = 0; k < frames.size(); ++k) {
                 const PointLight& light = s.lights[frames[k]];
                 for (std::size_t r = begin; r < end; ++r) {
-                    glm::vec3 sum(0.0f), direct(0.0f);
+                    glm::vec3 sum(0.0f);
+                    double geometry = 0.0;
                     for (std::uint32_t q = rows.begin[r]; q < rows.begin[r + 1]; ++q) {
                         const std::uint32_t j = rows.members[q];
                         if (!s.visibility->lights(j, frames[k])) continue;
@@ -383,15 +387,17 @@ struct Bouncer {
                         const float kd = shared::material_diffuse_factor(m, static_cast<float>(cos_in), kMeanCosine);
                         const glm::vec3 e0(light.intensity * (cos_in / d2));
                         sum += (albedo[j] * kd + (directional ? glm::vec3(0.0f) : lobe(static_cast<float>(cos_in)))) * e0;
-                        direct += e0;
+                        geometry += cos_in / d2;
                         if (ratio && s.visibility->sees(j, s.frame_view[frames[k]])) sum_direct[j] += e0.x + e0.y + e0.z;
                     }
                     const float count = static_cast<float>(rows.begin[r + 1] - rows.begin[r]);
                     radiosity[k * n + r] = glm::vec4(sum / count, 0.0f);
                     if (directional) {
-                        const glm::vec3 u = glm::normalize(glm::vec3(light.position) - row_position[r]);
-                        light_direction[r * frames.size() + k] = glm::vec4(u, glm::dot(row_normal[r], u));
-                        irradiance[r * frames.size() + k] = glm::vec4(direct / count, 0.0f);
+                        // A light at the block's centre lights none of its particles: no direction, no lobe light.
+                        const glm::vec3 to_light = glm::vec3(light.position) - row_position[r];
+                        const float length = glm::length(to_light);
+                        const glm::vec3 u = length > 0.0f ? to_light / length : glm::vec3(0.0f);
+                        light_geometry[r * frames.size() + k] = glm::vec4(u, static_cast<float>(geometry / count));
                     }
                 }
             }
@@ -403,7 +409,7 @@ struct Bouncer {
                 detail::gather_indirect_float_unchecked(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e,
                                                         o.threads);
             }
-            if (bounce == 1 && directional) add_directional_lobe(frames.size());
+            if (bounce == 1 && directional) add_directional_lobe(frames);
             for (std::size_t k = 0; k < values; ++k) {
                 total[k] += e[k];
                 radiosity[k] = glm::vec4(row_albedo[k % n] * kd_bounce + lobe_bounce, 0.0f) * e[k];
@@ -423,9 +429,20 @@ struct Bouncer {
     // Bounce 1 of the lobe, where it goes: each entry's rays left source j toward row i in
     // direction v (the transfer's entry direction), so row i gets pi w f_s(u_j, v) E0_j from it
     // (E = pi x the cosine-weighted mean of the radiance its rays meet, transfer.h).
-    void add_directional_lobe(std::size_t frames) {
+    void add_directional_lobe(std::span<const std::size_t> frame_list) {
         const IndirectTransfer& t = *s.transfer;
-        const std::size_t n = t.rows;
+        const std::size_t n = t.rows, frames = frame_list.size();
+        std::vector<glm::vec3> intensity(frames);
+        for (std::size_t f = 0; f < frames; ++f) intensity[f] = glm::vec3(s.lights[frame_list[f]].intensity);
+        // A Lafortune lobe (Cx a + Cz b)^N is below kNegligibleLobe where every channel's base is
+        // below kNegligibleLobe^(1 / N): those (most of a glossy lobe's directions) skip the powers.
+        // 1e-6 per steradian: next to a diffuse source's rho / pi, a millionth or less of its light.
+        constexpr float kNegligibleLobe = 1e-6f;
+        const bool lafortune = m.family.x == shared::kMaterialLafortune;
+        glm::vec3 cut(-1.0f); // no cut: every base is above it
+        if (lafortune)
+            for (int c = 0; c < 3; ++c)
+                if (m.c[c] > 0.0f) cut[c] = std::pow(kNegligibleLobe, 1.0f / m.c[c]);
         parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
             std::vector<glm::vec3> sum(frames);
             for (std::size_t i = begin; i < end; ++i) {
@@ -435,12 +452,21 @@ struct Bouncer {
                     if (!(v.w > 0.0f)) continue; // leaves the source from under its surface
                     const std::size_t j = t.entries[k].source;
                     const float w = glm::pi<float>() * t.entries[k].weight;
+                    const glm::vec3 normal = row_normal[j];
                     for (std::size_t f = 0; f < frames; ++f) {
-                        const glm::vec4 u = light_direction[j * frames + f];
-                        const glm::vec4 e0 = irradiance[j * frames + f];
-                        if (!(u.w > 0.0f) || e0.x + e0.y + e0.z <= 0.0f) continue;
-                        const glm::vec3 fs = shared::material_specular(m, u.w, v.w, glm::dot(glm::vec3(u), glm::vec3(v)));
-                        sum[f] += w * glm::max(fs, glm::vec3(0.0f)) * glm::vec3(e0);
+                        const glm::vec4 l = light_geometry[j * frames + f];
+                        if (!(l.w > 0.0f)) continue; // no particle of the source is lit
+                        const glm::vec3 u(l);
+                        const float ci = glm::dot(normal, u);
+                        if (!(ci > 0.0f)) continue;
+                        const float cuv = glm::dot(u, glm::vec3(v));
+                        if (lafortune) {
+                            const float b = ci * v.w, a = cuv - b;
+                            const glm::vec3 base = glm::vec3(m.a) * a + glm::vec3(m.b) * b;
+                            if (glm::all(glm::lessThan(base, cut))) continue;
+                        }
+                        const glm::vec3 fs = shared::material_specular(m, ci, v.w, cuv);
+                        sum[f] += (w * l.w) * glm::max(fs, glm::vec3(0.0f)) * intensity[f];
                     }
                 }
                 for (std::size_t f = 0; f < frames; ++f) e[f * n + i] += glm::vec4(sum[f], 0.0f);
@@ -464,38 +490,63 @@ std::vector<glm::vec4> indirect_irradiance(const IndirectScene& s, std::span<con
     return out;
 }
 
-void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
-                     const std::optional<SpecularModel>& material, const IndirectOptions& o,
-                     const std::function<void(std::size_t, const Image&)>& sink, std::vector<float>* ratio) {
-    check_scene(s, frames, albedo);
+struct IndirectImages::Impl {
+    IndirectScene s;
+    std::span<const glm::vec3> albedo;
+    Bouncer bouncer;
+    /// Per texel: rho E / pi (the diffuse term) and, with a lobe, E / pi (what the lobe reflects).
+    Image radiance, irradiance;
+    Impl(const IndirectScene& scene, std::span<const glm::vec3> a, const std::optional<SpecularModel>& material,
+         const IndirectOptions& o)
+        : s(scene), albedo(a), bouncer(s, albedo, material, o),
+          radiance(static_cast<int>(scene.atlas->width), static_cast<int>(scene.atlas->height), 3, 0.0f),
+          irradiance(bouncer.lobe.zero() ? Image()
+                                         : Image(static_cast<int>(scene.atlas->width), static_cast<int>(scene.atlas->height), 3, 0.0f)) {}
+};
+
+IndirectImages::IndirectImages(const IndirectScene& s, std::span<const glm::vec3> albedo,
+                               const std::optional<SpecularModel>& material, const IndirectOptions& o) {
+    check_scene(s, {}, albedo);
+    m_impl = std::make_unique<Impl>(s, albedo, material, o);
+}
+IndirectImages::~IndirectImages() = default;
+
+void IndirectImages::render(std::span<const std::size_t> frames, const std::function<void(std::size_t, const Image&)>& sink,
+                            std::vector<float>* ratio) {
+    Impl& im = *m_impl;
+    const IndirectScene& s = im.s;
+    check_frames(s, frames);
     const std::size_t n = s.particles.size(), rows = s.transfer->rows;
     const Atlas& atlas = *s.atlas;
-    Bouncer bouncer(s, albedo, material, o);
-    if (ratio != nullptr) {
-        bouncer.ratio = true;
+    Bouncer& bouncer = im.bouncer;
+    bouncer.ratio = ratio != nullptr;
+    if (bouncer.ratio) {
         bouncer.sum_indirect.assign(n, 0.0);
         bouncer.sum_direct.assign(n, 0.0);
     }
+    const std::span<const glm::vec3> albedo = im.albedo;
     const shared::MaterialGpu& m = bouncer.m;
     const LobeAlbedo& lobe = bouncer.lobe;
-    const unsigned threads = std::max(o.threads, 1u);
-    // Per texel: rho E / pi (the diffuse term) and, with a lobe, E / pi (what the lobe reflects).
-    Image radiance(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
-    Image irradiance = lobe.zero() ? Image() : Image(static_cast<int>(atlas.width), static_cast<int>(atlas.height), 3, 0.0f);
-    const std::size_t batch = std::max<std::uint32_t>(o.batch_frames, 1u);
+    const unsigned threads = std::max(bouncer.o.threads, 1u);
+    Image& radiance = im.radiance;
+    Image& irradiance = im.irradiance;
+    const std::size_t batch = std::max<std::uint32_t>(bouncer.o.batch_frames, 1u);
     for (std::size_t first = 0; first < frames.size(); first += batch) {
         const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
         bouncer.run(part);
         for (std::size_t k = 0; k < part.size(); ++k) {
-            // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty texels).
-            for (std::size_t i = 0; i < n; ++i) {
-                const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(bouncer.total[k * rows + bouncer.row(i)]);
-                const int x = static_cast<int>(s.particles[i].texel_x()), y = static_cast<int>(s.particles[i].texel_y());
-                for (int c = 0; c < 3; ++c) {
-                    radiance.at(x, y, c) = albedo[i][c] * l[c];
-                    if (!lobe.zero()) irradiance.at(x, y, c) = l[c];
+            // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty
+            // texels; the particles own distinct texels).
+            parallel_for_chunks(n, threads, 16384, [&](unsigned, std::size_t begin, std::size_t end) {
+                for (std::size_t i = begin; i < end; ++i) {
+                    const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(bouncer.total[k * rows + bouncer.row(i)]);
+                    const int x = static_cast<int>(s.particles[i].texel_x()), y = static_cast<int>(s.particles[i].texel_y());
+                    for (int c = 0; c < 3; ++c) {
+                        radiance.at(x, y, c) = albedo[i][c] * l[c];
+                        if (!lobe.zero()) irradiance.at(x, y, c) = l[c];
+                    }
                 }
-            }
+            });
             const ViewAtlasMap& map = s.view_maps[s.frame_view[part[k]]];
             Image out(map.width, map.height, 3, 0.0f);
             parallel_for(static_cast<std::size_t>(map.height), threads, [&](std::size_t y) {
@@ -528,6 +579,12 @@ void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames
         for (std::size_t i = 0; i < n; ++i)
             if (bouncer.sum_direct[i] > 0.0) (*ratio)[i] = static_cast<float>(bouncer.sum_indirect[i] / bouncer.sum_direct[i]);
     }
+}
+
+void indirect_images(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo,
+                     const std::optional<SpecularModel>& material, const IndirectOptions& o,
+                     const std::function<void(std::size_t, const Image&)>& sink, std::vector<float>* ratio) {
+    IndirectImages(s, albedo, material, o).render(frames, sink, ratio);
 }
 
 } // namespace specula

@@ -4,24 +4,27 @@
 // to the atlas (built once, one ray per pixel centre), and per frame the indirect radiance
 // image that the current albedo estimate sends toward the frame's camera.
 //
-// Per frame f, with rho the albedo per particle and k_d the material's diffuse factor
+// The rows are blocks of particles (TransferOptions::block, transfer.h); a block J sends its
+// particles' mean radiosity and each particle gets its block's irradiance. Per frame f, with rho
+// the albedo per particle, rho_J a block's mean, and k_d the material's diffuse factor
 // (shared/material.h; 1 for the lafortune family):
 //   direct irradiance     E0_j = I max(0, N_j.u_j) / d_j^2 where the visibility says frame f
 //                         lights particle j, else 0 (the stand-in point light of a directional one)
-//   sources, bounce 1     B1_j = rho_j k_d(N_j.u_j, 2/3) E0_j
-//   bounce b              E_b = T B_b,   B_{b+1} = rho k_d(2/3, 2/3) E_b
+//   sources, bounce 1     B1_J = mean over J's particles of rho_j k_d(N_j.u_j, 2/3) E0_j
+//   bounce b              E_b = T B_b,   B_{b+1} = rho_J k_d(2/3, 2/3) E_b
 //   indirect irradiance   E_ind = E_1 + ... + E_bounces
-//   radiance, particle i  L_i = rho_i / pi E_ind_i   (held in an atlas image, texel of particle i)
+//   radiance, particle i  L_i = rho_i / pi E_ind_J(i)   (held in an atlas image, texel of particle i)
 //   radiance, pixel       L(x) = bilinear(L, the atlas point pixel x's centre ray hits) k_d(2/3, N.v)
 // 2/3 is the mean cosine of a cosine-weighted hemisphere: light that arrives from all over the
 // hemisphere meets the coating's Fresnel transmittance (the coated family's k_d) at that mean
 // angle, and a source's diffuse light leaves at it.
-// With a specular model, its lobe's directional albedo a_s(c) (the integral of f_s(u, w) N.w over
-// the hemisphere, u at cosine c) adds to every source's reflectance, spread diffusely (the
-// transfer keeps no directions): B1_j += a_s(N_j.u_j) E0_j, B_{b+1} += a_s(2/3) E_b; and a
-// receiver's lobe reflects the light that arrives from all over its hemisphere toward the
-// camera: L(x) += a_s(N.v) bilinear(E_ind / pi). Where a glossy lobe sends its light matters
-// (a highlight of one wall seen on another); that, the transfer leaves out.
+// With a specular model, its lobe's first bounce goes where the lobe sends it
+// (IndirectOptions::lobe_directions): an entry's rays left source J toward row I in direction
+// v, so E_1,I += pi T_IJ f_s(u_J, v) E0_J (u_J toward the light from J's mean position). Its
+// later bounces add its directional albedo a_s(c) (the integral of f_s(u, w) N.w over the
+// hemisphere, u at cosine c) to the sources' reflectance, spread diffusely: B_{b+1} += a_s(2/3)
+// E_b (and, without directions, B1_J += a_s(N.u) E0). A receiver's lobe reflects the light that
+// arrives from all over its hemisphere toward the camera: L(x) += a_s(N.v) bilinear(E_ind / pi).
 #include "capture/capture.h"
 #include "core/image.h"
 #include "geometry/atlas.h"
@@ -36,6 +39,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -115,6 +119,25 @@ struct IndirectScene {
                                                          std::span<const glm::vec3> albedo,
                                                          const std::optional<SpecularModel>& material,
                                                          const IndirectOptions& options);
+
+/// indirect_images for many calls on one scene, albedo and material: the checks (the transfer's
+/// entries among them) and the set-up (the lobe's table, the rows' means, the atlas images) once,
+/// where a caller asks batch after batch (the evaluation). Keeps `scene`'s spans and `albedo`.
+class IndirectImages {
+public:
+    IndirectImages(const IndirectScene& scene, std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
+                   const IndirectOptions& options);
+    ~IndirectImages();
+    IndirectImages(const IndirectImages&) = delete;
+    IndirectImages& operator=(const IndirectImages&) = delete;
+    /// As indirect_images below.
+    void render(std::span<const std::size_t> frames, const std::function<void(std::size_t frame, const Image& image)>& sink,
+                std::vector<float>* ratio = nullptr);
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
 
 /// Per frame of `frames`, in order: the indirect radiance image (linear RGB, the size of the
 /// frame's view, 0 where no surface is seen), handed to `sink` (called from one thread).

@@ -5,10 +5,11 @@
 // point with that estimate, remove it from the observations, estimate again).
 //
 // The geometry and the cameras are fixed while the light moves, so what depends on the geometry
-// alone is computed once per capture: the TRANSFER, a sparse matrix T over the surface particles.
-// Row i holds, for the cosine-weighted hemisphere of particle i (its normal N_i), the particles
-// that its rays reach first: of K stratified rays, those that hit the object add 1 / (rays cast)
-// each to the entry of the particle whose texel holds the hit. Rays that leave the object add
+// alone is computed once per capture: the TRANSFER, a sparse matrix T over the surface particles
+// (or blocks of them: IndirectTransfer::row_of). Row i holds, for the cosine-weighted hemisphere
+// of particle i (its normal N_i), the particles that its rays reach first: of K stratified rays,
+// those that hit the object add 1 / (rays cast) each to the entry of the particle whose texel
+// holds the hit (and the entry keeps their mean direction). Rays that leave the object add
 // nothing (the capture's surroundings are black); directions under the particle's face (where
 // its interpolated normal tilts away from the face) are not cast, and the cast ones stand for
 // them. For a diffuse source of radiosity B (W/m^2 leaving the surface, B = pi L), the

@@ -948,19 +948,20 @@ std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& 
     // each call past the cached ones computes the next options.batch_frames frames.
     struct Cache {
         std::vector<glm::vec3> albedo;
+        std::optional<IndirectImages> renderer; // checked and set up once for every batch
         std::map<std::size_t, Image> images;
     };
     auto cache = std::make_shared<Cache>();
     cache->albedo = particle_albedo(geometry, texture.image);
-    return [&indirect, &geometry, &visibility, cache, material = factorization.material](std::size_t frame, Image& rendered) {
+    cache->renderer.emplace(indirect_scene(indirect, geometry, visibility), cache->albedo, factorization.material, indirect.options);
+    return [&indirect, &visibility, cache](std::size_t frame, Image& rendered) {
         if (!cache->images.contains(frame)) {
             cache->images.clear();
             std::vector<std::size_t> batch;
             const std::size_t frames = visibility.inputs.lights.size();
             for (std::size_t f = frame; f < frames && batch.size() < std::max<std::uint32_t>(indirect.options.batch_frames, 1u); ++f)
                 batch.push_back(f);
-            indirect_images(indirect_scene(indirect, geometry, visibility), batch, cache->albedo, material, indirect.options,
-                            [&](std::size_t f, const Image& light) { cache->images.emplace(f, light); });
+            cache->renderer->render(batch, [&](std::size_t f, const Image& light) { cache->images.emplace(f, light); });
         }
         const Image& light = cache->images.at(frame);
         for (std::size_t k = 0; k < rendered.pixels.size() && k < light.pixels.size(); ++k) rendered.pixels[k] += light.pixels[k];
