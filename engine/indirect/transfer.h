@@ -52,7 +52,7 @@ static_assert(sizeof(TransferEntry) == 8, "std430 layout of TransferEntry");
 /// block's irradiance.
 struct IndirectTransfer {
     std::uint32_t rows = 0;                  ///< blocks (receivers); the sources are the same blocks
-    std::uint32_t rays_per_row = 0;     ///< K, cast per row (a block's rays start from its particles in turn)
+    std::uint32_t rays_per_row = 0;          ///< K, cast per row (a block's rays start from its particles in turn)
     std::vector<std::uint32_t> row_begin;    ///< rows + 1 offsets into entries
     std::vector<TransferEntry> entries;
     /// Per particle: the row (block) that receives and sends for it; empty: row i is particle i.

@@ -244,12 +244,13 @@ IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, con
 
 // The train frames less the indirect light that `albedo` sends (the other frames stay empty:
 // the solves read train frames only). An object pixel whose added light is over
-// kIndirectMaxShare of what it shows is flagged missing: returns how many were. With `measure`, the planner's figures (IndirectMeasure) over
-// every 4th object pixel of the train frames (the unlit ones found with the views' surface maps).
+// kIndirectMaxShare of what it shows is flagged missing; returns how many were. With `measure`,
+// the planner's figures (IndirectMeasure) over every 4th object pixel of the train frames (the
+// unlit ones found with the views' surface maps); with `ratio`, indirect_images' R per particle.
 std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, const Capture& capture,
-                           std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
-                           std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
-                           IndirectMeasure* measure, std::vector<float>* ratio) {
+                                  std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
+                                  std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
+                                  IndirectMeasure* measure, std::vector<float>* ratio) {
     std::vector<std::size_t> frames;
     for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
         if (capture.desc.frames[f].split == Split::Train) frames.push_back(f);
@@ -437,8 +438,8 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         if (growing)
             run.warn(format_text("indirect light: the rounds do not settle (the albedo moved by %.1f%%, then %.1f%%)",
                                  100.0 * s.rounds.back().albedo_change, 100.0 * r.albedo_change) +
-                     ": the light the object sends itself is not what the transfer predicts there (a glossy lobe's light "
-                     "from one wall to another, which it spreads diffusely?); compare --indirect off");
+                     ": the light the object sends itself is not what the transfer predicts there (a glossy lobe's later "
+                     "bounces, which it spreads diffusely?); compare --indirect off");
         const bool last = growing || r.albedo_change < kIndirectTolerance || round >= config.indirect_rounds;
         if (!last) {
             // The next round's images: the captures less the light this round's albedo sends.
