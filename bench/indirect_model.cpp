@@ -3,37 +3,22 @@
 // CAPTURE_BOUNCES and CAPTURE_DIRECT are `specula synth` captures of one preset, rig and seed,
 // with --bounces N and without: their difference is the true indirect light of every pixel (up
 // to the path tracer's noise). The model's (indirect/indirect.h) is computed from the capture's
-// truth (albedo texture, lobe) with the lobe's first bounce directed and spread, and without the
+// truth (albedo texture, material) with the lobe's first bounce directed and spread, and without the
 // lobe; printed: predicted / true over the object's pixels, by how much direct light they show.
 #include "capture/capture.h"
 #include "indirect/indirect.h"
 #include "pipeline/run.h"
 #include "pipeline/stages.h"
 #include "synth/render.h"
+#include "synth/synth.h"
 
 #include <cstdio>
 #include <exception>
 #include <string>
 #include <vector>
 
-namespace {
-
-using namespace specula;
-
-std::optional<SpecularModel> truth_material(const Capture& c) {
-    const nlohmann::json& lobe = c.desc.ground_truth.at("lobe");
-    LafortuneRgb l;
-    for (int k = 0; k < 3; ++k) {
-        l.cx[k] = lobe.at("cx")[k].get<float>();
-        l.cz[k] = lobe.at("cz")[k].get<float>();
-        l.n[k] = lobe.at("n")[k].get<float>();
-    }
-    return SpecularModel(l);
-}
-
-} // namespace
-
 int main(int argc, char** argv) try {
+    using namespace specula;
     if (argc < 3) {
         std::fprintf(stderr, "usage: indirect_model CAPTURE_BOUNCES CAPTURE_DIRECT [EVERY_NTH_FRAME (6)]\n");
         return 2;
@@ -61,6 +46,8 @@ int main(int argc, char** argv) try {
     std::vector<std::size_t> frames;
     for (std::size_t f = 0; f < bounced.desc.frames.size(); f += every)
         if (bounced.desc.frames[f].split == Split::Train) frames.push_back(f);
+    // The truth's material, any family (ground_truth.material, as synth writes it).
+    const SpecularModel material = synth::material_from_json(bounced.desc.ground_truth.at("material"));
     std::vector<ViewAtlasMap> maps;
     for (const View& v : bounced.views) maps.push_back(build_view_atlas_map(v.camera, bounced.mesh, *visibility.scene, geometry.atlas));
     for (const std::uint32_t block : {1u, 2u}) {
@@ -73,8 +60,8 @@ int main(int argc, char** argv) try {
             std::optional<SpecularModel> material;
             bool directions;
         };
-        for (const Variant& v : {Variant{"lobe directed", truth_material(bounced), true},
-                                 Variant{"lobe spread", truth_material(bounced), false}, Variant{"no lobe", std::nullopt, false}}) {
+        for (const Variant& v : {Variant{"lobe directed", material, true},
+                                 Variant{"lobe spread", material, false}, Variant{"no lobe", std::nullopt, false}}) {
             // Bins by the direct light of the pixel (the direct capture's, r + g + b, linear), which
             // the indirect light's noise does not move: sums of predicted and true.
             constexpr int kBins = 5;

@@ -50,8 +50,9 @@ glm::vec2 atlas_point(const Atlas& atlas, std::uint32_t triangle, float u, float
 
 // The specular lobe's directional albedo a_s(c) = integral of f_s(u, w) N.w dw over the
 // hemisphere, u at cosine c to the normal: the share of a source's light that its lobe reflects
-// (spread diffusely here: the transfer keeps no directions), and by reciprocity what a receiver's
-// lobe sends toward the camera at cosine c of light that arrives from all over its hemisphere.
+// (spread diffusely here: its later bounces, and its first without the transfer's directions),
+// and by reciprocity what a receiver's lobe sends toward the camera at cosine c of light that
+// arrives from all over its hemisphere.
 // Tabulated at kSteps cosines by a stratified cosine-weighted quadrature (64 x 64 strata:
 // integral = pi x the mean of f_s), clamped to [0, 1] (a fitted lobe need not conserve energy).
 class LobeAlbedo {
@@ -186,21 +187,31 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
         TransferStats& st = counts[worker];
         // A hit: its source row and the direction from the source back toward the ray's origin.
         std::vector<std::pair<std::uint32_t, glm::vec3>> sources;
+        // Where the row's particles cast from: the origin, the face normal, the shading frame.
+        struct Start {
+            glm::vec3 origin, ng, n, t, b;
+        };
+        std::vector<Start> starts;
         for (std::size_t i = begin; i < end; ++i) {
             const std::uint32_t first = rm.begin[i], count = rm.begin[i + 1] - first;
+            starts.clear();
+            for (std::uint32_t q = first; q < first + count; ++q) {
+                const Particle& p = particles[rm.members[q]];
+                Start st{.origin = {}, .ng = face_normal(mesh, p.triangle), .n = p.n(), .t = {}, .b = {}};
+                // A degenerate triangle has no face: its particle's normal stands in.
+                if (!std::isfinite(st.ng.x + st.ng.y + st.ng.z)) st.ng = st.n;
+                if (glm::dot(st.ng, st.n) < 0.0f) st.ng = -st.ng;
+                st.origin = p.p() + scene.ray_offset() * st.ng;
+                basis(st.n, st.t, st.b);
+                starts.push_back(st);
+            }
             sources.clear();
             std::uint32_t cast = 0;
             for (std::uint32_t s = 0; s < rays; ++s) {
                 // The row's particles take the rays in turn, shifted by one each grid row, so that
                 // each gets strata at every radius and every angle.
-                const Particle& p = particles[rm.members[first + (s % grid + s / grid) % count]];
-                const glm::vec3 n = p.n();
-                glm::vec3 ng = face_normal(mesh, p.triangle);
-                if (!std::isfinite(ng.x + ng.y + ng.z)) ng = n; // a degenerate triangle has no face: its particle's normal stands in
-                if (glm::dot(ng, n) < 0.0f) ng = -ng;
-                const glm::vec3 origin = p.p() + scene.ray_offset() * ng;
-                glm::vec3 t, b;
-                basis(n, t, b);
+                const Start& from = starts[(s % grid + s / grid) % count];
+                const glm::vec3 &n = from.n, &ng = from.ng, &origin = from.origin, &t = from.t, &b = from.b;
                 const std::uint64_t h = mix(options.seed ^ mix((static_cast<std::uint64_t>(i) << 24) ^ s));
                 const float u1 = (static_cast<float>(s % grid) + unit(h)) / static_cast<float>(grid);
                 const float u2 = (static_cast<float>(s / grid) + unit(mix(h))) / static_cast<float>(grid);
@@ -319,8 +330,8 @@ void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, st
     check_frames(s, frames);
 }
 
-// What the bounces need of a checked scene, built once per call: the material, its lobe's
-// table, each row's particles and their mean albedo, and the buffers of one batch of frames.
+// What the bounces need of a checked scene, built once per IndirectImages: the material, its
+// lobe's table, each row's particles and their mean albedo, and the buffers of one batch of frames.
 struct Bouncer {
     const IndirectScene& s;
     std::span<const glm::vec3> albedo;
@@ -434,15 +445,6 @@ struct Bouncer {
         const std::size_t n = t.rows, frames = frame_list.size();
         std::vector<glm::vec3> intensity(frames);
         for (std::size_t f = 0; f < frames; ++f) intensity[f] = glm::vec3(s.lights[frame_list[f]].intensity);
-        // A Lafortune lobe (Cx a + Cz b)^N is below kNegligibleLobe where every channel's base is
-        // below kNegligibleLobe^(1 / N): those (most of a glossy lobe's directions) skip the powers.
-        // 1e-6 per steradian: next to a diffuse source's rho / pi, a millionth or less of its light.
-        constexpr float kNegligibleLobe = 1e-6f;
-        const bool lafortune = m.family.x == shared::kMaterialLafortune;
-        glm::vec3 cut(-1.0f); // no cut: every base is above it
-        if (lafortune)
-            for (int c = 0; c < 3; ++c)
-                if (m.c[c] > 0.0f) cut[c] = std::pow(kNegligibleLobe, 1.0f / m.c[c]);
         parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
             std::vector<glm::vec3> sum(frames);
             for (std::size_t i = begin; i < end; ++i) {
@@ -460,11 +462,6 @@ struct Bouncer {
                         const float ci = glm::dot(normal, u);
                         if (!(ci > 0.0f)) continue;
                         const float cuv = glm::dot(u, glm::vec3(v));
-                        if (lafortune) {
-                            const float b = ci * v.w, a = cuv - b;
-                            const glm::vec3 base = glm::vec3(m.a) * a + glm::vec3(m.b) * b;
-                            if (glm::all(glm::lessThan(base, cut))) continue;
-                        }
                         const glm::vec3 fs = shared::material_specular(m, ci, v.w, cuv);
                         sum[f] += (w * l.w) * glm::max(fs, glm::vec3(0.0f)) * intensity[f];
                     }
