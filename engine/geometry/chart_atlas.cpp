@@ -1232,6 +1232,13 @@ std::pair<long, long> texel_range(double lo, double hi, std::uint32_t limit) {
 // distance kChartGutterReach of the chart: what bilinear lookups inside it read, with a
 // quarter texel to spare), owned by the closest triangle.
 
+/// A triangle without area in the texture owns no texel (only atlases read from texture
+/// coordinates have them: build_chart_atlas's flattening keeps every triangle's orientation).
+bool flat_in_texture(const Atlas& atlas, std::uint32_t t) {
+    const glm::dvec2 c0 = atlas.corner_texel(t, 0);
+    return !(std::abs(cross2(atlas.corner_texel(t, 1) - c0, atlas.corner_texel(t, 2) - c0)) > 1e-12);
+}
+
 /// Sizes atlas.owner and gives each interior texel its triangle; returns which texels are interior.
 std::vector<std::uint8_t> assign_interior(Atlas& atlas) {
     const std::size_t tri_count = atlas.chart_of.size();
@@ -1239,6 +1246,7 @@ std::vector<std::uint8_t> assign_interior(Atlas& atlas) {
     atlas.owner.assign(std::size_t(atlas.width) * atlas.height, Atlas::kEmpty);
     std::vector<std::uint8_t> interior(atlas.owner.size(), 0);
     for (std::uint32_t t = 0; t < tri_count; ++t) {
+        if (flat_in_texture(atlas, t)) continue;
         const glm::dvec2 c0 = atlas.corner_texel(t, 0), c1 = atlas.corner_texel(t, 1), c2 = atlas.corner_texel(t, 2);
         const glm::dvec2 lo = glm::min(c0, glm::min(c1, c2)), hi = glm::max(c0, glm::max(c1, c2));
         const auto [x0, x1] = texel_range(lo.x, hi.x, atlas.width);
@@ -1265,6 +1273,7 @@ void assign_gutter(Atlas& atlas, const std::vector<std::uint8_t>& interior) {
     std::vector<std::uint8_t> in_reach(atlas.owner.size(), 0);
     const double search = kChartGutterReach * std::sqrt(2.0);
     for (std::uint32_t t = 0; t < tri_count; ++t) {
+        if (flat_in_texture(atlas, t)) continue;
         const glm::dvec2 tri[3] = {atlas.corner_texel(t, 0), atlas.corner_texel(t, 1), atlas.corner_texel(t, 2)};
         const glm::dvec2 lo = glm::min(tri[0], glm::min(tri[1], tri[2])) - search, hi = glm::max(tri[0], glm::max(tri[1], tri[2])) + search;
         const auto [x0, x1] = texel_range(lo.x, hi.x, atlas.width);
@@ -1380,6 +1389,83 @@ Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const
     assign_gutter(atlas, interior);
     summarize_atlas(atlas, mesh, interior);
     measure_distortion(atlas, mesh, sizes.surface);
+    return atlas;
+}
+
+Atlas atlas_from_texture_coordinates(const Mesh& mesh, std::uint32_t width, std::uint32_t height) {
+    const std::size_t tri_count = mesh.triangles.size(), vertex_count = mesh.positions.size();
+    if (!mesh.has_texcoords()) throw Error("atlas from texture coordinates: the mesh has no texture coordinates (one per vertex)");
+    if (width == 0 || height == 0 || width > Atlas::kMaxDimension || height > Atlas::kMaxDimension)
+        throw Error("atlas from texture coordinates: a texture of " + std::to_string(width) + " x " + std::to_string(height) +
+                    " texels (1 to " + std::to_string(Atlas::kMaxDimension) + " a side)");
+    if (tri_count == 0) throw Error("atlas from texture coordinates: the mesh has no triangles");
+    for (std::size_t v = 0; v < vertex_count; ++v)
+        if (!std::isfinite(mesh.texcoords[v].x) || !std::isfinite(mesh.texcoords[v].y))
+            throw Error("atlas from texture coordinates: vertex " + std::to_string(v) + "'s texture coordinate is not finite");
+
+    Atlas atlas;
+    atlas.mode = AtlasMode::Charts;
+    atlas.width = width;
+    atlas.height = height;
+    atlas.corners.resize(3 * tri_count);
+    atlas.corner_uv.resize(3 * tri_count);
+    // Charts: triangles joined through shared vertices (a vertex holds one coordinate, so its
+    // triangles meet in the texture there too), by union-find over the vertices.
+    std::vector<std::uint32_t> parent(vertex_count);
+    std::iota(parent.begin(), parent.end(), 0u);
+    const auto root = [&](std::uint32_t v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (std::size_t t = 0; t < tri_count; ++t) {
+        const glm::uvec3 tri = mesh.triangles[t];
+        for (int k = 0; k < 3; ++k) {
+            if (tri[k] >= vertex_count) throw Error("atlas from texture coordinates: triangle " + std::to_string(t) + "'s vertex out of range");
+            atlas.corner_uv[3 * t + std::size_t(k)] = mesh.texcoords[tri[k]];
+            atlas.corners[3 * t + std::size_t(k)] = glm::dvec2(mesh.texcoords[tri[k]]) * glm::dvec2(width, height);
+        }
+        parent[root(tri.y)] = root(tri.x);
+        parent[root(tri.z)] = root(tri.x);
+    }
+    std::vector<std::uint32_t> chart_of_root(vertex_count, Atlas::kEmpty);
+    atlas.chart_of.resize(tri_count);
+    std::vector<glm::dvec2> lo, hi;
+    for (std::size_t t = 0; t < tri_count; ++t) {
+        std::uint32_t& chart = chart_of_root[root(mesh.triangles[t].x)];
+        if (chart == Atlas::kEmpty) {
+            chart = static_cast<std::uint32_t>(atlas.charts.size());
+            atlas.charts.emplace_back();
+            lo.emplace_back(std::numeric_limits<double>::infinity());
+            hi.emplace_back(-std::numeric_limits<double>::infinity());
+        }
+        atlas.chart_of[t] = chart;
+        ++atlas.charts[chart].triangles;
+        for (int k = 0; k < 3; ++k) {
+            lo[chart] = glm::min(lo[chart], atlas.corner_texel(std::uint32_t(t), k));
+            hi[chart] = glm::max(hi[chart], atlas.corner_texel(std::uint32_t(t), k));
+        }
+    }
+    // Each chart's rectangle: its triangles' bounds and the gutter's reach, within the texture.
+    for (std::size_t c = 0; c < atlas.charts.size(); ++c) {
+        const double reach = kChartGutterReach * std::sqrt(2.0);
+        const auto [x0, x1] = texel_range(lo[c].x - reach, hi[c].x + reach, width);
+        const auto [y0, y1] = texel_range(lo[c].y - reach, hi[c].y + reach, height);
+        ChartPlacement& cp = atlas.charts[c];
+        if (x1 < x0 || y1 < y0) continue; // outside the texture: no texel
+        cp.x = std::uint32_t(x0);
+        cp.y = std::uint32_t(y0);
+        cp.width = std::uint32_t(x1 - x0 + 1);
+        cp.height = std::uint32_t(y1 - y0 + 1);
+    }
+    AtlasSummary& s = atlas.summary;
+    s.mode = to_string(AtlasMode::Charts);
+    s.size_source = "texture coordinates";
+    s.triangles = tri_count;
+    s.charts = atlas.charts.size();
+    s.mesh_vertices = vertex_count;
+    const std::vector<std::uint8_t> interior = assign_interior(atlas);
+    assign_gutter(atlas, interior);
+    summarize_atlas(atlas, mesh, interior);
     return atlas;
 }
 

@@ -104,6 +104,17 @@ struct ChartSet {
 /// Builds the chart atlas (steps 1 to 6); called by build_atlas for AtlasMode::Charts.
 [[nodiscard]] Atlas build_chart_atlas(const Mesh& mesh, std::span<const Camera> cameras, const AtlasOptions& options);
 
+/// The atlas a textured mesh already has (a bundle's: export/bundle.h, or any glTF's), for the
+/// particles of a bundle (evaluate/indirect_light.h): corners from the vertices' texture
+/// coordinates on a width x height texture; charts are the triangles joined through shared
+/// vertices (a vertex holds one coordinate); texels owned as step 6 assigns them. On a bundle
+/// that build_chart_atlas laid out, this gives back its charts and owners (up to the charts'
+/// numbering and float rounding of the coordinates). Overlapping charts (a foreign glTF's
+/// mirrored halves) share texels: the first triangle wins. A triangle without area in the
+/// texture owns no texel. Throws Error when the mesh has no texture coordinates or one is not
+/// finite, or the size is 0 or above Atlas::kMaxDimension.
+[[nodiscard]] Atlas atlas_from_texture_coordinates(const Mesh& mesh, std::uint32_t width, std::uint32_t height);
+
 /// Singular values (sigma1 >= sigma2) of the linear map taking the 3D triangle (p0, p1, p2)
 /// to the 2D triangle (q0, q1, q2); sigma2 < 0 when the map flips orientation.
 [[nodiscard]] glm::dvec2 triangle_stretch(const glm::dvec3& p0, const glm::dvec3& p1, const glm::dvec3& p2, const glm::dvec2& q0,

@@ -334,7 +334,8 @@ json indirect_json(const IndirectStage& s, const std::optional<evaluate::Evaluat
                               ? "diffuse; the fitted lobe's first bounce sent along each transfer ray (f_s toward it), its "
                                 "later bounces spread diffusely"
                               : "diffuse, with the fitted lobe's directional albedo spread diffusely (--indirect-lobe spread)"},
-              {"viewer", "specula-view and the bundle show direct light only"},
+              {"viewer", "specula-view shows direct light only; specula render and specula evaluate add this light from the bundle "
+                         "alone (--indirect, on by default for this bundle)"},
               {"bounces", s.options.bounces},
               {"gather", s.backend_reason},
               {"transfer_rows", s.transfer->rows},

@@ -5,6 +5,7 @@
 #include "core/format.h"
 #include "core/log.h"
 #include "core/timer.h"
+#include "evaluate/indirect_light.h"
 #include "gpu/context.h"
 #include "export/normal_map.h"
 #include "pipeline/planner.h"
@@ -13,7 +14,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <memory>
 #include <utility>
 
@@ -214,22 +214,10 @@ DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const Geome
 
 namespace {
 
-// Each particle's albedo as the bundle would hold it: the atlas texel of the particle, where
-// the texture stage inpaints what no view saw (a source the cameras never see still reflects).
-std::vector<glm::vec3> particle_albedo(const GeometryStage& g, const Image& texture) {
-    const std::span<const Particle> particles = g.particles.particles;
-    std::vector<glm::vec3> out(particles.size());
-    for (std::size_t p = 0; p < particles.size(); ++p) {
-        const int x = static_cast<int>(particles[p].texel_x()), y = static_cast<int>(particles[p].texel_y());
-        out[p] = glm::vec3(texture.at(x, y, 0), texture.at(x, y, std::min(1, texture.channels - 1)),
-                           texture.at(x, y, std::min(2, texture.channels - 1)));
-    }
-    return out;
-}
-
-// The albedo of the particles as a solve gives it, inpainted where the solve has none.
+// The albedo of the particles as a solve gives it, inpainted where the solve has none: the
+// texture stage inpaints what no view saw (a source the cameras never see still reflects).
 std::vector<glm::vec3> solved_albedo(const GeometryStage& g, const LambertOutputs& solve) {
-    return particle_albedo(g, make_albedo_texture(g.atlas, g.particles.particles, solve).image);
+    return evaluate::particle_albedo(g.particles.particles, make_albedo_texture(g.atlas, g.particles.particles, solve).image);
 }
 
 IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, const VisibilityStage& v) {
@@ -944,30 +932,11 @@ std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& 
                                                            const VisibilityStage& visibility, const AlbedoTexture& texture,
                                                            const FactorizationStage& factorization) {
     if (!indirect.on()) return {};
-    // The final albedo (refined, inpainted) and material: what the bundle renders. The evaluation
-    // asks frame by frame in capture order; the gather is cheaper a batch of frames at a time, so
-    // each call past the cached ones computes the next options.batch_frames frames.
-    struct Cache {
-        std::vector<glm::vec3> albedo;
-        std::optional<IndirectImages> renderer; // checked and set up once for every batch
-        std::map<std::size_t, Image> images;
-    };
-    auto cache = std::make_shared<Cache>();
-    cache->albedo = particle_albedo(geometry, texture.image);
-    cache->renderer.emplace(indirect_scene(indirect, geometry, visibility), cache->albedo, factorization.material, indirect.options);
-    return [&indirect, &visibility, cache](std::size_t frame, Image& rendered) {
-        if (!cache->images.contains(frame)) {
-            cache->images.clear();
-            std::vector<std::size_t> batch;
-            const std::size_t frames = visibility.inputs.lights.size();
-            for (std::size_t f = frame; f < frames && batch.size() < std::max<std::uint32_t>(indirect.options.batch_frames, 1u); ++f)
-                batch.push_back(f);
-            cache->renderer->render(batch, [&](std::size_t f, const Image& light) { cache->images.emplace(f, light); });
-        }
-        const Image& light = cache->images.at(frame);
-        for (std::size_t k = 0; k < rendered.pixels.size() && k < light.pixels.size(); ++k) rendered.pixels[k] += light.pixels[k];
-        cache->images.erase(frame);
-    };
+    // The final albedo (refined, inpainted) and material: what the bundle renders.
+    auto adder = std::make_shared<evaluate::IndirectLightAdder>(indirect_scene(indirect, geometry, visibility),
+                                                                evaluate::particle_albedo(geometry.particles.particles, texture.image),
+                                                                factorization.material, indirect.options);
+    return [adder](std::size_t frame, Image& rendered) { adder->add(frame, rendered); };
 }
 
 std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,

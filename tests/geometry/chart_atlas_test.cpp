@@ -608,6 +608,52 @@ TEST(ChartAtlas, WithoutCamerasTheChartsFillTheBudget) {
     EXPECT_GT(atlas.summary.fill_ratio, 0.5);
 }
 
+// A bundle's texture coordinates give back the atlas it was made from (what `specula evaluate
+// --indirect` builds its particles on): the same charts and, but for texels whose centres lie
+// on a triangle's edge within the float rounding of the coordinates, the same owners.
+TEST(ChartAtlas, TextureCoordinatesGiveBackTheAtlas) {
+    for (const char* name : {"knot", "can", "vase"}) {
+        const synth::Preset preset = synth::make_preset(name);
+        const Atlas atlas = build_atlas(preset.mesh, {}, {.max_width = 512, .max_height = 512});
+        const Bundle bundle = make_bundle(preset.mesh, atlas.corner_uv, Image(int(atlas.width), int(atlas.height), 3, 0.5f), Material{});
+        ASSERT_EQ(bundle.mesh.triangles.size(), preset.mesh.triangles.size());
+        const Atlas back = atlas_from_texture_coordinates(bundle.mesh, atlas.width, atlas.height);
+        EXPECT_EQ(back.charts.size(), atlas.charts.size()) << name;
+        EXPECT_EQ(back.summary.size_source, "texture coordinates");
+        // One chart of the bundle per chart of the atlas, and the other way round.
+        std::map<std::uint32_t, std::uint32_t> forward, backward;
+        for (std::size_t t = 0; t < atlas.chart_of.size(); ++t) {
+            const auto [f, f_new] = forward.emplace(atlas.chart_of[t], back.chart_of[t]);
+            const auto [b, b_new] = backward.emplace(back.chart_of[t], atlas.chart_of[t]);
+            ASSERT_EQ(f->second, back.chart_of[t]) << name << ": triangle " << t;
+            ASSERT_EQ(b->second, atlas.chart_of[t]) << name << ": triangle " << t;
+        }
+        std::size_t differ = 0, owned = 0;
+        for (std::size_t i = 0; i < atlas.owner.size(); ++i) {
+            if (atlas.owner[i] != Atlas::kEmpty) ++owned;
+            if (atlas.owner[i] != back.owner[i]) ++differ;
+        }
+        std::printf("%-5s %zu charts, %zu owned texels, %zu owned differently\n", name, back.charts.size(), owned, differ);
+        EXPECT_LT(double(differ), 1e-3 * double(owned)) << name;
+        EXPECT_EQ(back.summary.interior_texels + back.summary.gutter_texels, atlas.summary.interior_texels + atlas.summary.gutter_texels);
+        // The particles land on the same texels.
+        EXPECT_NEAR(double(build_particles(bundle.mesh, back).particles.size()), double(owned), 1e-3 * double(owned)) << name;
+    }
+}
+
+TEST(ChartAtlas, TextureCoordinatesThatCannotMakeAnAtlasAreRefused) {
+    Mesh mesh = test::plane(1.0f, 2);
+    EXPECT_THROW((void)atlas_from_texture_coordinates(mesh, 64, 64), Error); // no texture coordinates
+    mesh.texcoords.assign(mesh.positions.size(), glm::vec2(0.5f));
+    EXPECT_THROW((void)atlas_from_texture_coordinates(mesh, 0, 64), Error);
+    EXPECT_THROW((void)atlas_from_texture_coordinates(mesh, 64, Atlas::kMaxDimension + 1), Error);
+    // Every triangle on one point of the texture: none has area there, none owns a texel.
+    const Atlas flat = atlas_from_texture_coordinates(mesh, 64, 64);
+    EXPECT_TRUE(std::all_of(flat.owner.begin(), flat.owner.end(), [](std::uint32_t o) { return o == Atlas::kEmpty; }));
+    mesh.texcoords[1].x = std::nanf("");
+    EXPECT_THROW((void)atlas_from_texture_coordinates(mesh, 64, 64), Error);
+}
+
 TEST(ChartAtlas, ModeNamesRoundTrip) {
     EXPECT_EQ(atlas_mode_from_string("charts"), AtlasMode::Charts);
     EXPECT_EQ(atlas_mode_from_string("patchwork"), AtlasMode::Patchwork);

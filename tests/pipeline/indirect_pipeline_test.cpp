@@ -4,6 +4,9 @@
 #include "concave_albedo.h"
 #include "core/file_util.h"
 #include "core/image.h"
+#include "evaluate/evaluate.h"
+#include "evaluate/indirect_light.h"
+#include "export/bundle.h"
 #include "pipeline/reconstruct.h"
 #include "synth/presets.h"
 #include "synth/synth.h"
@@ -119,6 +122,28 @@ TEST(IndirectPipeline, KnotWithBouncesIsSolvedWithItAndWithoutBouncesWithout) {
     const nlohmann::json& rounds = on.report["indirect"]["rounds"];
     ASSERT_FALSE(rounds.empty());
     EXPECT_GT(rounds[0]["pixels_left_out"].get<std::size_t>(), 0u);
+
+    // `specula evaluate --indirect`: the same light from the bundle alone (particles on its own
+    // texture coordinates, visibility, transfer) scores what the reconstruction's own evaluation did.
+    {
+        const Capture capture = load_capture(bounced, {.load_images = true});
+        const Bundle bundle = read_bundle(dir / "on" / "object.glb");
+        ASSERT_TRUE(evaluate::indirect_removed_from_albedo(bundle));
+        EXPECT_EQ(evaluate::indirect_bounces_of(bundle), 2u);
+        const VisibilityInputs in = visibility_inputs(capture);
+        evaluate::BundleIndirectLight light(bundle, in.views, in.lights, in.frame_view, {});
+        evaluate::EvaluateOptions eo;
+        eo.metrics_backend = Backend::Cpu;
+        eo.progress = false;
+        eo.add_light = [&](std::size_t frame, Image& rendered) { light.add(frame, rendered); };
+        const evaluate::EvaluationResult r = evaluate::evaluate(*test::vulkan_context(), bundle, capture, eo);
+        const double again = r.display_metrics.test_masked.psnr, again_without = r.direct_display_metrics->test_masked.psnr;
+        std::printf("evaluated from the bundle: with %.2f dB (the reconstruction's %.2f), without %.2f dB (%.2f); %zu particles, "
+                    "set up in %.1f s\n",
+                    again, with, again_without, without, light.stats().particles, light.stats().setup_s());
+        EXPECT_NEAR(again_without, without, 0.01);
+        EXPECT_NEAR(again, with, 0.05);
+    }
 
     // The same knot without bounces: the unlit pixels are black, so the planner leaves it out.
     const fs::path direct = make_capture(dir, "knot", 96, 0, true);

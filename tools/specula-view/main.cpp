@@ -28,8 +28,9 @@ int main(int argc, char** argv) {
                  "(or the arrow keys) moves the light. Keys: 1 diffuse, 2 specular, 3 both, F factorized/analytic,\n"
                  "P deferred/fused/separate passes, S shadows on/off, C captured photograph (with --capture), R reset, H help, Q/Esc quit.\n"
                  "The title shows mode and frame time. It draws direct light only: the light that bounced off the\n"
-                 "object itself, which `specula reconstruct` removes from the albedo and adds to its evaluation's\n"
-                 "renders (--indirect), is not drawn, so hollows look darker than in the photographs.\n"
+                 "object itself, which `specula reconstruct` removes from the albedo (--indirect), is not drawn, so\n"
+                 "hollows look darker than in the photographs; `specula render --indirect` draws a pose with it (offline,\n"
+                 "seconds a pose).\n"
                  "Draws only when something changes (unless --continuous). Without a display, --frames and --bench\n"
                  "render offscreen; interactive use needs a display (or Xvfb: xvfb-run -a specula-view ...)."};
     app.set_version_flag("--version", std::string("specula-view ") + specula::kVersion);

@@ -6,13 +6,16 @@
 #include "capture/capture.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/format.h"
 #include "core/log.h"
 #include "core/output_dir.h"
 #include "evaluate/bundle_render.h"
 #include "evaluate/evaluate.h"
+#include "evaluate/indirect_light.h"
 #include "export/bundle.h"
 #include "gpu/context.h"
 
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -39,6 +42,9 @@ struct EvaluateArgs {
     bool no_hausdorff = false;
     int threads = 2;
     std::string device;
+    std::string indirect = "auto";
+    std::uint32_t indirect_bounces = 0; // 0: the bundle's, else 2
+    std::uint32_t indirect_rays = kTransferRays;
 };
 
 // An earlier --sheets folder: nothing but sheet_*.png files.
@@ -84,7 +90,32 @@ void run_evaluate(const EvaluateArgs& a) {
     const Capture capture = load_capture(a.capture, {.load_mesh = false, .load_images = true, .threads = a.threads});
     for (const std::string& w : capture.warnings) log::warn(w);
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
+    // The light that bounced off the object (evaluate/indirect_light.h), from the bundle alone.
+    std::optional<evaluate::BundleIndirectLight> indirect;
+    evaluate::BundleIndirectOptions io;
+    if (a.indirect == "on" || (a.indirect == "auto" && evaluate::indirect_removed_from_albedo(bundle))) {
+        io = {.bounces = a.indirect_bounces != 0 ? a.indirect_bounces : evaluate::indirect_bounces_of(bundle),
+              .rays = a.indirect_rays,
+              .threads = static_cast<unsigned>(a.threads)};
+        const VisibilityInputs in = visibility_inputs(capture);
+        log::info(format_text("indirect light: %.0f bounces, %.0f rays a row, from the bundle's texture coordinates", double(io.bounces),
+                              double(io.rays)) +
+                  (a.indirect == "auto" ? std::string(" (the bundle's albedo had it removed; --indirect off leaves it out)")
+                                        : std::string()));
+        indirect.emplace(bundle, in.views, in.lights, in.frame_view, io);
+        const evaluate::BundleIndirectStats& st = indirect->stats();
+        log::info(format_text("indirect light: %.0f particles in %.0f charts, %.0f rows, %.0f entries; set up in %.1f s (atlas %.1f, "
+                              "visibility %.1f, transfer %.1f, view maps %.1f)",
+                              double(st.particles), double(st.charts), double(st.rows), double(st.entries), st.setup_s(), st.atlas_s,
+                              st.visibility_s, st.transfer_s, st.view_maps_s));
+        o.add_light = [&indirect](std::size_t frame, Image& rendered) { indirect->add(frame, rendered); };
+    } else {
+        log::info(a.indirect == "off" ? "indirect light: left out (--indirect off): the renders are direct light only"
+                                      : "indirect light: left out (the bundle's albedo keeps the light that bounced off the object, "
+                                        "so a direct-only render shows it; --indirect on adds it anyway)");
+    }
     evaluate::EvaluationResult r = evaluate::evaluate(ctx, bundle, capture, o);
+    if (indirect) log::info(format_text("indirect light: %.1f s for the frames' light", indirect->light_seconds()));
     for (const std::string& w : r.warnings) log::warn(w);
     std::fputs(evaluate::format_summary(r).c_str(), stdout);
     if (sheets) {
@@ -94,6 +125,22 @@ void run_evaluate(const EvaluateArgs& a) {
     if (!a.json.empty()) {
         nlohmann::json j = evaluate::to_json(r, std::filesystem::path(a.json).parent_path());
         j["timings"]["capture_load_s"] = capture.load_seconds;
+        if (indirect) {
+            const evaluate::BundleIndirectStats& st = indirect->stats();
+            j["indirect"] = {{"added", true},
+                             {"method", "transfer between the particles of the bundle's own atlas (indirect/indirect.h)"},
+                             {"bounces", io.bounces},
+                             {"rays_per_row", io.rays},
+                             {"particles", st.particles},
+                             {"rows", st.rows},
+                             {"entries", st.entries},
+                             {"setup_s", st.setup_s()},
+                             {"visibility_s", st.visibility_s},
+                             {"transfer_s", st.transfer_s},
+                             {"light_s", indirect->light_seconds()}};
+        } else {
+            j["indirect"] = {{"added", false}};
+        }
         write_text_file(a.json, j.dump(2) + "\n");
         log::info("wrote " + a.json);
     }
@@ -136,7 +183,19 @@ void add_evaluate_command(CLI::App& app) {
         ->check(CLI::IsMember({"vulkan", "cpu"}))
         ->capture_default_str();
     cmd->add_flag("--no-hausdorff", a->no_hausdorff, "Skip the Hausdorff distance (the costliest measure on unrelated images)");
-    cmd->add_option("--threads", a->threads, "Image decoding threads")->check(CLI::Range(1, 256))->capture_default_str();
+    cmd->add_option("--indirect", a->indirect,
+                    "Add the light that bounced off the object to the renders (on), or not (off); auto: when the bundle's\n"
+                    "albedo had it removed (reconstruct's indirect stage ran). Built from the bundle alone: particles on its\n"
+                    "texture, their visibility for the frames' lights, a transfer of Embree rays (seconds to a minute on\n"
+                    "2 cores). The JSON gives the figures without it too (without_added_light)")
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--indirect-bounces", a->indirect_bounces, "Bounces of the indirect light (default: the bundle's, else 2)")
+        ->check(CLI::Range(1, 8));
+    cmd->add_option("--indirect-rays", a->indirect_rays, "Rays per row of the indirect transfer")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    cmd->add_option("--threads", a->threads, "Threads for image decoding and the indirect light")->check(CLI::Range(1, 256))->capture_default_str();
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_evaluate(*a); });
 }

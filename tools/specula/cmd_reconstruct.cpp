@@ -172,8 +172,9 @@ void add_reconstruct_command(CLI::App& app) {
                     "from the train frames before the solves (the albedo of concave parts is otherwise too bright) and\n"
                     "added to the evaluation's renders. auto: on when the mesh can see itself (not convex), that light\n"
                     "changes the captures by >= 0.5 8-bit codes at the 99th percentile, and the pixels no light reaches\n"
-                    "directly show at least a quarter of it (a capture rendered with direct light only shows none); the viewer,\n"
-                    "`render` and `evaluate` show direct light only")
+                    "directly show at least a quarter of it (a capture rendered with direct light only shows none). The bundle\n"
+                    "says so: `render` and `evaluate` add it back from the bundle (their --indirect); the viewer shows direct\n"
+                    "light only")
         ->check(CLI::IsMember({"auto", "on", "off"}))
         ->capture_default_str();
     cmd->add_option("--indirect-bounces", args->config.indirect_bounces, "Bounces of the indirect light")
