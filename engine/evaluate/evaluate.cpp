@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <set>
@@ -85,6 +86,24 @@ std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_
     return out;
 }
 
+std::vector<std::size_t> evaluated_frames(const CaptureDesc& desc, const EvaluateOptions& options) {
+    std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);
+    const auto is_train = [&](std::size_t f) { return desc.frames[f].split == Split::Train; };
+    if (!options.include_train) {
+        std::erase_if(frames, is_train);
+    } else if (options.max_train_frames > 0) {
+        std::vector<std::size_t> train;
+        std::copy_if(frames.begin(), frames.end(), std::back_inserter(train), is_train);
+        const std::size_t n = train.size(), m = options.max_train_frames;
+        if (n > m) {
+            std::set<std::size_t> keep;
+            for (std::size_t k = 0; k < m; ++k) keep.insert(train[k * n / m]); // distinct since m < n
+            std::erase_if(frames, [&](std::size_t f) { return is_train(f) && !keep.contains(f); });
+        }
+    }
+    return frames;
+}
+
 Image make_sheet(const Image& captured, const Image& rendered, double amplification) {
     if (captured.width != rendered.width || captured.height != rendered.height)
         throw Error("make_sheet: captured " + std::to_string(captured.width) + "x" + std::to_string(captured.height) +
@@ -131,9 +150,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     if (options.render.mode != render::Mode::Diffuse && !renderer.has_specular())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
 
-    std::vector<std::size_t> frames = select_frames(desc, options.max_frames_per_split);
-    if (!options.include_train)
-        std::erase_if(frames, [&](std::size_t f) { return desc.frames[f].split == Split::Train; });
+    const std::vector<std::size_t> frames = evaluated_frames(desc, options);
     std::set<std::size_t> sheet_set(options.sheet_frames.begin(), options.sheet_frames.end());
     if (options.sheet_dir && sheet_set.empty()) {
         for (const Split split : {Split::Train, Split::Test}) {

@@ -62,6 +62,9 @@ struct EvaluateOptions {
     metrics::MetricsOptions metrics;
     /// At most this many frames per split, evenly spaced over the split (0: all).
     std::size_t max_frames_per_split = 0;
+    /// At most this many train frames, evenly spaced over those max_frames_per_split leaves (0: no
+    /// further bound): `reconstruct` scores every test frame and a sample of the train frames.
+    std::size_t max_train_frames = 0;
     /// false: score the test frames only (the sweep needs only those).
     bool include_train = true;
     /// Sheets are written here when set (created if missing).
@@ -140,8 +143,14 @@ struct EvaluationResult {
 [[nodiscard]] EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture& capture,
                                         const EvaluateOptions& options = {});
 
-/// The frames evaluate() picks (indices into capture.desc.frames, in capture order).
+/// At most max_frames_per_split frames of each split, evenly spaced (indices into capture.desc.frames,
+/// in capture order; 0: all).
 [[nodiscard]] std::vector<std::size_t> select_frames(const CaptureDesc& desc, std::size_t max_frames_per_split);
+
+/// The frames evaluate() scores with these options, in capture order (the order it renders them,
+/// and asks EvaluateOptions::add_light for them): select_frames, then the train frames bounded
+/// by max_train_frames (evenly spaced), or none without include_train.
+[[nodiscard]] std::vector<std::size_t> evaluated_frames(const CaptureDesc& desc, const EvaluateOptions& options);
 
 /// One sheet: captured | rendered | difference (see the file comment), linear RGB
 /// ready for write_image(..., ColorSpace::Srgb). Images must have the same size.

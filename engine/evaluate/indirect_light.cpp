@@ -48,17 +48,32 @@ IndirectLightAdder::IndirectLightAdder(const IndirectScene& scene, std::vector<g
     : m_frames(scene.lights.size()), m_batch(std::max<std::uint32_t>(options.batch_frames, 1u)), m_albedo(std::move(albedo)),
       m_images(scene, m_albedo, material, options) {}
 
+void IndirectLightAdder::expect(std::vector<std::size_t> frames) {
+    for (std::size_t f : frames)
+        if (f >= m_frames)
+            throw Error("indirect light: frame " + std::to_string(f) + " is not one of the scene's " + std::to_string(m_frames));
+    m_order = std::move(frames);
+    m_ready.clear();
+}
+
 void IndirectLightAdder::add(std::size_t frame, Image& rendered) {
+    if (frame >= m_frames)
+        throw Error("indirect light: frame " + std::to_string(frame) + " is not one of the scene's " + std::to_string(m_frames));
     if (!m_ready.contains(frame)) {
         const Stopwatch clock;
         m_ready.clear();
-        std::vector<std::size_t> batch;
-        for (std::size_t f = frame; f < m_frames && batch.size() < m_batch; ++f) batch.push_back(f);
+        std::vector<std::size_t> batch{frame};
+        if (m_order.empty()) {
+            for (std::size_t f = frame + 1; f < m_frames && batch.size() < m_batch; ++f) batch.push_back(f);
+        } else {
+            const auto it = std::find(m_order.begin(), m_order.end(), frame);
+            if (it != m_order.end())
+                for (auto next = it + 1; next != m_order.end() && batch.size() < m_batch; ++next) batch.push_back(*next);
+        }
         m_images.render(batch, [&](std::size_t f, const Image& light) { m_ready.emplace(f, light); });
         m_seconds += clock.seconds();
     }
     const auto it = m_ready.find(frame);
-    if (it == m_ready.end()) throw Error("indirect light: frame " + std::to_string(frame) + " is not one of the scene's frames");
     const Image& light = it->second;
     if (light.width != rendered.width || light.height != rendered.height || rendered.channels < 3)
         throw Error("indirect light: frame " + std::to_string(frame) + "'s render is " + std::to_string(rendered.width) + " x " +
@@ -125,6 +140,8 @@ BundleIndirectLight::BundleIndirectLight(const Bundle& bundle, std::span<const V
 }
 
 BundleIndirectLight::~BundleIndirectLight() = default;
+
+void BundleIndirectLight::expect(std::vector<std::size_t> frames) { m_adder->expect(std::move(frames)); }
 
 void BundleIndirectLight::add(std::size_t frame, Image& rendered) { m_adder->add(frame, rendered); }
 

@@ -49,14 +49,17 @@ namespace specula::evaluate {
 [[nodiscard]] std::vector<glm::vec3> particle_albedo(std::span<const Particle> particles, const Image& texture);
 
 /// Adds frames' indirect radiance to their renders. A frame not computed yet starts a batch of
-/// options.batch_frames frames from it (the gather is cheaper a batch at a time); frames are
-/// computed once if asked in rising order. Keeps `scene`'s spans; holds the albedo.
+/// options.batch_frames frames: it and the frames after it in the order the caller said it will
+/// ask them (expect; by default every frame in rising order). The gather is cheaper a batch at a
+/// time; frames asked in that order are computed once. Keeps `scene`'s spans; holds the albedo.
 class IndirectLightAdder {
 public:
     IndirectLightAdder(const IndirectScene& scene, std::vector<glm::vec3> albedo, const std::optional<SpecularModel>& material,
                        const IndirectOptions& options);
+    /// The frames the caller will ask, in order (evaluated_frames: a sample of them).
+    void expect(std::vector<std::size_t> frames);
     /// Adds frame `frame`'s indirect radiance to `rendered`. Throws Error when the render's size
-    /// is not the frame's view's.
+    /// is not the frame's view's, or the frame is not one of the scene's.
     void add(std::size_t frame, Image& rendered);
     /// Wall time spent computing the light, over all calls.
     [[nodiscard]] double seconds() const noexcept { return m_seconds; }
@@ -64,6 +67,7 @@ public:
 private:
     std::size_t m_frames = 0;
     std::uint32_t m_batch = 1;
+    std::vector<std::size_t> m_order; // expect's frames; empty: all in rising order
     std::vector<glm::vec3> m_albedo; // before m_images, which keeps a span of it
     IndirectImages m_images;
     std::map<std::size_t, Image> m_ready;
@@ -102,7 +106,8 @@ public:
     BundleIndirectLight(const BundleIndirectLight&) = delete;
     BundleIndirectLight& operator=(const BundleIndirectLight&) = delete;
 
-    /// IndirectLightAdder::add for frame `frame` (index into `lights`).
+    /// IndirectLightAdder::expect and add for frames (indices into `lights`).
+    void expect(std::vector<std::size_t> frames);
     void add(std::size_t frame, Image& rendered);
     [[nodiscard]] const BundleIndirectStats& stats() const noexcept { return m_stats; }
     /// Wall time of the light itself (the bounces and the images), over all add calls.

@@ -66,8 +66,9 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const FactorizationStage factorization = factorization_stage(run, specular);
     record_specular_cost(run, specular, factorization);
     const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals, indirect);
-    const std::optional<evaluate::EvaluationResult> evaluation =
-        evaluation_stage(run, capture, bundle, indirect_light_of(indirect, geometry, visibility, texture, factorization));
+    const std::unique_ptr<evaluate::IndirectLightAdder> indirect_light =
+        indirect_light_of(indirect, geometry, visibility, texture, factorization);
+    const std::optional<evaluate::EvaluationResult> evaluation = evaluation_stage(run, capture, bundle, indirect_light.get());
 
     result.total_seconds = total.seconds();
     result.report = report_json(run, ReportInputs{.capture = capture,

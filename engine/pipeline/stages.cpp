@@ -928,19 +928,18 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
     });
 }
 
-std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& indirect, const GeometryStage& geometry,
-                                                           const VisibilityStage& visibility, const AlbedoTexture& texture,
-                                                           const FactorizationStage& factorization) {
-    if (!indirect.on()) return {};
+std::unique_ptr<evaluate::IndirectLightAdder> indirect_light_of(const IndirectStage& indirect, const GeometryStage& geometry,
+                                                                const VisibilityStage& visibility, const AlbedoTexture& texture,
+                                                                const FactorizationStage& factorization) {
+    if (!indirect.on()) return nullptr;
     // The final albedo (refined, inpainted) and material: what the bundle renders.
-    auto adder = std::make_shared<evaluate::IndirectLightAdder>(indirect_scene(indirect, geometry, visibility),
-                                                                evaluate::particle_albedo(geometry.particles.particles, texture.image),
-                                                                factorization.material, indirect.options);
-    return [adder](std::size_t frame, Image& rendered) { adder->add(frame, rendered); };
+    return std::make_unique<evaluate::IndirectLightAdder>(indirect_scene(indirect, geometry, visibility),
+                                                          evaluate::particle_albedo(geometry.particles.particles, texture.image),
+                                                          factorization.material, indirect.options);
 }
 
 std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
-                                                           const std::function<void(std::size_t, Image&)>& add_light) {
+                                                           evaluate::IndirectLightAdder* add_light) {
     const ReconstructConfig& config = run.config;
     if (!config.evaluate) {
         run.leave_out("evaluation", "--no-evaluate");
@@ -956,12 +955,16 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
         eo.metrics_backend = ctx->info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
         eo.max_frames_per_split = config.evaluate_max_frames;
+        eo.max_train_frames = config.evaluate_train_frames;
         eo.include_train = config.evaluate_train;
         if (config.evaluate_factorized && bundle.material.factorized) eo.render.specular = render::SpecularPath::Factorized;
         if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
         eo.bundle_name = "object.glb";
         eo.progress = true;
-        eo.add_light = add_light;
+        if (add_light != nullptr) {
+            add_light->expect(evaluate::evaluated_frames(capture.desc, eo)); // its batches: the frames scored
+            eo.add_light = [add_light](std::size_t frame, Image& rendered) { add_light->add(frame, rendered); };
+        }
         return evaluate::evaluate(*ctx, bundle, capture, eo);
     });
     log::info(evaluate::format_summary(ev));
@@ -972,7 +975,17 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
     for (const fs::path& sp : ev.sheets) sheets.push_back(fs::relative(sp, config.out_dir).generic_string());
     ej["sheets"] = std::move(sheets);
     write_text_file(config.out_dir / "evaluation.json", ej.dump(2) + "\n");
-    if (!config.evaluate_train) run.leave_out("evaluation of the train frames", "test frames only (evaluate_train off)");
+    if (!config.evaluate_train) {
+        run.leave_out("evaluation of the train frames", "test frames only (evaluate_train off)");
+    } else {
+        std::size_t train = 0;
+        for (const FrameDesc& f : capture.desc.frames) train += f.split == Split::Train ? 1 : 0;
+        if (ev.train_frames < train)
+            run.leave_out(std::to_string(train - ev.train_frames) + " of the " + std::to_string(train) + " train frames in the evaluation",
+                          "the train figures are those of " + std::to_string(ev.train_frames) +
+                              " frames evenly spaced over the split (every test frame is scored); --eval-train-frames 0 "
+                              "scores them all, as `specula evaluate` does");
+    }
     return ev;
 }
 

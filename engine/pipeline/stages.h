@@ -8,6 +8,7 @@
 #include "diffuse/albedo_texture.h"
 #include "diffuse/lambert_solve.h"
 #include "evaluate/evaluate.h"
+#include "evaluate/indirect_light.h"
 #include "export/bundle.h"
 #include "factorization/factorization.h"
 #include "geometry/atlas.h"
@@ -181,18 +182,19 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
                                   const AlbedoTexture& texture, const FactorizationStage& factorization,
                                   const NormalMapStage& normals, const IndirectStage& indirect);
 
-/// 11. Self-evaluation: every frame re-rendered from the bundle and scored (writes evaluation.json
-///     and sheets/). Absent when left out (--no-evaluate, or no device).
+/// 11. Self-evaluation: every test frame and a sample of the train frames (config.evaluate_train_frames)
+///     re-rendered from the bundle and scored, with `add_light`'s light added when given (writes
+///     evaluation.json and sheets/). Absent when left out (--no-evaluate, or no device).
 [[nodiscard]] std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture,
                                                                          const Bundle& bundle,
-                                                                         const std::function<void(std::size_t, Image&)>& add_light = {});
+                                                                         evaluate::IndirectLightAdder* add_light = nullptr);
 
 /// The indirect light of each frame for the evaluation (evaluate::EvaluateOptions::add_light):
-/// from the final albedo texture and material; empty when the stage was left out.
-[[nodiscard]] std::function<void(std::size_t, Image&)> indirect_light_of(const IndirectStage& indirect,
-                                                                        const GeometryStage& geometry,
-                                                                        const VisibilityStage& visibility,
-                                                                        const AlbedoTexture& texture,
-                                                                        const FactorizationStage& factorization);
+/// from the final albedo texture and material; null when the stage was left out.
+[[nodiscard]] std::unique_ptr<evaluate::IndirectLightAdder> indirect_light_of(const IndirectStage& indirect,
+                                                                             const GeometryStage& geometry,
+                                                                             const VisibilityStage& visibility,
+                                                                             const AlbedoTexture& texture,
+                                                                             const FactorizationStage& factorization);
 
 } // namespace specula

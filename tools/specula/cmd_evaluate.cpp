@@ -103,6 +103,7 @@ void run_evaluate(const EvaluateArgs& a) {
                   (a.indirect == "auto" ? std::string(" (the bundle's albedo had it removed; --indirect off leaves it out)")
                                         : std::string()));
         indirect.emplace(bundle, in.views, in.lights, in.frame_view, io);
+        indirect->expect(evaluate::evaluated_frames(capture.desc, o)); // its batches: the frames scored
         const evaluate::BundleIndirectStats& st = indirect->stats();
         log::info(format_text("indirect light: %.0f particles in %.0f charts, %.0f rows, %.0f entries; set up in %.1f s (atlas %.1f, "
                               "visibility %.1f, transfer %.1f, view maps %.1f)",

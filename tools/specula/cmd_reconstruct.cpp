@@ -16,7 +16,7 @@ namespace {
 
 struct ReconstructArgs {
     ReconstructConfig config;
-    std::string backend = "vulkan";
+    std::string backend = "auto";
     std::string mode = "auto";
     std::string occlusion_rays = "auto";
     std::string tap_irradiance = "on";
@@ -37,6 +37,7 @@ struct ReconstructArgs {
 void run_reconstruct(ReconstructArgs& args) {
     ReconstructConfig& c = args.config;
     c.backend = args.backend == "cpu" ? Backend::Cpu : Backend::Vulkan;
+    c.backend_auto = args.backend == "auto";
     c.diffuse_mode = args.mode == "photometric" ? DiffuseModeChoice::Photometric
                      : args.mode == "albedo"    ? DiffuseModeChoice::Albedo
                                                 : DiffuseModeChoice::Auto;
@@ -101,8 +102,11 @@ void add_reconstruct_command(CLI::App& app) {
         ->required();
     cmd->add_flag("--force", args->config.force,
                   "Replace a non-empty OUT that holds no earlier result of reconstruct (only once the new one is complete)");
-    cmd->add_option("--backend", args->backend, "Where the diffuse solve runs: vulkan (compute shaders) or cpu (the reference)")
-        ->check(CLI::IsMember({"vulkan", "cpu"}))
+    cmd->add_option("--backend", args->backend,
+                    "Where the per-particle passes (diffuse solves, residual samples) run: vulkan (compute shaders), cpu\n"
+                    "(the C++ reference) or auto: vulkan on a GPU, cpu on a CPU Vulkan driver such as lavapipe, where the\n"
+                    "kernels run slower (the same answer). The evaluation renders with Vulkan either way")
+        ->check(CLI::IsMember({"auto", "vulkan", "cpu"}))
         ->capture_default_str();
     cmd->add_option("-d,--device", args->config.device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->add_option("--mode", args->mode,
@@ -236,6 +240,10 @@ void add_reconstruct_command(CLI::App& app) {
                   "Skip the self-evaluation (re-rendering every frame from object.glb and comparing)");
     cmd->add_option("--eval-frames", args->config.evaluate_max_frames,
                     "Evaluate at most this many frames per split, evenly spaced (0: all)")
+        ->capture_default_str();
+    cmd->add_option("--eval-train-frames", args->config.evaluate_train_frames,
+                    "Evaluate at most this many train frames, evenly spaced (0: all); every test frame is evaluated. The\n"
+                    "report says how many; `specula evaluate` scores every frame")
         ->capture_default_str();
     cmd->callback([args] { run_reconstruct(*args); });
 }
