@@ -6,13 +6,24 @@
 // against run time with the default and the Pareto front marked.
 // `specula bench indirect CAPTURE...`: reconstruct with the indirect light off and on, the
 // stage's cost and the whole run's ratio beside the test-frame error of both.
+// `specula bench reconstruct CAPTURE`: the stage table of one default run beside the error it
+// ends at, the run's time against the time `validate` takes to decode the capture, peak memory.
 #include "commands.h"
 #include "core/error.h"
+#include "capture/capture.h"
+#include "core/format.h"
+#include "core/file_util.h"
 #include "core/log.h"
+#include "core/memory.h"
+#include "core/timer.h"
 #include "pipeline/reconstruct.h"
 #include "pipeline/sweep.h"
 #include "specular/lafortune_fit_cases.h"
 
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -128,6 +139,86 @@ void run_indirect_command(const BenchIndirectArgs& a) {
     }
 }
 
+struct BenchReconstructArgs {
+    std::string capture;
+    std::string out;
+    std::string backend = "auto";
+    unsigned threads = 2;
+};
+
+// Peak resident memory of this process so far (bytes).
+std::uint64_t peak_rss_bytes() {
+    rusage usage{};
+    if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+    return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024u; // kilobytes on Linux
+}
+
+void run_reconstruct_bench(const BenchReconstructArgs& a) {
+    // What `specula validate` does: the capture checked and every image decoded.
+    const Stopwatch validate_clock;
+    {
+        const Capture capture = load_capture(a.capture, {.load_images = true, .threads = static_cast<int>(a.threads)});
+    }
+    const double validate_s = validate_clock.seconds();
+    const std::uint64_t validate_rss = peak_rss_bytes();
+
+    ReconstructConfig c;
+    c.capture = a.capture;
+    c.out_dir = a.out;
+    c.force = true;
+    c.threads = a.threads;
+    c.backend = a.backend == "cpu" ? Backend::Cpu : Backend::Vulkan;
+    c.backend_auto = a.backend == "auto";
+    const Stopwatch run_clock;
+    const ReconstructResult r = reconstruct(c);
+    const double run_s = run_clock.seconds();
+
+    // Stages by name, without the "(joint round 2)"-like tags: how often and how long.
+    struct Row {
+        std::string name;
+        int count = 0;
+        double seconds = 0.0;
+    };
+    std::vector<Row> rows;
+    for (const StageRecord& st : r.stages) {
+        const std::string base = st.name.substr(0, st.name.find(" ("));
+        auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& row) { return row.name == base; });
+        if (it == rows.end()) it = rows.insert(rows.end(), Row{base});
+        ++it->count;
+        it->seconds += st.seconds;
+    }
+    std::printf("%-28s %5s %9s %6s\n", "stage", "runs", "seconds", "share");
+    for (const Row& row : rows)
+        std::printf("%-28s %5d %9.2f %5.1f%%\n", row.name.c_str(), row.count, row.seconds, 100.0 * row.seconds / r.total_seconds);
+    const nlohmann::json& e = r.report["evaluation"];
+    const auto figure = [&](const char* split, const char* key) {
+        return e.is_object() && e.contains(split) ? e[split]["masked"][key].get<double>() : 0.0;
+    };
+    std::printf("total %.2f s (reconstruct's own clock), %.2f s wall; validate %.2f s; ratio %.2f\n", r.total_seconds, run_s,
+                validate_s, validate_s > 0.0 ? run_s / validate_s : 0.0);
+    std::printf("peak RSS %s (after validate: %s)\n", format_bytes(peak_rss_bytes()).c_str(), format_bytes(validate_rss).c_str());
+    std::printf("masked PSNR (display): test %.3f dB, train %.3f dB (%s train frames); Q1 test %.3f\n", figure("test", "psnr_display"),
+                figure("train", "psnr_display"),
+                e.is_object() && e.contains("train") ? std::to_string(e["train"]["masked"].value("frames", 0)).c_str() : "no",
+                figure("test", "q1_display"));
+    const nlohmann::json& lobe = r.report["specular"]["lobe"];
+    if (lobe.is_object()) std::printf("lobe: %s\n", lobe.dump().c_str());
+    nlohmann::json j = {{"capture", a.capture},
+                        {"total_seconds", r.total_seconds},
+                        {"wall_seconds", run_s},
+                        {"validate_seconds", validate_s},
+                        {"ratio_to_validate", validate_s > 0.0 ? run_s / validate_s : 0.0},
+                        {"peak_rss_bytes", peak_rss_bytes()},
+                        {"test_psnr_display", figure("test", "psnr_display")},
+                        {"train_psnr_display", figure("train", "psnr_display")},
+                        {"lobe", lobe}};
+    nlohmann::json stages = nlohmann::json::array();
+    for (const Row& row : rows) stages.push_back({{"stage", row.name}, {"runs", row.count}, {"seconds", row.seconds}});
+    j["stages"] = std::move(stages);
+    write_text_file(std::filesystem::path(a.out) / "bench.json", j.dump(2) + "\n");
+    std::printf("wrote %s/bench.json\n", a.out.c_str());
+}
+
 } // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -203,6 +294,21 @@ void add_bench_command(CLI::App& app) {
     indirect->add_option("-o,--out", ia->out, "Output folder (created if missing)")->required();
     indirect->add_option("--threads", ia->threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
     indirect->callback([ia] { run_indirect_command(*ia); });
+
+    auto ra = std::make_shared<BenchReconstructArgs>();
+    CLI::App* rec = bench->add_subcommand(
+        "reconstruct",
+        "Time `reconstruct` on CAPTURE with default settings (issue 18): the stage table (runs and seconds of each\n"
+        "stage, joint and indirect rounds summed), the total beside the time `validate` takes to decode every\n"
+        "image of the capture (and their ratio), the peak resident memory, and the error the run ends at (masked\n"
+        "test and train PSNR, display values; the lobe). The run's outputs and bench.json go to OUT.");
+    rec->add_option("capture", ra->capture, "Capture folder (or its capture.json)")->required();
+    rec->add_option("-o,--out", ra->out, "Output folder (replaced)")->required();
+    rec->add_option("--backend", ra->backend, "As reconstruct's --backend")
+        ->check(CLI::IsMember({"auto", "vulkan", "cpu"}))
+        ->capture_default_str();
+    rec->add_option("--threads", ra->threads, "CPU threads")->check(CLI::Range(1u, 256u))->capture_default_str();
+    rec->callback([ra] { run_reconstruct_bench(*ra); });
 }
 
 } // namespace specula::cli
