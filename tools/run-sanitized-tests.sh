@@ -9,7 +9,7 @@
 # visibility, the indirect light's transfer, and export (the bundle reader and writer); and the
 # Vulkan layer with the conformance tests of its kernels: gpu (buffers, dispatch splitting,
 # synchronization), material, metrics and the image-metrics, diffuse-solve, residual,
-# factorization and indirect-gather kernels against their C++ references. Left to `--all`: the solves' own tests, the renderer,
+# factorization, indirect-gather and directed-lobe kernels against their C++ references. Left to `--all`: the solves' own tests, the renderer,
 # the pipeline and the command-line tests. The whole suite passes under the sanitizers, but
 # it takes about 16 minutes to build and 20 to 33 to run on 2 cores, which CI's 45 minutes
 # cannot hold beside the plain suite (docs/pipeline.md section 17 has the figures).
@@ -24,7 +24,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${SPECULA_SANITIZE_BUILD_DIR:-$root/build-asan} # the folder: SPECULA_SANITIZE_BUILD_DIR overrides
 tests=(core_tests capture_tests geometry_tests visibility_tests indirect_tests export_tests gpu_tests material_tests
   metrics_tests image_metrics_kernel_tests lambert_solve_kernel_tests residuals_kernel_tests factorization_kernel_tests
-  indirect_gather_kernel_tests)
+  indirect_gather_kernel_tests indirect_lobe_kernel_tests)
 targets=("${tests[@]}")
 regex="^($(IFS='|'; echo "${tests[*]}"))\\."
 if [ "${1:-}" = "--all" ]; then

@@ -348,6 +348,7 @@ struct Bouncer {
     /// the mean of I max(0, N.u) / d^2 / I over the row's particles (w; the direct irradiance is
     /// the light's intensity times it).
     std::vector<glm::vec4> light_geometry;
+    std::vector<glm::vec3> intensity; ///< with `directional`: per frame of the batch, its light's intensity
     /// With `ratio`: per particle, its indirect and direct irradiance (r + g + b) summed over the
     /// frames that light it and whose view sees it.
     bool ratio = false;
@@ -437,38 +438,21 @@ struct Bouncer {
         });
     }
 
-    // Bounce 1 of the lobe, where it goes: each entry's rays left source j toward row i in
-    // direction v (the transfer's entry direction), so row i gets pi w f_s(u_j, v) E0_j from it
-    // (E = pi x the cosine-weighted mean of the radiance its rays meet, transfer.h).
+    // Bounce 1 of the lobe, where it goes (lobe.h): each entry's rays left source j toward row i
+    // in direction v (the transfer's entry direction), so row i gets pi w f_s(u_j, v) E0_j from
+    // it (E = pi x the cosine-weighted mean of the radiance its rays meet, transfer.h). The
+    // inputs are right by construction and the transfer was checked once (check_scene), so the
+    // C++ path skips the checks; the kernel makes its own, as the gather's does.
     void add_directional_lobe(std::span<const std::size_t> frame_list) {
-        const IndirectTransfer& t = *s.transfer;
-        const std::size_t n = t.rows, frames = frame_list.size();
-        std::vector<glm::vec3> intensity(frames);
+        const auto frames = static_cast<std::uint32_t>(frame_list.size());
+        intensity.resize(frames);
         for (std::size_t f = 0; f < frames; ++f) intensity[f] = glm::vec3(s.lights[frame_list[f]].intensity);
-        parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
-            std::vector<glm::vec3> sum(frames);
-            for (std::size_t i = begin; i < end; ++i) {
-                std::fill(sum.begin(), sum.end(), glm::vec3(0.0f));
-                for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
-                    const glm::vec4 v = t.entry_direction[k];
-                    if (!(v.w > 0.0f)) continue; // leaves the source from under its surface
-                    const std::size_t j = t.entries[k].source;
-                    const float w = glm::pi<float>() * t.entries[k].weight;
-                    const glm::vec3 normal = row_normal[j];
-                    for (std::size_t f = 0; f < frames; ++f) {
-                        const glm::vec4 l = light_geometry[j * frames + f];
-                        if (!(l.w > 0.0f)) continue; // no particle of the source is lit
-                        const glm::vec3 u(l);
-                        const float ci = glm::dot(normal, u);
-                        if (!(ci > 0.0f)) continue;
-                        const float cuv = glm::dot(u, glm::vec3(v));
-                        const glm::vec3 fs = shared::material_specular(m, ci, v.w, cuv);
-                        sum[f] += (w * l.w) * glm::max(fs, glm::vec3(0.0f)) * intensity[f];
-                    }
-                }
-                for (std::size_t f = 0; f < frames; ++f) e[f * n + i] += glm::vec4(sum[f], 0.0f);
-            }
-        });
+        if (o.lobe_kernel != nullptr) {
+            o.lobe_kernel->run(*s.transfer, m, row_normal, light_geometry, intensity, frames, e);
+        } else {
+            detail::add_directed_lobe_float_unchecked(*s.transfer, m, row_normal, light_geometry, intensity, frames, e,
+                                                      o.threads);
+        }
     }
 };
 

@@ -30,6 +30,7 @@
 #include "geometry/atlas.h"
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
+#include "indirect/lobe.h"
 #include "indirect/transfer.h"
 #include "material/material.h"
 #include "visibility/visibility.h"
@@ -99,6 +100,9 @@ struct IndirectOptions {
     std::uint32_t bounces = 2;
     /// The Vulkan kernel of the gather (transfer.h), or null: gather_indirect_float runs it.
     IndirectGatherVk* kernel = nullptr;
+    /// The Vulkan kernel of the directed lobe's first bounce (lobe.h), or null:
+    /// add_directed_lobe_float runs it.
+    IndirectLobeVk* lobe_kernel = nullptr;
     unsigned threads = 2;
     std::uint32_t batch_frames = 8;  ///< frames gathered at once
     /// With a lobe and a transfer that keeps its entries' directions: the lobe's first bounce

@@ -86,7 +86,8 @@ struct IndirectStage {
     std::optional<IndirectMeasure> measure;      ///< what the planner decided from (planner.h)
     IndirectOptions options;                     ///< its kernel: `gather`'s, or null (the C++ reference)
     std::shared_ptr<IndirectGatherVk> gather;    ///< the Vulkan gather, on a GPU
-    std::string backend_reason;                  ///< why the gather runs where it does
+    std::shared_ptr<IndirectLobeVk> lobe;        ///< the Vulkan kernel of the directed lobe's first bounce, on a GPU
+    std::string backend_reason;                  ///< why the gather and the lobe's term run where they do
     double seconds = 0.0;                        ///< transfer, maps and rounds
     [[nodiscard]] bool on() const noexcept { return transfer.has_value() && !corrected.empty(); }
 };
