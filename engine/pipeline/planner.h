@@ -151,12 +151,18 @@ inline constexpr float kIndirectMaxShare = 0.5f;
 /// shows only light that bounced off the object (and the room's): the least-squares ratio of the
 /// captured values to the predicted indirect light is about 1 for a real object, 0 for a capture
 /// rendered with direct light only. Measured over at least kIndirectMinShadowPixels such pixels
-/// whose predicted light is at least one 8-bit code. Measured: 0.00 for the knot and the can
-/// rendered with direct light only; with 2 bounces 1.29 (knot), 0.82 (can) and 0.49 (the vase,
-/// whose first solve's glossy neck is far too bright, so the prediction is too), where the stage
-/// now gains: 37.33 -> 37.96 dB test PSNR.
+/// whose predicted light is at least one 8-bit code, in kIndirectMeasureFrames train frames.
+/// Measured: 0.00 for the knot and the can rendered with direct light only; with 2 bounces 1.30
+/// (knot, 512 px; 1.30 over all 120 frames), 0.83 (can, 256 px; 0.82) and 0.52 (the vase, 256
+/// px; 0.49: its first solve's glossy neck is far too bright, so the prediction is too), where
+/// the stage gains: 37.33 -> 37.96 dB test PSNR.
 inline constexpr std::size_t kIndirectMinShadowPixels = 500;
 inline constexpr double kIndirectMinShadowRatio = 0.25;
+/// The measure reads this many train frames, evenly spaced (all when there are fewer): a pass
+/// over 24 of 120 frames costs a fifth of one over all of them, which a capture without that
+/// light (every capture rendered with direct light only) saves; one with it pays that fifth
+/// again, since its rounds need every frame.
+inline constexpr std::size_t kIndirectMeasureFrames = 24;
 struct IndirectMeasure {
     double p99_codes = 0.0;             ///< the predicted light's change of the object pixels, 99th percentile (codes)
     std::size_t shadow_pixels = 0;      ///< unlit object pixels with a prediction of at least one code

@@ -233,8 +233,9 @@ IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, con
 // The train frames less the indirect light that `albedo` sends (the other frames stay empty:
 // the solves read train frames only). An object pixel whose added light is over
 // kIndirectMaxShare of what it shows is flagged missing; returns how many were. With `measure`,
-// the planner's figures (IndirectMeasure) over every 4th object pixel of the train frames (the
-// unlit ones found with the views' surface maps); with `ratio`, indirect_images' R per particle.
+// the planner's figures (IndirectMeasure) over every 4th object pixel of kIndirectMeasureFrames
+// train frames (the unlit ones found with the views' surface maps), and only those frames are
+// corrected; with `ratio`, indirect_images' R per particle.
 std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& scene, const Capture& capture,
                                   std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
                                   std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
@@ -242,6 +243,11 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
     std::vector<std::size_t> frames;
     for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
         if (capture.desc.frames[f].split == Split::Train) frames.push_back(f);
+    if (measure != nullptr && frames.size() > kIndirectMeasureFrames) { // the planner's sample, evenly spaced
+        std::vector<std::size_t> sample;
+        for (std::size_t k = 0; k < kIndirectMeasureFrames; ++k) sample.push_back(frames[k * frames.size() / kIndirectMeasureFrames]);
+        frames = std::move(sample);
+    }
     corrected.resize(capture.images.size());
     std::vector<float> codes;
     double captured_dot_predicted = 0.0, predicted_square = 0.0;
@@ -304,9 +310,11 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
             for (int c = 0; c < 3; ++c) v[c] -= add[c];
         }
     }, ratio);
-    log::info(format_text("indirect light: %.0f object pixels of the train frames left out (the light added is over %.0f%% of "
-                          "what they show)", double(dropped), 100.0 * kIndirectMaxShare));
-    if (measure == nullptr) return dropped;
+    if (measure == nullptr) {
+        log::info(format_text("indirect light: %.0f object pixels of the train frames left out (the light added is over %.0f%% of "
+                              "what they show)", double(dropped), 100.0 * kIndirectMaxShare));
+        return dropped;
+    }
     *measure = IndirectMeasure{};
     measure->shadow_pixels = shadow_pixels;
     if (shadow_pixels >= kIndirectMinShadowPixels && predicted_square > 0.0) measure->shadow_ratio = captured_dot_predicted / predicted_square;
@@ -406,20 +414,24 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     std::size_t left_out = 0;  // by the last pass: the next solve's
     std::vector<float> ratio;  // of the last pass
-    s.measure = run.stage("indirect light", [&] {
+    s.measure = run.stage("indirect light (measure)", [&] {
         IndirectMeasure m;
-        left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected,
-                                         visibility.visibility, *visibility.scene, &m, &ratio);
+        std::vector<FrameImage> sample;
+        (void)remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, sample, visibility.visibility,
+                                    *visibility.scene, &m, nullptr);
         return m;
     });
     const PlanDecision& d = run.plan().add(decide_indirect(convexity, config.indirect, s.measure, estimate));
     if (!decided_indirect(d)) {
         run.leave_out("indirect light (light that bounced off the object)", d.reason);
         s.transfer.reset();
-        std::vector<FrameImage>().swap(s.corrected);
         s.seconds = clock.seconds();
         return s;
     }
+    run.stage("indirect light", [&] {
+        left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,
+                                         *visibility.scene, nullptr, &ratio);
+    });
     diffuse.inputs.images = s.corrected;
     for (std::uint32_t round = 1; round <= std::max(config.indirect_rounds, 1u); ++round) {
         const Stopwatch round_clock;
