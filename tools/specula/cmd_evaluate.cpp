@@ -42,9 +42,7 @@ struct EvaluateArgs {
     bool no_hausdorff = false;
     int threads = 2;
     std::string device;
-    std::string indirect = "auto";
-    std::uint32_t indirect_bounces = 0; // 0: the bundle's, else 2
-    std::uint32_t indirect_rays = kTransferRays;
+    IndirectArgs indirect;
 };
 
 // An earlier --sheets folder: nothing but sheet_*.png files.
@@ -93,14 +91,12 @@ void run_evaluate(const EvaluateArgs& a) {
     // The light that bounced off the object (evaluate/indirect_light.h), from the bundle alone.
     std::optional<evaluate::BundleIndirectLight> indirect;
     evaluate::BundleIndirectOptions io;
-    if (a.indirect == "on" || (a.indirect == "auto" && evaluate::indirect_removed_from_albedo(bundle))) {
-        io = {.bounces = a.indirect_bounces != 0 ? a.indirect_bounces : evaluate::indirect_bounces_of(bundle),
-              .rays = a.indirect_rays,
-              .threads = static_cast<unsigned>(a.threads)};
+    if (a.indirect.wanted(bundle)) {
+        io = a.indirect.options(bundle, static_cast<unsigned>(a.threads));
         const VisibilityInputs in = visibility_inputs(capture);
         log::info(format_text("indirect light: %.0f bounces, %.0f rays a row, from the bundle's texture coordinates", double(io.bounces),
                               double(io.rays)) +
-                  (a.indirect == "auto" ? std::string(" (the bundle's albedo had it removed; --indirect off leaves it out)")
+                  (a.indirect.mode == "auto" ? std::string(" (the bundle's albedo had it removed; --indirect off leaves it out)")
                                         : std::string()));
         indirect.emplace(bundle, in.views, in.lights, in.frame_view, io);
         indirect->expect(evaluate::evaluated_frames(capture.desc, o)); // its batches: the frames scored
@@ -111,7 +107,7 @@ void run_evaluate(const EvaluateArgs& a) {
                               st.visibility_s, st.transfer_s, st.view_maps_s));
         o.add_light = [&indirect](std::size_t frame, Image& rendered) { indirect->add(frame, rendered); };
     } else {
-        log::info(a.indirect == "off" ? "indirect light: left out (--indirect off): the renders are direct light only"
+        log::info(a.indirect.mode == "off" ? "indirect light: left out (--indirect off): the renders are direct light only"
                                       : "indirect light: left out (the bundle's albedo keeps the light that bounced off the object, "
                                         "so a direct-only render shows it; --indirect on adds it anyway)");
     }
@@ -184,18 +180,8 @@ void add_evaluate_command(CLI::App& app) {
         ->check(CLI::IsMember({"vulkan", "cpu"}))
         ->capture_default_str();
     cmd->add_flag("--no-hausdorff", a->no_hausdorff, "Skip the Hausdorff distance (the costliest measure on unrelated images)");
-    cmd->add_option("--indirect", a->indirect,
-                    "Add the light that bounced off the object to the renders (on), or not (off); auto: when the bundle's\n"
-                    "albedo had it removed (reconstruct's indirect stage ran). Built from the bundle alone: particles on its\n"
-                    "texture, their visibility for the frames' lights, a transfer of Embree rays (seconds to a minute on\n"
-                    "2 cores). The JSON gives the figures without it too (without_added_light)")
-        ->check(CLI::IsMember({"auto", "on", "off"}))
-        ->capture_default_str();
-    cmd->add_option("--indirect-bounces", a->indirect_bounces, "Bounces of the indirect light (default: the bundle's, else 2)")
-        ->check(CLI::Range(1, 8));
-    cmd->add_option("--indirect-rays", a->indirect_rays, "Rays per row of the indirect transfer")
-        ->check(CLI::Range(1, 4096))
-        ->capture_default_str();
+    add_indirect_options(cmd, a->indirect, "Seconds to a minute on 2 cores; the JSON gives\n"
+                                 "the figures without it too (without_added_light)");
     cmd->add_option("--threads", a->threads, "Threads for image decoding and the indirect light")->check(CLI::Range(1, 256))->capture_default_str();
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_evaluate(*a); });

@@ -29,9 +29,7 @@ struct RenderArgs {
     std::string specular = "analytic";
     bool no_shadows = false;
     std::string device;
-    std::string indirect = "auto";
-    std::uint32_t indirect_bounces = 0; // 0: the bundle's, else 2
-    std::uint32_t indirect_rays = kTransferRays;
+    IndirectArgs indirect;
     int threads = 2;
 };
 
@@ -52,10 +50,9 @@ void run_render(const RenderArgs& a) {
     render::Frame frame = renderer.render(pose.camera, pose.light, settings);
     // The light that bounced off the object (evaluate/indirect_light.h), for this one view and light.
     std::string indirect_note = ", direct light only";
-    if (a.indirect == "on" || (a.indirect == "auto" && evaluate::indirect_removed_from_albedo(bundle))) {
+    if (a.indirect.wanted(bundle)) {
         const Stopwatch clock;
-        const std::uint32_t bounces = a.indirect_bounces != 0 ? a.indirect_bounces : evaluate::indirect_bounces_of(bundle);
-        const evaluate::BundleIndirectOptions io{.bounces = bounces, .rays = a.indirect_rays, .threads = static_cast<unsigned>(a.threads)};
+        const evaluate::BundleIndirectOptions io = a.indirect.options(bundle, static_cast<unsigned>(a.threads));
         const VisibilityView view{.camera = pose.camera, .flags = {}};
         const std::uint32_t frame_view = 0;
         evaluate::BundleIndirectLight light(bundle, std::span(&view, 1), std::span(&pose.light, 1), std::span(&frame_view, 1), io);
@@ -96,17 +93,8 @@ void add_render_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--no-shadows", a->no_shadows,
                   "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped)");
-    cmd->add_option("--indirect", a->indirect,
-                    "Add the light that bounced off the object (on), or not (off); auto: when the bundle's albedo had it\n"
-                    "removed (reconstruct's indirect stage ran). Built from the bundle alone for this view and light: particles\n"
-                    "on its texture, a transfer of Embree rays (seconds on 2 cores). The real-time viewer draws direct light only")
-        ->check(CLI::IsMember({"auto", "on", "off"}))
-        ->capture_default_str();
-    cmd->add_option("--indirect-bounces", a->indirect_bounces, "Bounces of the indirect light (default: the bundle's, else 2)")
-        ->check(CLI::Range(1, 8));
-    cmd->add_option("--indirect-rays", a->indirect_rays, "Rays per row of the indirect transfer")
-        ->check(CLI::Range(1, 4096))
-        ->capture_default_str();
+    add_indirect_options(cmd, a->indirect, "Seconds on 2 cores; the real-time viewer draws\n"
+                                 "direct light only");
     cmd->add_option("--threads", a->threads, "Threads for the indirect light")->check(CLI::Range(1, 256))->capture_default_str();
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_render(*a); });

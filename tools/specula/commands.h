@@ -1,9 +1,42 @@
 #pragma once
 // Each subcommand of `specula` registers itself here. A command's callback maps
 // its options to an engine call; all logic lives in engine/.
+#include "evaluate/indirect_light.h"
+#include "export/bundle.h"
+
 #include <CLI/CLI.hpp>
 
+#include <cstdint>
+#include <string>
+
 namespace specula::cli {
+
+/// The indirect-light options `evaluate` and `render` share (evaluate/indirect_light.h).
+struct IndirectArgs {
+    std::string mode = "auto";           ///< --indirect auto|on|off
+    std::uint32_t bounces = 0;           ///< --indirect-bounces; 0: the bundle's, else 2
+    std::uint32_t rays = kTransferRays;  ///< --indirect-rays
+    /// on, or auto and the bundle's albedo had that light removed.
+    [[nodiscard]] bool wanted(const Bundle& bundle) const {
+        return mode == "on" || (mode == "auto" && evaluate::indirect_removed_from_albedo(bundle));
+    }
+    [[nodiscard]] evaluate::BundleIndirectOptions options(const Bundle& bundle, unsigned threads) const {
+        return {.bounces = bounces != 0 ? bounces : evaluate::indirect_bounces_of(bundle), .rays = rays, .threads = threads};
+    }
+};
+
+/// Registers --indirect (its help: `what` is added to the common text), --indirect-bounces, --indirect-rays.
+inline void add_indirect_options(CLI::App* cmd, IndirectArgs& a, const std::string& what) {
+    cmd->add_option("--indirect", a.mode,
+                    "Add the light that bounced off the object (on), or not (off); auto: when the bundle's albedo had it\n"
+                    "removed (reconstruct's indirect stage ran). Built from the bundle alone: particles on its texture,\n"
+                    "their visibility for the lights, a transfer of Embree rays. " + what)
+        ->check(CLI::IsMember({"auto", "on", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--indirect-bounces", a.bounces, "Bounces of the indirect light (default: the bundle's, else 2)")
+        ->check(CLI::Range(1, 8));
+    cmd->add_option("--indirect-rays", a.rays, "Rays per row of the indirect transfer")->check(CLI::Range(1, 4096))->capture_default_str();
+}
 
 void add_validate_command(CLI::App& app); // cmd_validate.cpp
 void add_synth_command(CLI::App& app);    // cmd_synth.cpp
