@@ -76,6 +76,8 @@ struct LambertOptions {
     std::uint64_t max_binding_bytes = 0;
     /// Vulkan: bytes of sample records held at once (0 = kLambertRecordGroupBytes); tests lower it.
     std::uint64_t max_record_group_bytes = 0;
+    /// C++ reference: threads over the particles (each particle's result is the same for any count).
+    unsigned threads = 2;
 };
 
 /// Sample records (16 bytes per pair and frame of its view) held at once by the Vulkan solve:

@@ -8,6 +8,7 @@
 #include "diffuse/view_batches.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "shared/prelude.h"
 #include "shared/solve3.h"
@@ -327,13 +328,17 @@ LambertOutputs lambert_solve_cpu(const LambertInputs& in, const LambertOptions& 
     out.mode = options.mode;
     out.choice = options.choice;
     out.particles.resize(in.particles.size());
-    std::vector<shared::LambertPairResult> pairs;
-    for (std::uint32_t p = 0; p < in.particles.size(); ++p) {
-        pairs.clear();
-        for (std::uint32_t v = 0; v < in.views.size(); ++v)
-            if (!in.views[v].frames.empty() && vis.sees(p, v)) pairs.push_back(detail::lambert_pair_cpu(in, options, p, v));
-        out.particles[p] = detail::lambert_combine_cpu(pairs, options, in.particles[p]);
-    }
+    // Particles are independent: each thread takes chunks of them (the result is the same for any count).
+    parallel_for_chunks(in.particles.size(), std::max(options.threads, 1u), 512, [&](unsigned, std::size_t begin, std::size_t end) {
+        std::vector<shared::LambertPairResult> pairs;
+        for (std::size_t i = begin; i < end; ++i) {
+            const auto p = static_cast<std::uint32_t>(i);
+            pairs.clear();
+            for (std::uint32_t v = 0; v < in.views.size(); ++v)
+                if (!in.views[v].frames.empty() && vis.sees(p, v)) pairs.push_back(detail::lambert_pair_cpu(in, options, p, v));
+            out.particles[p] = detail::lambert_combine_cpu(pairs, options, in.particles[p]);
+        }
+    });
     out.summary.seconds = sw.seconds();
     summarize(out);
     out.summary.tap_irradiance = tap_surfaces(in, options.tap_irradiance) != nullptr;

@@ -129,6 +129,7 @@ const Capture& load_stage(PipelineRun& run, const Capture* preloaded, std::optio
 
 LambertOptions plan_stage(PipelineRun& run, const Capture& capture) {
     LambertOptions lambert = run.config.lambert;
+    lambert.threads = run.config.threads;
     Plan& plan = run.plan();
     run.stage("plan", [&] {
         plan.add(decide_occlusion_rays(analyze_convexity(capture.mesh), run.config.occlusion_rays));
