@@ -31,23 +31,11 @@ namespace specula {
 
 namespace {
 
-struct RowChunk {
-    std::uint32_t first = 0, last = 0; // rows [first, last)
-};
-
 // Chunks of rows whose entries' directions fit `limit` bytes. Any one row's do: a row has at
 // most `rows` entries (its sources rise), 16 bytes each, one frame's light geometry, which the
 // caller has checked against `limit`; so do a chunk's entries and offsets (fewer bytes each).
-std::vector<RowChunk> plan_row_chunks(const IndirectTransfer& t, std::uint64_t limit) {
-    const std::uint64_t max_entries = limit / sizeof(glm::vec4);
-    std::vector<RowChunk> chunks;
-    for (std::uint32_t first = 0; first < t.rows;) {
-        std::uint32_t last = first + 1;
-        while (last < t.rows && t.row_begin[last + 1] - t.row_begin[first] <= max_entries) ++last;
-        chunks.push_back({first, last});
-        first = last;
-    }
-    return chunks;
+std::vector<detail::TransferRowChunk> plan_row_chunks(const IndirectTransfer& t, std::uint64_t limit) {
+    return detail::transfer_row_chunks(t, limit / sizeof(glm::vec4));
 }
 
 } // namespace
@@ -89,7 +77,7 @@ void IndirectLobeVk::run(const IndirectTransfer& t, const shared::MaterialGpu& m
                               std::to_string(frame_bytes) + " bytes) exceeds one storage binding (" + std::to_string(limit) +
                               " bytes); splitting the sources is not implemented");
     const auto batch = static_cast<std::uint32_t>(std::min<std::uint64_t>(frames, limit / frame_bytes));
-    const std::vector<RowChunk> chunks = plan_row_chunks(t, limit);
+    const std::vector<detail::TransferRowChunk> chunks = plan_row_chunks(t, limit);
     im.stats.row_chunks = static_cast<std::uint32_t>(chunks.size());
     im.stats.frame_batches = (frames + batch - 1) / batch;
 
@@ -103,7 +91,7 @@ void IndirectLobeVk::run(const IndirectTransfer& t, const shared::MaterialGpu& m
     bool timed = true;
     std::optional<gpu::Buffer> batch_light, batch_intensity;
     std::uint32_t batch_first = frames; // the frames batch_light holds: [batch_first, + batch)
-    for (const RowChunk& c : chunks) {
+    for (const detail::TransferRowChunk& c : chunks) {
         const std::uint32_t n = c.last - c.first;
         const std::uint32_t entry_base = t.row_begin[c.first];
         const std::uint32_t entry_count = t.row_begin[c.last] - entry_base;

@@ -149,4 +149,15 @@ void detail::gather_indirect_float_unchecked(const IndirectTransfer& t, std::spa
     gather<glm::vec4>(t, radiosity, frames, out, threads);
 }
 
+std::vector<detail::TransferRowChunk> detail::transfer_row_chunks(const IndirectTransfer& t, std::uint64_t max_entries) {
+    std::vector<detail::TransferRowChunk> chunks;
+    for (std::uint32_t first = 0; first < t.rows;) {
+        std::uint32_t last = first + 1;
+        while (last < t.rows && t.row_begin[last + 1] - t.row_begin[first] <= max_entries) ++last;
+        chunks.push_back({first, last});
+        first = last;
+    }
+    return chunks;
+}
+
 } // namespace specula

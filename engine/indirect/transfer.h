@@ -99,6 +99,14 @@ void gather_indirect_float(const IndirectTransfer& transfer, std::span<const glm
                            std::span<glm::vec4> out, unsigned threads = 2);
 
 namespace detail {
+/// Rows [first, last) of a transfer whose entries a dispatch takes at once.
+struct TransferRowChunk {
+    std::uint32_t first = 0, last = 0;
+};
+/// Consecutive chunks of rows, each holding at most `max_entries` entries (a row with more is a
+/// chunk of its own): how the kernels split a transfer so that each binding stays in range.
+[[nodiscard]] std::vector<TransferRowChunk> transfer_row_chunks(const IndirectTransfer& t, std::uint64_t max_entries);
+
 /// gather_indirect_float without its checks, for a caller that has run validate_gather once for
 /// many gathers of the same transfer (indirect.cpp: every batch and bounce of a pass).
 void gather_indirect_float_unchecked(const IndirectTransfer& transfer, std::span<const glm::vec4> radiosity,
