@@ -25,8 +25,10 @@ bool residual_particle_usable(const LambertParticleResult& r, const ResidualOpti
     return d.x + d.y + d.z <= o.max_albedo_spread * (a.x + a.y + a.z);
 }
 
-std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o) {
-    if (o.max_kept_samples == 0 || in.visibility == nullptr) return 1;
+std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o,
+                                   std::uint64_t* lit_slots) {
+    if (lit_slots != nullptr) *lit_slots = 0;
+    if ((o.max_kept_samples == 0 && lit_slots == nullptr) || in.visibility == nullptr) return 1;
     const Visibility& vis = *in.visibility;
     std::uint64_t lit = 0;
     for (std::uint32_t p = 0; p < in.particles.size() && p < diffuse.particles.size(); ++p) {
@@ -36,6 +38,8 @@ std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs
             for (std::uint32_t f : in.views[v].frames) lit += vis.lights(p, f) ? 1u : 0u;
         }
     }
+    if (lit_slots != nullptr) *lit_slots = lit;
+    if (o.max_kept_samples == 0) return 1;
     return std::max<std::uint64_t>(1, (lit + o.max_kept_samples - 1) / o.max_kept_samples);
 }
 

@@ -61,15 +61,19 @@ struct ResidualOptions {
     /// and the energy test a mean; a photometric rig's 87 million samples (20 views x 64
     /// lights, 256 px) would take 5.6 GB at 64 bytes each. 4 million: 256 MB.
     std::uint64_t max_kept_samples = 4'000'000;
+    /// C++ reference: worker threads over the particles of each view (the samples, their order
+    /// and the counts are the same for any count).
+    unsigned threads = 1;
 };
 
 /// True when particle result r gives residual samples under `options` (both backends use it).
 [[nodiscard]] bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& options);
 
 /// The stride at which used samples are kept (ResidualOptions::max_kept_samples): from the
-/// lit (particle, frame) slots of the pairs whose particle is usable.
+/// lit (particle, frame) slots of the pairs whose particle is usable; their count, an upper
+/// bound on the used samples, in *lit_slots when given.
 [[nodiscard]] std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs& diffuse,
-                                                 const ResidualOptions& options);
+                                                 const ResidualOptions& options, std::uint64_t* lit_slots = nullptr);
 
 struct ResidualCounts {
     std::uint64_t candidates = 0;        ///< (particle, frame) of seeing views, particle with a diffuse solution
@@ -79,6 +83,16 @@ struct ResidualCounts {
     std::uint64_t dropped_missing = 0;   ///< a tap missing, outside the mask, or not finite
     std::uint64_t dropped_clipped = 0;   ///< a tap at saturation
     std::uint64_t dropped_no_diffuse = 0; ///< (particle, frame) of particles without a (view-consistent) diffuse solution
+    ResidualCounts& operator+=(const ResidualCounts& o) noexcept {
+        candidates += o.candidates;
+        used += o.used;
+        dropped_shadow += o.dropped_shadow;
+        dropped_grazing += o.dropped_grazing;
+        dropped_missing += o.dropped_missing;
+        dropped_clipped += o.dropped_clipped;
+        dropped_no_diffuse += o.dropped_no_diffuse;
+        return *this;
+    }
 };
 
 struct ResidualSamples {

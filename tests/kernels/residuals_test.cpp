@@ -18,6 +18,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 
 namespace specula {
 namespace {
@@ -74,6 +75,29 @@ TEST(Residuals, CountsAddUpAndDropReasonsOccur) {
         ASSERT_GE(s.u.z, 0.1f - 1e-6f); // n.u >= min_light_cos
         ASSERT_GT(s.u.w, 0.0f);
         ASSERT_TRUE(std::isfinite(s.f.x) && std::isfinite(s.f.y) && std::isfinite(s.f.z));
+    }
+}
+
+// The C++ reference on several threads: the same samples, in the same order, with the same
+// particles and counts, bit for bit, with and without the memory bound's stride.
+TEST(Residuals, ThreadsGiveTheSameSamplesInTheSameOrder) {
+    const LambertInputs in = scene().inputs();
+    ASSERT_GT(in.particles.size(), 3u * 2048u); // several chunks of particles per view
+    for (const std::uint64_t max_kept : {std::uint64_t{0}, std::uint64_t{5000}}) {
+        std::vector<std::uint32_t> p1, p3;
+        const ResidualSamples one = residual_samples_cpu(in, diffuse(), {.max_kept_samples = max_kept, .threads = 1}, &p1);
+        const ResidualSamples three = residual_samples_cpu(in, diffuse(), {.max_kept_samples = max_kept, .threads = 3}, &p3);
+        if (max_kept != 0) {
+            EXPECT_GE(one.keep_stride, 2u);
+        }
+        EXPECT_EQ(one.keep_stride, three.keep_stride);
+        expect_same_counts(one.counts, three.counts);
+        ASSERT_EQ(one.samples.size(), three.samples.size());
+        ASSERT_EQ(p1, p3);
+        EXPECT_EQ(p1.size(), one.samples.size());
+        EXPECT_EQ(0, std::memcmp(one.samples.data(), three.samples.data(), one.samples.size() * sizeof(ResidualSample)));
+        // The stride keeps every k-th used slot: about used / k samples.
+        EXPECT_EQ(one.samples.size(), (one.counts.used + one.keep_stride - 1) / one.keep_stride);
     }
 }
 
