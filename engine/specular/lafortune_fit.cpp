@@ -10,6 +10,7 @@
 #include "specular/lafortune_fit.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "material/material.h"
 
@@ -1168,11 +1169,11 @@ LafortuneRgb LafortuneFitRgb::converged_lobe() const noexcept {
 
 LafortuneFitRgb fit_lafortune(std::span<const LafortuneSample> samples, const LafortuneFitOptions& options) {
     std::array<ChannelRun, 3> runs;
+    // The channels' free fits are independent: one worker each (the same runs for any count).
+    parallel_for(3, std::max(options.threads, 1u), [&](std::size_t c) { runs[c] = fit_free(samples, static_cast<int>(c), options); });
     std::vector<ChannelRun*> fallback;
-    for (int c = 0; c < 3; ++c) {
-        runs[std::size_t(c)] = fit_free(samples, c, options);
-        if (runs[std::size_t(c)].fallback) fallback.push_back(&runs[std::size_t(c)]);
-    }
+    for (ChannelRun& run : runs)
+        if (run.fallback) fallback.push_back(&run);
     fit_constrained(fallback, options);
     LafortuneFitRgb out;
     for (int c = 0; c < 3; ++c) out.channel[c] = finish(runs[std::size_t(c)]);

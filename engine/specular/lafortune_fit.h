@@ -161,6 +161,8 @@ struct LafortuneFitOptions {
     /// Refuse (free) or bound (constrained) lobes above the white-furnace bound by less than 2
     /// standard errors of ln(albedo).
     bool white_furnace = true;
+    /// Worker threads: the three channels' free fits run side by side (the fit is the same for any count).
+    unsigned threads = 1;
 };
 
 /// The fit of one channel, in the thesis's form.

@@ -121,6 +121,15 @@ TEST(LafortuneFit, ThreeChannelsAreFittedIndependently) {
         EXPECT_TRUE(case_recovered(*truth[ch], fit.channel[ch]))
             << ch << ": " << fit.channel[ch].cx << " " << fit.channel[ch].cz << " " << fit.channel[ch].n;
     }
+    // The channels side by side on three threads: the same fit, bit for bit.
+    const LafortuneFitRgb threaded = fit_lafortune(samples, LafortuneFitOptions{.threads = 3});
+    for (int ch = 0; ch < 3; ++ch) {
+        EXPECT_EQ(threaded.channel[ch].status, fit.channel[ch].status) << ch;
+        EXPECT_EQ(threaded.channel[ch].cx, fit.channel[ch].cx) << ch;
+        EXPECT_EQ(threaded.channel[ch].cz, fit.channel[ch].cz) << ch;
+        EXPECT_EQ(threaded.channel[ch].n, fit.channel[ch].n) << ch;
+        EXPECT_EQ(threaded.channel[ch].cost, fit.channel[ch].cost) << ch;
+    }
 }
 
 TEST(LafortuneFit, AnOutlierBrightestSampleOnTheRetroSideDoesNotConfineTheFit) {
