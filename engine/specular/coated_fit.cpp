@@ -11,6 +11,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <thread>
 
 namespace specula {
@@ -227,7 +228,8 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
             const double la = std::log(0.005) + (std::log(1.0) - std::log(0.005)) * i / (kAlphaSteps - 1);
             cells.push_back({{la, 1.1 + 0.1 * j}, 0.0});
         }
-    parallel_for(cells.size(), o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency()), [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o.fit_tint); });
+    const unsigned threads = o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+    parallel_for(cells.size(), threads, [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o.fit_tint); });
     std::sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.cost < b.cost; });
 
     // LM from the best cells (distinct starts), robustly reweighted on all samples.
@@ -235,11 +237,15 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
     for (std::size_t i = 0; i < all.size(); ++i) base_w[i] = all[i].w;
     LmResult best{{0.0, 0.0}, glm::dvec3(1.0), std::numeric_limits<double>::infinity(), 0, false};
     const std::size_t starts = std::min<std::size_t>(cells.size(), std::max<std::uint32_t>(1, o.restarts));
-    for (std::size_t k = 0; k < starts; ++k) {
-        if (!std::isfinite(cells[k].cost)) continue;
-        const LmResult r = levenberg_marquardt(coarse, cells[k].p, o);
-        fit.iterations += r.iterations;
-        if (r.cost < best.cost) best = r;
+    // The starts' LM runs are independent: side by side, then taken in order (the same best for any thread count).
+    std::vector<std::optional<LmResult>> runs(starts);
+    parallel_for(starts, threads, [&](std::size_t k) {
+        if (std::isfinite(cells[k].cost)) runs[k] = levenberg_marquardt(coarse, cells[k].p, o);
+    });
+    for (const std::optional<LmResult>& r : runs) {
+        if (!r) continue;
+        fit.iterations += r->iterations;
+        if (r->cost < best.cost) best = *r;
     }
     if (!std::isfinite(best.cost)) {
         fit.status = CoatedFitStatus::NotConverged;
