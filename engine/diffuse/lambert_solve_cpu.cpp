@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 
 namespace specula {
 
@@ -72,7 +73,22 @@ double weighted_lower_median(const std::vector<std::pair<double, std::uint32_t>>
 
 namespace detail {
 
-SampleRead lambert_read_sample(const FrameImage& im, const f64::LambertTaps& t, const SurfaceMap* surface,
+TapSurface lambert_tap_surface(const SurfaceMap& surface, const f64::LambertTaps& t) {
+    TapSurface s;
+    for (int i = 0; i < 4; ++i) {
+        const glm::ivec2 q = tap(t, i);
+        glm::vec3 x, nt;
+        if (!surface.at(q.x, q.y, x, nt)) {
+            s.missing = true;
+            return s;
+        }
+        s.x[i] = glm::dvec3(x);
+        s.n[i] = glm::dvec3(nt);
+    }
+    return s;
+}
+
+SampleRead lambert_read_sample(const FrameImage& im, const f64::LambertTaps& t, const TapSurface* surface,
                                const glm::dvec3& light, double e_particle, double min_cos) {
     SampleRead r;
     const std::size_t w = static_cast<std::size_t>(im.color.width);
@@ -97,14 +113,12 @@ SampleRead lambert_read_sample(const FrameImage& im, const f64::LambertTaps& t, 
         return r;
     }
     if (surface != nullptr) {
+        if (surface->missing) {
+            r.status = SampleStatus::Missing;
+            return r;
+        }
         for (int i = 0; i < 4; ++i) {
-            const glm::ivec2 q = tap(t, i);
-            glm::vec3 x, nt;
-            if (!surface->at(q.x, q.y, x, nt)) {
-                r.status = SampleStatus::Missing;
-                return r;
-            }
-            const double g = f64::lambert_tap_gain(glm::dvec3(x), glm::dvec3(nt), light, e_particle, min_cos);
+            const double g = f64::lambert_tap_gain(surface->x[i], surface->n[i], light, e_particle, min_cos);
             if (g < 0.0) {
                 r.status = SampleStatus::Grazing;
                 return r;
@@ -147,6 +161,8 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
     q.clear();
     es.clear();
     const std::vector<SurfaceMap>* surfaces = tap_surfaces(in, o.tap_irradiance);
+    const std::optional<TapSurface> surface =
+        surfaces != nullptr ? std::optional(lambert_tap_surface((*surfaces)[view_index], t)) : std::nullopt;
     const shared::MaterialGpu known = material_gpu(o.material);
     for (std::uint32_t f : view.frames) {
         if (!vis.lights(particle, f)) { ++shadow; continue; }
@@ -156,7 +172,7 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
         const glm::dvec3 u = L / std::sqrt(d2);
         const double cosl = glm::dot(n, u);
         if (!(cosl >= static_cast<double>(o.min_light_cos))) { ++grazing; continue; }
-        const SampleRead read = lambert_read_sample(in.images[f], t, surfaces != nullptr ? &(*surfaces)[view_index] : nullptr,
+        const SampleRead read = lambert_read_sample(in.images[f], t, surface ? &*surface : nullptr,
                                                     glm::dvec3(glm::vec3(light.position)), cosl / d2,
                                                     static_cast<double>(o.min_light_cos));
         if (read.status == SampleStatus::Missing) { ++missing; continue; }

@@ -4,15 +4,24 @@
 
 namespace specula::detail {
 
+/// The surface under a pair's 4 taps in its view's surface map (the same for every frame of
+/// the view: read once per pair). missing: a tap's pixel holds no surface.
+struct TapSurface {
+    bool missing = false;
+    glm::dvec3 x[4];
+    glm::dvec3 n[4];
+};
+[[nodiscard]] TapSurface lambert_tap_surface(const SurfaceMap& surface, const shared::f64::LambertTaps& t);
+
 /// One sample as shaders/shared/lambert_sample.glsl reads it, in double: the 4 bilinear
-/// taps of `im`, their flags, finiteness and saturation, and with `surface` (the view's
-/// surface map, or null) each tap's irradiance gain toward e_particle = n.u / d^2.
+/// taps of `im`, their flags, finiteness and saturation, and with `surface` (the pair's
+/// lambert_tap_surface, or null) each tap's irradiance gain toward e_particle = n.u / d^2.
 enum class SampleStatus { Ok, Missing, Clipped, Grazing };
 struct SampleRead {
     glm::dvec3 c{0.0};
     SampleStatus status = SampleStatus::Ok;
 };
-[[nodiscard]] SampleRead lambert_read_sample(const FrameImage& im, const shared::f64::LambertTaps& t, const SurfaceMap* surface,
+[[nodiscard]] SampleRead lambert_read_sample(const FrameImage& im, const shared::f64::LambertTaps& t, const TapSurface* surface,
                                              const glm::dvec3& light, double e_particle, double min_cos);
 
 /// The pair step of one (particle, view) in double.

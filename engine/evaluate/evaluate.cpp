@@ -3,6 +3,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "evaluate/bundle_render.h"
 
@@ -232,11 +233,21 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
             if (std::isfinite(captured.saturation))
                 for (float& v : ren.pixels) v = std::min(v, captured.saturation);
         }
-        fe.masked = run_metrics(cap, ren, masked, options.metrics);
-        fe.full = run_metrics(cap, ren, full, options.metrics);
         const Image ren_display = (*encoder)(ren);
-        fe.masked_display = run_metrics(cap_display, ren_display, masked, display_options);
-        fe.full_display = run_metrics(cap_display, ren_display, full, display_options);
+        struct Score {
+            const Image& a;
+            const Image& b;
+            std::span<const std::uint8_t> pixels;
+            const metrics::MetricsOptions& o;
+            metrics::FrameMetrics& out;
+        };
+        const Score scores[] = {{cap, ren, masked, options.metrics, fe.masked},
+                                {cap, ren, full, options.metrics, fe.full},
+                                {cap_display, ren_display, masked, display_options, fe.masked_display},
+                                {cap_display, ren_display, full, display_options, fe.full_display}};
+        // The kernels share one queue: side by side only on the CPU.
+        parallel_for(std::size(scores), metrics_vk ? 1u : std::max(options.threads, 1u),
+                     [&](std::size_t k) { scores[k].out = run_metrics(scores[k].a, scores[k].b, scores[k].pixels, scores[k].o); });
         fe.display_encoding = encoding.name();
         encodings.insert(fe.display_encoding);
         all_srgb_integer = all_srgb_integer && encoding.transfer == ColorSpace::Srgb && encoding.bits > 0;

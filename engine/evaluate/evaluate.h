@@ -67,6 +67,9 @@ struct EvaluateOptions {
     std::size_t max_train_frames = 0;
     /// false: score the test frames only (the sweep needs only those).
     bool include_train = true;
+    /// C++ metrics (metrics_backend Cpu): a frame's four scores (masked, full, each on linear and
+    /// display values) on up to this many threads (the same scores for any count).
+    unsigned threads = 1;
     /// Sheets are written here when set (created if missing).
     std::optional<std::filesystem::path> sheet_dir;
     /// Frames (indices into capture.desc.frames) to make sheets of; empty: the first

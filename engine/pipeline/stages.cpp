@@ -1008,6 +1008,7 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         eo.max_frames_per_split = config.evaluate_max_frames;
         eo.max_train_frames = config.evaluate_train_frames;
         eo.include_train = config.evaluate_train;
+        eo.threads = config.threads;
         if (config.evaluate_factorized && bundle.material.factorized) eo.render.specular = render::SpecularPath::Factorized;
         if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
         eo.bundle_name = "object.glb";

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace specula {
 
@@ -84,6 +85,8 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 const glm::dvec3 vdir = glm::normalize(center - P);
                 const glm::dvec3 vl = f64::to_tangent_frame(n, vdir);
                 const double nv = glm::dot(n, vdir);
+                const std::optional<detail::TapSurface> surface =
+                    surfaces != nullptr ? std::optional(detail::lambert_tap_surface((*surfaces)[vi], t)) : std::nullopt;
                 for (std::uint32_t f : view.frames) {
                     if (!vis.lights(p, f)) {
                         ++c.dropped_shadow;
@@ -99,7 +102,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                         continue;
                     }
                     const detail::SampleRead read =
-                        detail::lambert_read_sample(in.images[f], t, surfaces != nullptr ? &(*surfaces)[vi] : nullptr,
+                        detail::lambert_read_sample(in.images[f], t, surface ? &*surface : nullptr,
                                                     glm::dvec3(glm::vec3(light.position)), cosl / d2, min_cos);
                     if (read.status == detail::SampleStatus::Missing) {
                         ++c.dropped_missing;

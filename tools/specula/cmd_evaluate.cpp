@@ -63,6 +63,7 @@ void run_evaluate(const EvaluateArgs& a) {
     o.metrics_backend = a.metrics == "cpu" ? Backend::Cpu : Backend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
+    o.threads = static_cast<unsigned>(a.threads);
     o.sheet_frames = a.sheet_frames;
     o.bundle_name = a.bundle;
     // The sheets folder is written as a whole (core/output_dir.h), checked and locked before
@@ -182,7 +183,7 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_flag("--no-hausdorff", a->no_hausdorff, "Skip the Hausdorff distance (the costliest measure on unrelated images)");
     add_indirect_options(cmd, a->indirect, "Seconds to a minute on 2 cores; the JSON gives\n"
                                  "the figures without it too (without_added_light)");
-    cmd->add_option("--threads", a->threads, "Threads for image decoding and the indirect light")->check(CLI::Range(1, 256))->capture_default_str();
+    cmd->add_option("--threads", a->threads, "Threads for image decoding, the indirect light and the C++ metrics (--metrics cpu)")->check(CLI::Range(1, 256))->capture_default_str();
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_evaluate(*a); });
 }
