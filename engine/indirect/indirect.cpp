@@ -317,6 +317,9 @@ void check_frames(const IndirectScene& s, std::span<const std::size_t> frames) {
         if (f >= s.lights.size() || f >= s.frame_view.size() || f >= s.visibility->frame_count ||
             s.frame_view[f] >= s.view_maps.size())
             throw Error("indirect light: frame " + std::to_string(f) + " has no light, view or visibility");
+        else if (f < s.visibility->lit_complete.size() && !s.visibility->lit_complete[f])
+            throw Error("indirect light: frame " + std::to_string(f) + "'s lit bits hold only the particles its view sees "
+                        "(VisibilityOptions::lit_seen_only): complete_lit must cast the rest first");
 }
 
 void check_scene(const IndirectScene& s, std::span<const std::size_t> frames, std::span<const glm::vec3> albedo) {

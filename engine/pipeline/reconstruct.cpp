@@ -54,7 +54,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const Capture& capture = load_stage(run, preloaded, loaded);
     const LambertOptions lambert = plan_stage(run, capture);
     const GeometryStage geometry = geometry_stage(run, capture);
-    const VisibilityStage visibility = visibility_stage(run, capture, geometry);
+    VisibilityStage visibility = visibility_stage(run, capture, geometry); // the indirect stage completes its lit bits
     DiffuseStage diffuse = diffuse_stage(run, capture, geometry, visibility, lambert);
     IndirectStage indirect = indirect_stage(run, capture, geometry, visibility, diffuse); // may correct `diffuse`'s images
     const SpecularStage specular = specular_stage(run, diffuse); // joint rounds update `diffuse`

@@ -43,6 +43,7 @@ json visibility_json(const VisibilityStats& s) {
             {"rays_cast", s.rays_cast},
             {"rays_occluded", s.rays_occluded},
             {"rays_avoided", s.rays_avoided},
+            {"rays_completed", s.rays_completed},
             {"depth_rays", s.depth_rays},
             {"surface_maps", s.surface_maps},
             {"footprint_rejected_pairs", s.footprint_rejected},

@@ -173,7 +173,8 @@ VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const
                                                     .force_rays = cast_rays,
                                                     .skip_rays = !cast_rays,
                                                     .frame_view = v.inputs.frame_view,
-                                                    .surface_maps = run.config.lambert.tap_irradiance});
+                                                    .surface_maps = run.config.lambert.tap_irradiance,
+                                                    .lit_seen_only = true});
     });
     // Legal but useless input (issue 21 cases 15, 17): most of the surface unseen or unlit is
     // warned; nothing seen, or nothing lit by a train frame of a view that sees it, is refused
@@ -232,6 +233,27 @@ IndirectScene indirect_scene(const IndirectStage& s, const GeometryStage& g, con
                          .view_maps = s.view_maps};
 }
 
+// The frames the indirect light is removed from: the train frames, or for the planner's measure
+// kIndirectMeasureFrames of them, evenly spaced.
+std::vector<std::size_t> indirect_frames(const Capture& capture, bool measure) {
+    std::vector<std::size_t> frames;
+    for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
+        if (capture.desc.frames[f].split == Split::Train) frames.push_back(f);
+    if (measure && frames.size() > kIndirectMeasureFrames) {
+        std::vector<std::size_t> sample;
+        for (std::size_t k = 0; k < kIndirectMeasureFrames; ++k) sample.push_back(frames[k * frames.size() / kIndirectMeasureFrames]);
+        frames = std::move(sample);
+    }
+    return frames;
+}
+
+// The light rays of `frames` that the visibility stage left out (lit_seen_only), cast into its bits.
+void complete_visibility(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, VisibilityStage& v,
+                         std::span<const std::size_t> frames) {
+    complete_lit(v.visibility, geometry.particles.particles, capture.mesh, *v.scene, v.inputs.views, v.inputs.lights,
+                 v.inputs.frame_view, frames, run.config.threads);
+}
+
 // The train frames less the indirect light that `albedo` sends (the other frames stay empty:
 // the solves read train frames only). An object pixel whose added light is over
 // kIndirectMaxShare of what it shows is flagged missing; returns how many were. With `measure`,
@@ -242,14 +264,7 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
                                   std::span<const glm::vec3> albedo, const std::optional<SpecularModel>& material,
                                   std::vector<FrameImage>& corrected, const Visibility& visibility, const RayScene& rays,
                                   IndirectMeasure* measure, std::vector<float>* ratio) {
-    std::vector<std::size_t> frames;
-    for (std::size_t f = 0; f < capture.desc.frames.size(); ++f)
-        if (capture.desc.frames[f].split == Split::Train) frames.push_back(f);
-    if (measure != nullptr && frames.size() > kIndirectMeasureFrames) { // the planner's sample, evenly spaced
-        std::vector<std::size_t> sample;
-        for (std::size_t k = 0; k < kIndirectMeasureFrames; ++k) sample.push_back(frames[k * frames.size() / kIndirectMeasureFrames]);
-        frames = std::move(sample);
-    }
+    const std::vector<std::size_t> frames = indirect_frames(capture, measure != nullptr);
     corrected.resize(capture.images.size());
     std::vector<float> codes;
     double captured_dot_predicted = 0.0, predicted_square = 0.0;
@@ -356,7 +371,7 @@ IndirectRound solve_round(PipelineRun& run, const GeometryStage& geometry, Diffu
 } // namespace
 
 IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                             const VisibilityStage& visibility, DiffuseStage& diffuse) {
+                             VisibilityStage& visibility, DiffuseStage& diffuse) {
     const ReconstructConfig& config = run.config;
     IndirectStage s;
     const ConvexityReport& convexity = visibility.visibility.stats.convexity;
@@ -414,6 +429,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
                               100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     };
     run.stage(measure_rays != config.indirect_rays ? "indirect transfer (measure)" : "indirect transfer", [&] {
+        complete_visibility(run, capture, geometry, visibility, indirect_frames(capture, true));
         build(measure_rays);
         for (const View& view : capture.views)
             s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas, config.threads));
@@ -436,7 +452,13 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         s.seconds = clock.seconds();
         return s;
     }
-    if (measure_rays != config.indirect_rays) run.stage("indirect transfer", [&] { build(config.indirect_rays); });
+    run.stage("indirect transfer", [&] {
+        // Every frame: the rounds read the train frames, the evaluation adds the light to the test frames too.
+        std::vector<std::size_t> all(capture.desc.frames.size());
+        for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
+        complete_visibility(run, capture, geometry, visibility, all);
+        if (measure_rays != config.indirect_rays) build(config.indirect_rays);
+    });
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
     run.stage("indirect light", [&] {
         left_out = remove_indirect_light(s, scene, capture, albedo, diffuse.options.material, s.corrected, visibility.visibility,

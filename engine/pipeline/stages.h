@@ -91,8 +91,10 @@ struct IndirectStage {
     double seconds = 0.0;                        ///< transfer, maps and rounds
     [[nodiscard]] bool on() const noexcept { return transfer.has_value() && !corrected.empty(); }
 };
+/// Casts the light rays the visibility stage left out (VisibilityOptions::lit_seen_only) for the
+/// frames its measure and its rounds read: their emitters need not be seen by the frame's view.
 [[nodiscard]] IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                                           const VisibilityStage& visibility, DiffuseStage& diffuse);
+                                           VisibilityStage& visibility, DiffuseStage& diffuse);
 
 
 /// 6. Residual samples and their energy, then (when the residuals hold specular energy, or

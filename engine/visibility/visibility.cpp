@@ -174,6 +174,24 @@ struct Target {
     std::uint32_t index;
 };
 
+std::vector<glm::vec3> face_normals(const Mesh& mesh) {
+    std::vector<glm::vec3> face_normal(mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const glm::uvec3 tri = mesh.triangles[t];
+        const glm::vec3 n = glm::cross(mesh.positions[tri.y] - mesh.positions[tri.x], mesh.positions[tri.z] - mesh.positions[tri.x]);
+        const float len = glm::length(n);
+        face_normal[t] = len > 0.0f ? n / len : glm::vec3(0.0f);
+    }
+    return face_normal;
+}
+
+// Whether a particle (position, shading normal, face normal) faces the point `to` (a camera
+// centre or a light): both normals must, or no ray is cast and no bit set.
+bool faces(const glm::vec3& n, const glm::vec3& face, const glm::vec3& pos, const glm::vec3& to) {
+    const glm::vec3 d = to - pos;
+    return glm::dot(n, d) > 0.0f && glm::dot(face, d) > 0.0f;
+}
+
 } // namespace
 
 void pack_surface_pixel(const glm::vec3& position, const glm::vec3& normal, std::uint32_t* words) {
@@ -232,13 +250,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.skipped = st.convexity.convex ? "mesh is convex (closed, connected, no reflex edge): the facing test is exact"
                                          : "occlusion rays turned off (the mesh can occlude itself: " + st.convexity.reason + ")";
 
-    std::vector<glm::vec3> face_normal(mesh.triangles.size());
-    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const glm::uvec3 tri = mesh.triangles[t];
-        const glm::vec3 n = glm::cross(mesh.positions[tri.y] - mesh.positions[tri.x], mesh.positions[tri.z] - mesh.positions[tri.x]);
-        const float len = glm::length(n);
-        face_normal[t] = len > 0.0f ? n / len : glm::vec3(0.0f);
-    }
+    const std::vector<glm::vec3> face_normal = face_normals(mesh);
     std::vector<glm::vec3> view_center(views.size());
     for (std::size_t v = 0; v < views.size(); ++v) view_center[v] = glm::vec3(views[v].camera.center());
 
@@ -264,6 +276,15 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.shadow_map_rays += shadow_map(scene, mesh, face_normal, views[v].camera, depth[v], glm::vec3(lights[f].position),
                                          std::max(1u, options.threads), shadows[f]);
     }
+
+    // Light rays only toward the particles a frame's view sees (skipped rays leave nothing to defer).
+    if (options.lit_seen_only && !options.frame_view.empty() && options.frame_view.size() != lights.size())
+        throw Error("visibility: frame_view has " + std::to_string(options.frame_view.size()) + " entries for " +
+                    std::to_string(lights.size()) + " frames");
+    const bool seen_only = options.lit_seen_only && !options.frame_view.empty() && !skip_rays;
+    for (const std::uint32_t v : seen_only ? options.frame_view : std::span<const std::uint32_t>{})
+        if (v >= views.size()) throw Error("visibility: a frame names view " + std::to_string(v));
+    vis.lit_complete.assign(lights.size(), seen_only ? 0 : 1);
 
     // Work is split by chunks of particles; every particle's bits depend on that particle alone.
     const unsigned threads = std::max(1u, options.threads);
@@ -291,8 +312,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
             targets.clear();
 
             for (std::uint32_t v = 0; v < views.size(); ++v) {
-                const glm::vec3 to_cam = view_center[v] - pos;
-                if (!(glm::dot(n, to_cam) > 0.0f) || !(glm::dot(face, to_cam) > 0.0f)) continue;
+                if (!faces(n, face, pos, view_center[v])) continue;
                 const Camera& cam = views[v].camera;
                 const auto q = cam.project(glm::dvec3(pos));
                 if (!q || !cam.inside(*q)) continue;
@@ -312,19 +332,8 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                     targets.push_back({true, v});
                 }
             }
-            for (std::uint32_t f = 0; f < lights.size(); ++f) {
-                const glm::vec3 light = glm::vec3(lights[f].position);
-                const glm::vec3 to_light = light - pos;
-                if (!(glm::dot(n, to_light) > 0.0f) || !(glm::dot(face, to_light) > 0.0f)) continue;
-                if (skip_rays) {
-                    lit[f / 32] |= 1u << (f % 32);
-                    ++c.rays_avoided;
-                } else {
-                    rays.push_back(scene.ray_toward(pos, n, light));
-                    targets.push_back({false, f});
-                }
-            }
-            if (!rays.empty()) {
+            const auto cast = [&] {
+                if (rays.empty()) return;
                 occluded.resize(rays.size());
                 scene.occluded(rays, occluded);
                 c.rays_cast += rays.size();
@@ -336,7 +345,24 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                     const Target t = targets[i];
                     (t.is_view ? seen : lit)[t.index / 32] |= 1u << (t.index % 32);
                 }
+                rays.clear();
+                targets.clear();
+            };
+            // The views' rays first where the lights' depend on what the particle sees.
+            if (seen_only) cast();
+            for (std::uint32_t f = 0; f < lights.size(); ++f) {
+                const glm::vec3 light = glm::vec3(lights[f].position);
+                if (!faces(n, face, pos, light)) continue;
+                if (seen_only && !((seen[options.frame_view[f] / 32] >> (options.frame_view[f] % 32)) & 1u)) continue;
+                if (skip_rays) {
+                    lit[f / 32] |= 1u << (f % 32);
+                    ++c.rays_avoided;
+                } else {
+                    rays.push_back(scene.ray_toward(pos, n, light));
+                    targets.push_back({false, f});
+                }
             }
+            cast();
             // A lit frame whose sample would read a dark pixel (shadow map) does not light it.
             for (std::uint32_t f = 0; f < shadows.size(); ++f) {
                 if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
@@ -377,6 +403,50 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
     }
     st.seconds = clock.seconds();
     return vis;
+}
+
+void complete_lit(Visibility& vis, std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
+                  std::span<const VisibilityView> views, std::span<const PointLight> lights,
+                  std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads) {
+    if (particles.size() != vis.particle_count || lights.size() != vis.frame_count || frame_view.size() != lights.size() ||
+        views.size() != vis.view_count || vis.lit_complete.size() != lights.size())
+        throw Error("complete_lit: the particles, lights, views and frame_view are not the ones the visibility was computed for");
+    std::vector<std::uint32_t> todo;
+    for (const std::size_t f : frames) {
+        if (f >= lights.size()) throw Error("complete_lit: frame " + std::to_string(f) + " of " + std::to_string(lights.size()));
+        if (!vis.lit_complete[f] && std::find(todo.begin(), todo.end(), f) == todo.end()) todo.push_back(static_cast<std::uint32_t>(f));
+    }
+    if (todo.empty()) return;
+    const std::vector<glm::vec3> face_normal = face_normals(mesh);
+    const unsigned workers = parallel_workers(particles.size(), std::max(1u, threads), kChunk);
+    std::vector<ThreadCounts> counts(workers);
+    std::vector<std::vector<Ray>> rays(workers);
+    std::vector<std::vector<std::uint32_t>> targets(workers);
+    std::vector<std::vector<std::uint8_t>> occluded(workers);
+    parallel_for_chunks(particles.size(), std::max(1u, threads), kChunk, [&](unsigned worker, std::size_t begin, std::size_t end) {
+        for (std::size_t p = begin; p < end; ++p) {
+            const Particle& particle = particles[p];
+            const glm::vec3 pos = particle.p(), n = particle.n(), face = face_normal[particle.triangle];
+            std::uint32_t* lit = &vis.lit[p * vis.frame_words];
+            rays[worker].clear();
+            targets[worker].clear();
+            for (const std::uint32_t f : todo) {
+                if (vis.sees(p, frame_view[f])) continue; // cast with the visibility
+                const glm::vec3 light = glm::vec3(lights[f].position);
+                if (!faces(n, face, pos, light)) continue;
+                rays[worker].push_back(scene.ray_toward(pos, n, light));
+                targets[worker].push_back(f);
+            }
+            if (rays[worker].empty()) continue;
+            occluded[worker].resize(rays[worker].size());
+            scene.occluded(rays[worker], occluded[worker]);
+            counts[worker].rays_cast += rays[worker].size();
+            for (std::size_t i = 0; i < rays[worker].size(); ++i)
+                if (!occluded[worker][i]) lit[targets[worker][i] / 32] |= 1u << (targets[worker][i] % 32);
+        }
+    });
+    for (const std::uint32_t f : todo) vis.lit_complete[f] = 1;
+    for (const ThreadCounts& c : counts) vis.stats.rays_completed += c.rays_cast;
 }
 
 VisibilityInputs visibility_inputs(const Capture& capture) {

@@ -2,9 +2,9 @@
 // against the closed sphere's interior, the images against the particles, determinism.
 #include "indirect/indirect.h"
 
-#include "synth/shapes.h"
-
+#include "core/error.h"
 #include "shared/lafortune.h"
+#include "synth/shapes.h"
 
 #include <gtest/gtest.h>
 
@@ -229,6 +229,15 @@ TEST(IndirectLight, BouncesInsideAClosedSphereAddUpToTheGeometricSeries) {
             if (std::abs(r - expected_ratio) > 0.02 * expected_ratio) ++ratio_off;
         EXPECT_EQ(ratio_off, 0u) << bounces << " bounces: ratio " << ratio[0] << ", expected " << expected_ratio;
     }
+    // A frame whose lit bits hold only the particles its view sees (VisibilityOptions::
+    // lit_seen_only, before complete_lit) is refused, not read as unlit emitters.
+    Visibility partial = vis;
+    partial.lit_complete.assign(1, 0);
+    const IndirectScene incomplete{.particles = s.particles.particles, .visibility = &partial, .lights = lights,
+                                   .frame_view = frame_view, .atlas = &s.atlas, .transfer = &t, .view_maps = maps};
+    EXPECT_THROW((void)indirect_irradiance(incomplete, frame, albedo, std::nullopt, {.bounces = 1}), Error);
+    partial.lit_complete.assign(1, 1);
+    EXPECT_NO_THROW((void)indirect_irradiance(incomplete, frame, albedo, std::nullopt, {.bounces = 1}));
 }
 
 // The lobe's directional albedo at cosine c, by an independent quadrature: uniform random

@@ -293,6 +293,51 @@ TEST(Visibility, ResultsDoNotDependOnTheThreadCount) {
     EXPECT_EQ(b.stats.threads, 3u);
 }
 
+TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
+    // A torus (it hides and shadows itself), 5 views with 7 lights each: frame f is view f % 5's.
+    const std::vector<Camera> cams = cameras_around(5, 3.0);
+    const Scene s(test::torus(1.0f, 0.35f, 24, 12), cams);
+    const std::vector<PointLight> lights = lights_around(35, 3.0);
+    std::vector<std::uint32_t> frame_view(lights.size());
+    for (std::size_t f = 0; f < lights.size(); ++f) frame_view[f] = static_cast<std::uint32_t>(f % cams.size());
+    VisibilityOptions full;
+    full.frame_view = frame_view;
+    full.threads = 2;
+    VisibilityOptions deferred = full;
+    deferred.lit_seen_only = true;
+    const Visibility a = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, full);
+    Visibility b = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, deferred);
+    EXPECT_EQ(a.seen, b.seen);
+    EXPECT_EQ(a.best_view, b.best_view);
+    EXPECT_LT(b.stats.rays_cast, a.stats.rays_cast); // fewer rays...
+    std::size_t differ = 0;
+    for (std::size_t p = 0; p < s.particles.particles.size(); ++p)
+        for (std::size_t f = 0; f < lights.size(); ++f) {
+            if (b.sees(p, frame_view[f])) ASSERT_EQ(a.lights(p, f), b.lights(p, f)) << p << " " << f; // ...the same seen pairs
+            else ASSERT_FALSE(b.lights(p, f)) << p << " " << f;
+            differ += a.lights(p, f) != b.lights(p, f) ? 1u : 0u;
+        }
+    EXPECT_GT(differ, 100u); // unseen pairs the full pass lit
+    for (const std::uint8_t c : a.lit_complete) EXPECT_EQ(c, 1u);
+    for (const std::uint8_t c : b.lit_complete) EXPECT_EQ(c, 0u);
+    // Completing some frames, then all (a frame twice, in any order): the full pass's bits.
+    const std::vector<std::size_t> some = {3, 10, 3};
+    complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, some, 1);
+    EXPECT_EQ(b.lit_complete[3], 1u);
+    EXPECT_EQ(b.lit_complete[4], 0u);
+    for (std::size_t p = 0; p < s.particles.particles.size(); ++p) ASSERT_EQ(a.lights(p, 10), b.lights(p, 10)) << p;
+    std::vector<std::size_t> all(lights.size());
+    for (std::size_t f = 0; f < all.size(); ++f) all[f] = all.size() - 1 - f;
+    complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, all, 3);
+    EXPECT_EQ(a.lit, b.lit);
+    EXPECT_EQ(b.stats.rays_cast + b.stats.rays_completed, a.stats.rays_cast);
+    for (const std::uint8_t c : b.lit_complete) EXPECT_EQ(c, 1u);
+    // Inputs that are not the visibility's are refused.
+    EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, {}, all, 1), Error);
+    const std::vector<std::size_t> outside = {lights.size()};
+    EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, outside, 1), Error);
+}
+
 TEST(Visibility, BestViewIsTheSeeingViewClosestToTheNormal) {
     const std::vector<Camera> cams = cameras_around(4, 3.0);
     const Scene s(test::sphere(1.0f, 12, 16), cams);
