@@ -1,6 +1,9 @@
 #include "core/memory.h"
 
 #include <sys/resource.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cstdio>
@@ -82,6 +85,12 @@ MemoryAvailable available_memory() {
         consider(used == kNone ? limit : (limit > used ? limit - used : 0), "the address-space limit (ulimit -v)");
     }
     return m;
+}
+
+void cap_malloc_arenas() noexcept {
+#if defined(__GLIBC__)
+    (void)mallopt(M_ARENA_MAX, kMallocArenas);
+#endif
 }
 
 std::string format_bytes(std::uint64_t bytes) {

@@ -19,6 +19,13 @@ struct MemoryAvailable {
 /// process's address space (VmSize). A limit that cannot be read counts as none.
 [[nodiscard]] MemoryAvailable available_memory();
 
+/// Caps the C library's malloc arenas at kMallocArenas (glibc; elsewhere nothing). glibc gives
+/// each new thread an arena of its own (up to 8 per core), and memory freed into one stays
+/// there: the parallel loops start fresh threads, so freed scratch piled up in many arenas.
+/// Knot 384 px, reconstruct: peak RSS 1.021 -> 0.978 GB, the same time. Call once, early in main.
+void cap_malloc_arenas() noexcept;
+inline constexpr int kMallocArenas = 2;
+
 /// "32.7 GB", "512 MB", "20 KB", "12 bytes" (decimal units, 3 significant digits).
 [[nodiscard]] std::string format_bytes(std::uint64_t bytes);
 

@@ -44,6 +44,7 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         LambertOutputs solve = steps.solve(lo, tag);
         ResidualSamples residuals = steps.residuals(solve, lo, tag);
         MaterialFit fit = steps.fit(residuals, tag);
+        std::vector<ResidualSample>().swap(residuals.samples); // fitted: only the counts are kept (peak memory)
         const std::optional<SpecularModel> next = fit.model();
         JointRound r{round, next ? max_relative_change(*next, *previous) : 1.0, residuals.counts.used, std::nullopt, false};
         if (steps.validate && next) r.validation_mse = steps.validate(solve, *next, tag);

@@ -101,8 +101,9 @@ struct ValidationSplit {
 bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds, double bound);
 
 /// Runs the rounds on `state` (which holds the first solve, residuals and fit on entry and the
-/// last accepted ones on return). The residual samples are released as each round starts: on
-/// return state.residuals holds the last accepted round's samples, or only its counts.
+/// last accepted ones on return). The residual samples are released once fitted (a round's as
+/// soon as its fit is made, the entry state's as the first round starts): on return
+/// state.residuals holds the entry samples when no round ran, else only the counts.
 JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps);
 
 } // namespace specula

@@ -631,7 +631,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
             config.max_fit_samples != 0 ? std::min<std::size_t>(all.size(), config.max_fit_samples) : all.size();
         probe_fit_cost(run, all, fo.lafortune, would_fit);
         s.backend = run.particle_backend();
-        rs.samples = {};
+        std::vector<ResidualSample>().swap(rs.samples); // memory back (`= {}` keeps the capacity)
         s.residuals = std::move(rs);
         return s;
     }
@@ -714,7 +714,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
         s.decision = "skipped: diffuse only has the least validation error (--specular auto)";
         s.seconds = watch.seconds();
         s.backend = run.particle_backend();
-        rs.samples = {};
+        std::vector<ResidualSample>().swap(rs.samples); // memory back (`= {}` keeps the capacity)
         s.residuals = std::move(rs);
         return s;
     }
@@ -767,7 +767,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     s.fit = std::move(state.fit);
     s.decision = config.specular == SpecularMode::On ? "fitted (--specular on)" : "fitted: residuals above the noise (--specular auto)";
     s.backend = run.particle_backend();
-    state.residuals.samples = {};
+    std::vector<ResidualSample>().swap(state.residuals.samples); // memory back (`= {}` keeps the capacity)
     s.residuals = std::move(state.residuals);
     return s;
 }

@@ -181,11 +181,13 @@ void reweight(std::vector<Prepared>& s, const std::vector<double>& base_w, const
 
 } // namespace
 
-std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples) {
+std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples, std::size_t max_samples) {
+    const std::size_t stride = used_sample_stride(samples, max_samples);
     std::vector<MaterialSample> out;
-    out.reserve(samples.size());
+    out.reserve(samples.size() / stride + 1);
+    std::size_t k = 0;
     for (const ResidualSample& s : samples) {
-        if (s.status != shared::kResidualUsed) continue;
+        if (s.status != shared::kResidualUsed || k++ % stride != 0) continue;
         const glm::vec3 rho_pi(s.d);
         out.push_back({.u = glm::vec3(s.u), .v = glm::vec3(s.v), .b = s.f + rho_pi * s.d.w, .rho_over_pi = rho_pi, .weight = s.u.w});
     }

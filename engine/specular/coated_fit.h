@@ -46,7 +46,8 @@ struct MaterialSample {
 
 /// The residual pass's samples as total BRDF samples: b = f_s + (rho / pi) k_d, undoing the
 /// diffuse term of the material the residuals were computed with (dropped samples are skipped).
-[[nodiscard]] std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples);
+/// With max_samples, only every used_sample_stride-th used one (residuals.h).
+[[nodiscard]] std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples, std::size_t max_samples = 0);
 
 enum class CoatedFitStatus {
     Converged,      ///< tolerances met, alpha and eta determined

@@ -47,11 +47,11 @@ MaterialFit fit_material(MaterialFamily family, std::span<const ResidualSample> 
     MaterialFit fit;
     fit.family = family;
     if (family == MaterialFamily::Lafortune) {
-        const std::vector<LafortuneSample> sub = stride_subsample(to_lafortune_samples(samples), options.max_samples);
+        const std::vector<LafortuneSample> sub = to_lafortune_samples(samples, options.max_samples);
         fit.samples = sub.size();
         fit.lafortune = fit_lafortune(sub, options.lafortune);
     } else {
-        const std::vector<MaterialSample> sub = stride_subsample(to_material_samples(samples), options.max_samples);
+        const std::vector<MaterialSample> sub = to_material_samples(samples, options.max_samples);
         fit.samples = sub.size();
         fit.coated = fit_coated(sub, options.coated);
     }

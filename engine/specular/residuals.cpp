@@ -43,11 +43,20 @@ std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs
     return std::max<std::uint64_t>(1, (lit + o.max_kept_samples - 1) / o.max_kept_samples);
 }
 
-std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples) {
+std::size_t used_sample_stride(std::span<const ResidualSample> samples, std::size_t max_samples) {
+    if (max_samples == 0) return 1;
+    const auto used = static_cast<std::size_t>(
+        std::count_if(samples.begin(), samples.end(), [](const ResidualSample& s) { return s.status == shared::kResidualUsed; }));
+    return used > max_samples ? (used + max_samples - 1) / max_samples : 1;
+}
+
+std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples, std::size_t max_samples) {
+    const std::size_t stride = used_sample_stride(samples, max_samples);
     std::vector<LafortuneSample> out;
-    out.reserve(samples.size());
+    out.reserve(samples.size() / stride + 1);
+    std::size_t k = 0;
     for (const ResidualSample& s : samples) {
-        if (s.status != shared::kResidualUsed) continue;
+        if (s.status != shared::kResidualUsed || k++ % stride != 0) continue;
         out.push_back({.u = glm::vec3(s.u), .v = glm::vec3(s.v), .f = s.f, .weight = s.u.w});
     }
     return out;

@@ -12,6 +12,7 @@
 #include <string>
 
 int main(int argc, char** argv) {
+    specula::cap_malloc_arenas();
     CLI::App app{"Specula: capture how a real object's surface looks (diffuse albedo + a specular lobe)\n"
                  "from calibrated photographs lit by known point lights."};
     app.set_version_flag("--version", std::string("specula ") + specula::kVersion);
