@@ -59,28 +59,50 @@ Parts parts(const Prepared& s, const Point& p) {
     return {s.rho_pi * f64::coated_diffuse_factor(s.ci, s.co, p.eta), f64::coated_specular(s.ci, s.co, s.cuv, alpha, p.eta)};
 }
 
-/// The tint for fixed (alpha, eta): 1, or per channel the weighted least-squares scale of the
-/// specular to what the diffuse leaves (clamped at 0: a negative tint is no reflection).
-glm::dvec3 solve_tint(const std::vector<Prepared>& s, const Point& p, bool fit_tint) {
-    if (!fit_tint) return glm::dvec3(1.0);
-    glm::dvec3 num(0.0);
-    double den = 0.0;
-    for (const Prepared& x : s) {
-        const Parts q = parts(x, p);
-        num += x.w * q.specular * (x.b - q.diffuse);
-        den += x.w * q.specular * q.specular;
-    }
-    return den > 0.0 ? glm::max(num / den, glm::dvec3(0.0)) : glm::dvec3(0.0);
+/// The sum over the samples of add(acc, x), in fixed chunks of kSumChunk samples on up to
+/// `threads` workers, the chunks' partial sums then added in order: the same total for any
+/// thread count (Acc has +=).
+constexpr std::size_t kSumChunk = 8192;
+template <class Acc, class F>
+Acc chunked_sum(const std::vector<Prepared>& s, unsigned threads, F&& add) {
+    std::vector<Acc> part((s.size() + kSumChunk - 1) / kSumChunk);
+    parallel_for_chunks(s.size(), std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+        Acc& acc = part[begin / kSumChunk];
+        for (std::size_t i = begin; i < end; ++i) add(acc, s[i]);
+    });
+    Acc total{};
+    for (const Acc& a : part) total += a;
+    return total;
 }
 
-double cost_at(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint) {
-    double c = 0.0;
-    for (const Prepared& x : s) {
+struct TintSums {
+    glm::dvec3 num{0.0};
+    double den = 0.0;
+    TintSums& operator+=(const TintSums& o) {
+        num += o.num;
+        den += o.den;
+        return *this;
+    }
+};
+
+/// The tint for fixed (alpha, eta): 1, or per channel the weighted least-squares scale of the
+/// specular to what the diffuse leaves (clamped at 0: a negative tint is no reflection).
+glm::dvec3 solve_tint(const std::vector<Prepared>& s, const Point& p, bool fit_tint, unsigned threads = 1) {
+    if (!fit_tint) return glm::dvec3(1.0);
+    const TintSums t = chunked_sum<TintSums>(s, threads, [&](TintSums& acc, const Prepared& x) {
+        const Parts q = parts(x, p);
+        acc.num += x.w * q.specular * (x.b - q.diffuse);
+        acc.den += x.w * q.specular * q.specular;
+    });
+    return t.den > 0.0 ? glm::max(t.num / t.den, glm::dvec3(0.0)) : glm::dvec3(0.0);
+}
+
+double cost_at(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint, unsigned threads = 1) {
+    return chunked_sum<double>(s, threads, [&](double& acc, const Prepared& x) {
         const Parts q = parts(x, p);
         const glm::dvec3 r = q.diffuse + tint * q.specular - x.b;
-        c += x.w * glm::dot(r, r);
-    }
-    return c;
+        acc += x.w * glm::dot(r, r);
+    });
 }
 
 /// Cost with the tint projected out (variable projection).
@@ -95,11 +117,16 @@ struct Normal {
     Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
     Eigen::Vector2d jtr = Eigen::Vector2d::Zero();
     double cost = 0.0;
+    Normal& operator+=(const Normal& o) {
+        jtj += o.jtj;
+        jtr += o.jtr;
+        cost += o.cost;
+        return *this;
+    }
 };
-Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint) {
+Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint, unsigned threads = 1) {
     constexpr double h = 1e-5;
-    Normal n;
-    for (const Prepared& x : s) {
+    Normal n = chunked_sum<Normal>(s, threads, [&](Normal& n, const Prepared& x) {
         const Parts q0 = parts(x, p);
         const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
         const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
@@ -112,7 +139,7 @@ Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const gl
         n.jtr(0) += x.w * glm::dot(ja, r);
         n.jtr(1) += x.w * glm::dot(je, r);
         n.cost += x.w * glm::dot(r, r);
-    }
+    });
     n.jtj(1, 0) = n.jtj(0, 1);
     return n;
 }
@@ -125,15 +152,16 @@ struct LmResult {
     bool converged;
 };
 
-/// Levenberg-Marquardt in (ln alpha, eta), the tint re-solved after each accepted step.
-LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o) {
-    glm::dvec3 tint = solve_tint(s, p, o.fit_tint);
-    double cost = cost_at(s, p, tint);
+/// Levenberg-Marquardt in (ln alpha, eta), the tint re-solved after each accepted step; its sums
+/// on up to `threads` workers.
+LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o, unsigned threads) {
+    glm::dvec3 tint = solve_tint(s, p, o.fit_tint, threads);
+    double cost = cost_at(s, p, tint, threads);
     double lambda = 1e-3;
     LmResult r{p, tint, cost, 0, false};
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
         ++r.iterations;
-        const Normal n = normal_equations(s, p, tint);
+        const Normal n = normal_equations(s, p, tint, threads);
         bool accepted = false;
         for (int tries = 0; tries < 12 && !accepted; ++tries) {
             Eigen::Matrix2d a = n.jtj;
@@ -141,8 +169,8 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
             const Eigen::Vector2d step = a.ldlt().solve(-n.jtr);
             if (!step.allFinite()) break;
             const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
-            const glm::dvec3 t = solve_tint(s, q, o.fit_tint);
-            const double c = cost_at(s, q, t);
+            const glm::dvec3 t = solve_tint(s, q, o.fit_tint, threads);
+            const double c = cost_at(s, q, t, threads);
             if (std::isfinite(c) && c < cost) {
                 const double decrease = (cost - c) / std::max(cost, 1e-300);
                 p = q;
@@ -242,7 +270,7 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
     // The starts' LM runs are independent: side by side, then taken in order (the same best for any thread count).
     std::vector<std::optional<LmResult>> runs(starts);
     parallel_for(starts, threads, [&](std::size_t k) {
-        if (std::isfinite(cells[k].cost)) runs[k] = levenberg_marquardt(coarse, cells[k].p, o);
+        if (std::isfinite(cells[k].cost)) runs[k] = levenberg_marquardt(coarse, cells[k].p, o, 1);
     });
     for (const std::optional<LmResult>& r : runs) {
         if (!r) continue;
@@ -257,13 +285,13 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
     }
     for (std::uint32_t pass = 0; pass <= o.robust_passes; ++pass) {
         if (pass > 0) reweight(all, base_w, best.p, best.tint);
-        const LmResult r = levenberg_marquardt(all, best.p, o);
+        const LmResult r = levenberg_marquardt(all, best.p, o, threads);
         fit.iterations += r.iterations;
         best = r;
     }
 
     // Uncertainty at the minimum (the robust weights kept).
-    const Normal n = normal_equations(all, best.p, best.tint);
+    const Normal n = normal_equations(all, best.p, best.tint, threads);
     const double m = 3.0 * double(all.size());
     const double s2 = n.cost / std::max(1.0, m - double(params));
     const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
