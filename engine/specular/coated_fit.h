@@ -65,7 +65,7 @@ struct CoatedFitOptions {
     std::uint32_t robust_passes = 4;///< IRLS reweightings (0: plain least squares)
     double cost_tolerance = 1e-10;  ///< relative cost decrease that ends the iteration
     double max_relative_error = 0.05; ///< a parameter is determined when its relative std error is below this
-    unsigned threads = 0;           ///< threads of the grid search and the LM starts (0: the hardware's)
+    unsigned threads = 0;           ///< threads of the grid search, the LM starts and the sums over all samples (0: the hardware's)
 };
 
 struct CoatedFit {
