@@ -350,16 +350,29 @@ LambertOutputs lambert_solve_cpu(const LambertInputs& in, const LambertOptions& 
     out.mode = options.mode;
     out.choice = options.choice;
     out.particles.resize(in.particles.size());
-    // Particles are independent: each thread takes chunks of them (the result is the same for any count).
-    parallel_for_chunks(in.particles.size(), std::max(options.threads, 1u), 512, [&](unsigned, std::size_t begin, std::size_t end) {
-        std::vector<shared::LambertPairResult> pairs;
+    // Particles are independent: each thread takes chunks of them (the result is the same for any
+    // count). Within a chunk the pairs go view by view, so that neighbouring particles read
+    // neighbouring pixels of the same frames (demo can: the 7 solves 6.8 -> 5.7 s), each into its
+    // particle's slots (the views that see it, in view order); then each particle combines them.
+    const std::size_t views = in.views.size();
+    const auto seen = [&](std::size_t p, std::uint32_t v) { return !in.views[v].frames.empty() && vis.sees(p, v); };
+    parallel_for_chunks(in.particles.size(), std::max(options.threads, 1u), 4096, [&](unsigned, std::size_t begin, std::size_t end) {
+        thread_local std::vector<shared::LambertPairResult> pairs;
+        thread_local std::vector<std::size_t> first, next; // per particle of the chunk: its first slot, its next free one
+        first.assign(end - begin + 1, 0);
         for (std::size_t i = begin; i < end; ++i) {
-            const auto p = static_cast<std::uint32_t>(i);
-            pairs.clear();
-            for (std::uint32_t v = 0; v < in.views.size(); ++v)
-                if (!in.views[v].frames.empty() && vis.sees(p, v)) pairs.push_back(detail::lambert_pair_cpu(in, options, p, v));
-            out.particles[p] = detail::lambert_combine_cpu(pairs, options, in.particles[p]);
+            std::size_t k = 0;
+            for (std::uint32_t v = 0; v < views; ++v) k += seen(i, v) ? 1u : 0u;
+            first[i - begin + 1] = first[i - begin] + k;
         }
+        pairs.resize(first.back());
+        next.assign(first.begin(), first.end() - 1);
+        for (std::uint32_t v = 0; v < views; ++v)
+            for (std::size_t i = begin; i < end; ++i)
+                if (seen(i, v)) pairs[next[i - begin]++] = detail::lambert_pair_cpu(in, options, static_cast<std::uint32_t>(i), v);
+        for (std::size_t i = begin; i < end; ++i)
+            out.particles[i] = detail::lambert_combine_cpu(
+                std::span(pairs).subspan(first[i - begin], first[i - begin + 1] - first[i - begin]), options, in.particles[i]);
     });
     out.summary.seconds = sw.seconds();
     summarize(out);
