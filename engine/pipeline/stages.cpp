@@ -738,7 +738,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     // 2. The winner on all the train frames, as many rounds as its validated estimate kept. The
     //    rounds start from the winner's validated material: the fixed point they iterate toward
     //    is the same, and the validated state is already near it (knot, 384 px: the first round
-    //    moves the material by 0.2% from there, against 0.6% from a fit to the first solve's
+    //    moves the material by 0.12% from there, against 0.62% from a fit to the first solve's
     //    residuals), so one round fewer settles it. Without validation frames the candidates
     //    were fitted to the first solve's samples: the winner's fit is that fit.
     const JointSteps steps = material_steps(run, s, diffuse.inputs, nullptr, winner, fo, "");
