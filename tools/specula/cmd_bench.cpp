@@ -123,6 +123,7 @@ void run_indirect_command(const BenchIndirectArgs& a) {
             c.out_dir = std::filesystem::path(a.out) / (name + (on ? "-on" : "-off"));
             c.force = true;
             c.threads = a.threads;
+            c.backend_auto = true; // reconstruct's default (--backend auto), not the config's plain Vulkan
             c.indirect = on ? Toggle::On : Toggle::Off;
             result[on] = reconstruct(c);
         }
