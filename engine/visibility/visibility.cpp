@@ -411,6 +411,8 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
     if (particles.size() != vis.particle_count || lights.size() != vis.frame_count || frame_view.size() != lights.size() ||
         views.size() != vis.view_count || vis.lit_complete.size() != lights.size())
         throw Error("complete_lit: the particles, lights, views and frame_view are not the ones the visibility was computed for");
+    for (const std::uint32_t v : frame_view)
+        if (v >= views.size()) throw Error("complete_lit: a frame names view " + std::to_string(v) + " of " + std::to_string(views.size()));
     std::vector<std::uint32_t> todo;
     for (const std::size_t f : frames) {
         if (f >= lights.size()) throw Error("complete_lit: frame " + std::to_string(f) + " of " + std::to_string(lights.size()));

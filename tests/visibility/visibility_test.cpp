@@ -334,6 +334,9 @@ TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
     for (const std::uint8_t c : b.lit_complete) EXPECT_EQ(c, 1u);
     // Inputs that are not the visibility's are refused.
     EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, {}, all, 1), Error);
+    std::vector<std::uint32_t> bad_view = frame_view;
+    bad_view[0] = static_cast<std::uint32_t>(cams.size());
+    EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, bad_view, all, 1), Error);
     const std::vector<std::size_t> outside = {lights.size()};
     EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, outside, 1), Error);
 }
