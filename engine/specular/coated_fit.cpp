@@ -126,19 +126,19 @@ struct Normal {
 };
 Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint, unsigned threads = 1) {
     constexpr double h = 1e-5;
-    Normal n = chunked_sum<Normal>(s, threads, [&](Normal& n, const Prepared& x) {
+    Normal n = chunked_sum<Normal>(s, threads, [&](Normal& acc, const Prepared& x) {
         const Parts q0 = parts(x, p);
         const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
         const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
         const glm::dvec3 r = q0.diffuse + tint * q0.specular - x.b;
         const glm::dvec3 ja = (qa.diffuse - qb.diffuse + tint * (qa.specular - qb.specular)) / (2.0 * h);
         const glm::dvec3 je = (qe.diffuse - qf.diffuse + tint * (qe.specular - qf.specular)) / (2.0 * h);
-        n.jtj(0, 0) += x.w * glm::dot(ja, ja);
-        n.jtj(0, 1) += x.w * glm::dot(ja, je);
-        n.jtj(1, 1) += x.w * glm::dot(je, je);
-        n.jtr(0) += x.w * glm::dot(ja, r);
-        n.jtr(1) += x.w * glm::dot(je, r);
-        n.cost += x.w * glm::dot(r, r);
+        acc.jtj(0, 0) += x.w * glm::dot(ja, ja);
+        acc.jtj(0, 1) += x.w * glm::dot(ja, je);
+        acc.jtj(1, 1) += x.w * glm::dot(je, je);
+        acc.jtr(0) += x.w * glm::dot(ja, r);
+        acc.jtr(1) += x.w * glm::dot(je, r);
+        acc.cost += x.w * glm::dot(r, r);
     });
     n.jtj(1, 0) = n.jtj(0, 1);
     return n;
