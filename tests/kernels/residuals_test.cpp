@@ -11,6 +11,7 @@
 // min_light_cos) could flip within rounding; the counts per reason must agree exactly here
 // (they do on this scene), so the used samples line up slot for slot.
 #include "specular/residuals.h"
+#include "specular/material_fit.h"
 
 #include "diffuse_scene.h"
 #include "vulkan_env.h"
@@ -98,6 +99,30 @@ TEST(Residuals, ThreadsGiveTheSameSamplesInTheSameOrder) {
         EXPECT_EQ(0, std::memcmp(one.samples.data(), three.samples.data(), one.samples.size() * sizeof(ResidualSample)));
         // The stride keeps every k-th used slot: about used / k samples.
         EXPECT_EQ(one.samples.size(), (one.counts.used + one.keep_stride - 1) / one.keep_stride);
+    }
+}
+
+// The fits' converters with a sample bound take the same samples, in the same order, as the
+// stride subsample of the whole conversion (what the fits took before), dropped ones skipped.
+TEST(Residuals, BoundedConversionIsTheStrideSubsampleOfTheWhole) {
+    std::vector<ResidualSample> all = residual_samples_cpu(scene().inputs(), diffuse(), {}).samples;
+    ASSERT_GT(all.size(), 3000u);
+    for (std::size_t i = 0; i < all.size(); i += 7) all[i].status = 0; // not used: skipped before the stride
+    for (const std::size_t max : {std::size_t{0}, std::size_t{1000}, std::size_t{2999}, all.size()}) {
+        const std::vector<LafortuneSample> l = to_lafortune_samples(all, max);
+        const std::vector<LafortuneSample> lw = stride_subsample(to_lafortune_samples(all), max);
+        ASSERT_EQ(l.size(), lw.size()) << max;
+        if (max != 0) {
+            EXPECT_LE(l.size(), max);
+        }
+        for (std::size_t i = 0; i < l.size(); ++i) {
+            ASSERT_EQ(l[i].u, lw[i].u) << max << " " << i;
+            ASSERT_EQ(l[i].f, lw[i].f) << max << " " << i;
+        }
+        const std::vector<MaterialSample> m = to_material_samples(all, max);
+        const std::vector<MaterialSample> mw = stride_subsample(to_material_samples(all), max);
+        ASSERT_EQ(m.size(), mw.size()) << max;
+        for (std::size_t i = 0; i < m.size(); ++i) ASSERT_EQ(m[i].b, mw[i].b) << max << " " << i;
     }
 }
 
