@@ -129,7 +129,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                     s.d = glm::vec4(glm::vec3(rpi), static_cast<float>(kd));
                     ++c.used;
                     chunk.samples.push_back(s);
-                    chunk.particles.push_back(p);
+                    if (sample_particle != nullptr) chunk.particles.push_back(p);
                 }
             }
         });
