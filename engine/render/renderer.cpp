@@ -206,6 +206,11 @@ struct Renderer::Impl {
     bool cull = false;
     std::optional<SpecularModel> specular;
     shared::MaterialGpu material; // material_gpu(specular): what every pass shader evaluates
+    /// Set by set_material: the material drawn instead of the model's, and whether it has a specular term.
+    std::optional<bool> material_override;
+    [[nodiscard]] bool draws_specular() const noexcept {
+        return material_override ? *material_override : specular && !is_zero(*specular);
+    }
     Bounds bounds;
     std::size_t triangles = 0;
     uint32_t vertex_count = 0;
@@ -393,9 +398,14 @@ struct Renderer::Impl {
         info.diffuse_pass = want_diffuse;
         if (!want_specular) {
             info.specular_note = "mode diffuse";
-        } else if (!specular || is_zero(*specular)) {
-            info.specular_note = "no lobe (no specular model, or a zero one: Cx = Cz = 0 on every channel, or a coated "
-                                 "tint of 0): the specular pass is left out";
+        } else if (!draws_specular()) {
+            info.specular_note = material_override ? "the material drawn instead of the model has no specular term: the specular "
+                                                      "pass is left out"
+                                                    : "no lobe (no specular model, or a zero one: Cx = Cz = 0 on every channel, or "
+                                                      "a coated tint of 0): the specular pass is left out";
+        } else if (material_override && settings.specular == SpecularPath::Factorized) {
+            throw Error("renderer: a material drawn instead of the model (Renderer::set_material) has no factorization: "
+                        "render it with the analytic path");
         } else if (settings.specular == SpecularPath::Factorized && cubes_g.empty()) {
             throw Error("renderer: the factorized specular model needs the G and H cube-maps (Renderer::set_factorization)");
         } else {
@@ -516,9 +526,14 @@ Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 void Renderer::set_specular(const std::optional<SpecularModel>& specular) {
     m_impl->specular = specular;
     m_impl->material = material_gpu(specular);
+    m_impl->material_override.reset();
+}
+void Renderer::set_material(const shared::MaterialGpu& material, bool has_specular) {
+    m_impl->material = material;
+    m_impl->material_override = has_specular;
 }
 const std::optional<SpecularModel>& Renderer::specular() const noexcept { return m_impl->specular; }
-bool Renderer::has_specular() const noexcept { return m_impl->specular && !is_zero(*m_impl->specular); }
+bool Renderer::has_specular() const noexcept { return m_impl->draws_specular(); }
 shared::MaterialGpu Renderer::material() const noexcept { return m_impl->material; }
 std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
 bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }

@@ -163,8 +163,13 @@ public:
     [[nodiscard]] const std::optional<SpecularModel>& specular() const noexcept;
     /// True when there is a specular term to draw (a model that is not zero).
     [[nodiscard]] bool has_specular() const noexcept;
-    /// The model as the pass shaders read it (material_gpu(specular())).
+    /// The model as the pass shaders read it (material_gpu(specular()), or set_material's).
     [[nodiscard]] shared::MaterialGpu material() const noexcept;
+    /// Draws this material instead of the specular model's, diffuse factor included: any family the
+    /// shaders evaluate, in particular glTF's core material (material/core_material.h
+    /// core_material_gpu: what ordinary viewers show). Analytic path only (a factorized render
+    /// throws Error). set_specular() ends it.
+    void set_material(const shared::MaterialGpu& material, bool has_specular);
 
     /// Uploads the factorization's cube-maps: K = terms.size() terms (1..kMaxFactorTerms), each a
     /// G (looked up by h) and an H (by d), each cube-map with its own resolution; the sum is

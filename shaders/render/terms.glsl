@@ -31,14 +31,15 @@ float light_visibility(RenderParams p, sampler2DShadow shadow_map, vec3 world, v
 
 // (rho / pi) k_d V I max(0, n.u) / d^2, rho bilinear from the atlas (the gutters make
 // bilinear safe, engine/geometry/atlas.h), k_d the material's diffuse factor
-// (shared/material.h material_diffuse_factor: exactly 1 for the lafortune family, so its
+// (shared/material.h material_diffuse_factor_uv: exactly 1 for the lafortune family, so its
 // renders are the thesis's bit for bit; the coating's Fresnel transmittances for the coated
-// one); n unit, V = light_visibility. Both specular paths draw this same term.
+// one; s (1 - F) for glTF's core material); n unit, V = light_visibility. Both specular paths draw this same term.
 vec3 diffuse_term(RenderParams p, sampler2D atlas, vec3 world, vec3 n, vec2 uv, float visibility) {
     vec3 irradiance = visibility * point_light_irradiance(n, world, p.light_position.xyz, p.light_intensity.rgb);
     vec3 rho = texture(atlas, uv).rgb;
-    float k_d = material_diffuse_factor(p.material, dot(n, direction_to(world, p.light_position.xyz)),
-                                        dot(n, direction_to(world, p.eye.xyz)));
+    vec3 u = direction_to(world, p.light_position.xyz);
+    vec3 v = direction_to(world, p.eye.xyz);
+    float k_d = material_diffuse_factor_uv(p.material, dot(n, u), dot(n, v), dot(u, v));
     return rho / kPi * irradiance * k_d;
 }
 

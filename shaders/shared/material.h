@@ -6,18 +6,24 @@
 //                              f_d = rho / pi,  f_s = max(0, Cx (u.v - ci co) + Cz ci co)^N
 //   family kMaterialCoated:    a = (eta, alpha, 0, 0), b = tint rgb     (shared/coated.h)
 //                              f_d = rho / pi T(ci) T(co) / T(1)^2,  f_s = tint F D G / (4 ci co)
+//   family kMaterialGltfCore:  a = (roughness, f0, f90, s)              (shared/gltf_core.h)
+//                              f_d = rho / pi s (1 - F(u.v)),  f_s = F D V: glTF's core material as
+//                              ordinary viewers draw it; rendered only (no kernel fits it), and its
+//                              diffuse factor needs u.v: material_diffuse_factor_uv
 // A zero material (family lafortune, every parameter 0) adds no specular light and leaves the
 // diffuse term Lambertian: what the kernels get when no model is known yet.
 #ifndef SPECULA_SHARED_MATERIAL_H
 #define SPECULA_SHARED_MATERIAL_H
 #include "shared/prelude.h"
 #include "shared/coated.h"
+#include "shared/gltf_core.h"
 #include "shared/lafortune.h"
 
 SPECULA_SHARED_BEGIN
 
 const uint kMaterialLafortune = 0u;
 const uint kMaterialCoated = 1u;
+const uint kMaterialGltfCore = 2u;
 
 struct MaterialGpu {
     uvec4 family; // x: kMaterial*
@@ -40,6 +46,7 @@ namespace specula::shared::f64 {
 using namespace glm;
 using specula::shared::MaterialGpu;
 using specula::shared::kMaterialCoated;
+using specula::shared::kMaterialGltfCore;
 using specula::shared::kMaterialLafortune;
 #define MATERIAL_REAL double
 #define MATERIAL_VEC3 dvec3

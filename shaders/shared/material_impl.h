@@ -7,6 +7,8 @@ SHARED_FN MATERIAL_VEC3 material_specular(MaterialGpu m, MATERIAL_REAL ci, MATER
         MATERIAL_REAL s = coated_specular(ci, co, cuv, MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.x));
         return MATERIAL_VEC3(m.b.x, m.b.y, m.b.z) * s;
     }
+    if (m.family.x == kMaterialGltfCore)
+        return MATERIAL_VEC3(core_specular(ci, co, cuv, MATERIAL_REAL(m.a.x), MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z)));
     // Lafortune, from the isotropic products (shared/lafortune.h lafortune_eval_ab).
     MATERIAL_REAL a = cuv - ci * co;
     MATERIAL_REAL b = ci * co;
@@ -19,4 +21,11 @@ SHARED_FN MATERIAL_VEC3 material_specular(MaterialGpu m, MATERIAL_REAL ci, MATER
 SHARED_FN MATERIAL_REAL material_diffuse_factor(MaterialGpu m, MATERIAL_REAL ci, MATERIAL_REAL co) {
     if (m.family.x == kMaterialCoated) return coated_diffuse_factor(ci, co, MATERIAL_REAL(m.a.x));
     return MATERIAL_REAL(1.0);
+}
+
+// k_d for any family, from u.v too (the glTF core family's Fresnel depends on v.h).
+SHARED_FN MATERIAL_REAL material_diffuse_factor_uv(MaterialGpu m, MATERIAL_REAL ci, MATERIAL_REAL co, MATERIAL_REAL cuv) {
+    if (m.family.x == kMaterialGltfCore)
+        return core_diffuse_factor(ci, co, cuv, MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z), MATERIAL_REAL(m.a.w));
+    return material_diffuse_factor(m, ci, co);
 }
