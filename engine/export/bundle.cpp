@@ -393,9 +393,15 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
 
     // The base colour for ordinary viewers: the albedo as 8-bit sRGB PNG (glTF images are
     // PNG or JPEG), RGB (grey replicated), clamped to [0, 1].
+    // With a fitted core material, times its scale 1 / (1 - F0) (glTF dims the diffuse by 1 - F).
+    if (bundle.core && (!(bundle.core->f0 >= 0.0) || !(bundle.core->f90 >= bundle.core->f0) || !(bundle.core->f90 <= 1.0) ||
+                        !(bundle.core->f0 < 1.0) || !(bundle.core->roughness >= 0.0) || !(bundle.core->roughness <= 1.0)))
+        throw InputError(path, "core", "not 0 <= f0 <= f90 <= 1, f0 < 1 and roughness in [0, 1]");
+    const float base_scale = bundle.core ? static_cast<float>(bundle.core->base_color_scale()) : 1.0f;
     Image rgb(albedo.width, albedo.height, 3);
     for (std::size_t i = 0; i < static_cast<std::size_t>(albedo.width) * albedo.height; ++i)
-        for (int c = 0; c < 3; ++c) rgb.pixels[i * 3 + c] = albedo.pixels[i * albedo.channels + std::min(c, albedo.channels - 1)];
+        for (int c = 0; c < 3; ++c)
+            rgb.pixels[i * 3 + c] = base_scale * albedo.pixels[i * albedo.channels + std::min(c, albedo.channels - 1)];
     std::vector<std::uint8_t> png;
     try {
         png = encode_image(rgb, ImageCodec::Png, ColorSpace::Srgb, 8);
@@ -447,11 +453,20 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         if (mirrored || warped) ext["parametrization"] = to_string(mat.factorized->param);
         if (warped) ext["warp"] = {w.x, w.y, w.z, w.w};
     }
+    if (bundle.core) ext["core"] = {{"roughness", bundle.core->roughness}, {"f0", bundle.core->f0}, {"f90", bundle.core->f90}};
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
     json extensions = {{kExtension, ext}};
     json extensions_used = json::array({kExtension});
-    if (coated) {
+    if (bundle.core) {
+        // The fitted core material (material/core_material.h core_gltf_fields).
+        const CoreGltfFields g = core_gltf_fields(*bundle.core);
+        extensions[kIorExtension] = {{"ior", g.ior}};
+        const double sc = g.specular_color_factor;
+        extensions[kSpecularExtension] = {{"specularColorFactor", {sc, sc, sc}}, {"specularFactor", g.specular_factor}};
+        extensions_used.push_back(kIorExtension);
+        extensions_used.push_back(kSpecularExtension);
+    } else if (coated) {
         // glTF's dielectric with both extensions has F0 = min(((ior - 1) / (ior + 1))^2
         // specularColorFactor, 1) specularFactor (KHR_materials_specular, "Interaction with other
         // extensions"; KHR_materials_ior): with ior = eta, specularColorFactor = tint (values above
@@ -464,7 +479,9 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         extensions_used.push_back(kIorExtension);
         extensions_used.push_back(kSpecularExtension);
     }
-    const double roughness = coated ? roughness_from_coated(*coated) : roughness_from_lobe(lobe);
+    const double roughness = bundle.core ? core_gltf_fields(*bundle.core).roughness_factor
+                             : coated    ? roughness_from_coated(*coated)
+                                         : roughness_from_lobe(lobe);
     json material = {
         {"name", "specula"},
         {"pbrMetallicRoughness",
@@ -669,6 +686,20 @@ Bundle read_bundle(const fs::path& path) {
         glm::vec4& warp = b.material.factorized->warp;
         for (int c = 0; c < 4; ++c) warp[c] = w[static_cast<std::size_t>(c)].get<float>();
         if (!valid_warp(warp)) f.fail(wf, "must be (+-1, k_r, k_g, k_b) with every k in [1/64, 64]");
+    }
+    if (ext->contains("core")) { // the fitted core material (Bundle::core)
+        const std::string cf = ext_field + ".core";
+        const json& c = (*ext)["core"];
+        if (!c.is_object()) f.fail(cf, "not an object");
+        const auto number = [&](const char* key) { // a double, read back exactly
+            (void)read_number(f, c, key, cf);    // present, a number, finite
+            return c[key].get<double>();
+        };
+        CoreMaterial core{.roughness = number("roughness"), .f0 = number("f0"), .f90 = number("f90")};
+        if (!(core.roughness >= 0.0 && core.roughness <= 1.0)) f.fail(cf + ".roughness", "outside [0, 1]");
+        if (!(core.f90 >= 0.0 && core.f90 <= 1.0)) f.fail(cf + ".f90", "outside [0, 1]");
+        if (!(core.f0 >= 0.0 && core.f0 <= core.f90 && core.f0 < 1.0)) f.fail(cf + ".f0", "outside [0, f90] (and below 1)");
+        b.core = core;
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) f.fail(ext_field + ".info", "not an object");

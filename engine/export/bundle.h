@@ -9,6 +9,7 @@
 //    Specula needs exactly: the specular model of any family (the per-channel Lafortune
 //    lobe, or version 5's "model": "coated" with eta, alpha and tint), its fit status, the
 //    linear float albedo (so a round trip is exact, not 8-bit), and the factorization cube-maps.
+#include "material/core_material.h"
 #include "material/material.h"
 #include "core/image.h"
 #include "capture/mesh.h"
@@ -41,6 +42,12 @@ struct Bundle {
     /// (c + 1) / 2 in [0, 1]^3, atlas size. Written as glTF's material.normalTexture (8-bit
     /// linear PNG) with the mesh's TANGENT attribute (vertex_tangents); read back from it.
     std::optional<Image> normal_map;
+    /// glTF's core material for ordinary viewers, fitted to the captured frames (specular/core_fit.h):
+    /// written as roughnessFactor, KHR_materials_ior and KHR_materials_specular, the base colour
+    /// texture as the albedo times its base_color_scale(), and as the extension's `core` (read back
+    /// from there). Absent: the former formulas (the coated family's parameters; a roughness from
+    /// the Lafortune lobe's exponent) and the albedo as the base colour.
+    std::optional<CoreMaterial> core;
     /// What read_bundle noticed (e.g. "no SPECULA_lafortune extension: diffuse-only bundle
     /// from the 8-bit base colour texture"). Not written.
     std::vector<std::string> warnings;

@@ -139,6 +139,37 @@ TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
     EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
 }
 
+TEST(Bundle, RoundTripWithTheCoreMaterialIsExact) {
+    const test::BundlePieces p = test::make_pieces();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.core = CoreMaterial{.roughness = 0.4923, .f0 = 0.0581, .f90 = 0.0581};
+    TempDir dir("bundle");
+    const auto file = dir / "out.glb";
+    write_bundle(file, b);
+    const Bundle r = read_bundle(file);
+    ASSERT_TRUE(r.core.has_value());
+    EXPECT_EQ(r.core->roughness, b.core->roughness);
+    EXPECT_EQ(r.core->f0, b.core->f0);
+    EXPECT_EQ(r.core->f90, b.core->f90);
+    // The viewer's fields give the same material; the base colour is the albedo times 1 / (1 - F0).
+    const auto m = test::glb_json(file)["materials"][0];
+    const CoreMaterial viewed = core_from_gltf_fields({.roughness_factor = m["pbrMetallicRoughness"]["roughnessFactor"],
+                                                       .ior = m["extensions"]["KHR_materials_ior"]["ior"],
+                                                       .specular_factor = m["extensions"]["KHR_materials_specular"]["specularFactor"],
+                                                       .specular_color_factor =
+                                                           m["extensions"]["KHR_materials_specular"]["specularColorFactor"][0]});
+    EXPECT_NEAR(viewed.f0, b.core->f0, 1e-12);
+    EXPECT_NEAR(viewed.f90, b.core->f90, 1e-12);
+    EXPECT_NEAR(viewed.roughness, b.core->roughness, 1e-12);
+    Bundle plain = b;
+    plain.core.reset();
+    write_bundle(dir / "plain.glb", plain);
+    const Image base = read_bundle(dir / "plain.glb").albedo; // the float albedo, not the base colour
+    EXPECT_TRUE(same_bits(base.pixels, b.albedo.pixels));
+    b.core->f0 = 0.2; // above F90: refused, naming the field
+    EXPECT_THROW(write_bundle(dir / "bad.glb", b), InputError);
+}
+
 TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
     const test::BundlePieces p = test::make_pieces();
     Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
