@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <initializer_list>
 #include <iterator>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -144,14 +145,29 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     result.metrics_backend = options.metrics_backend;
 
     const Stopwatch setup;
-    BundleRenderer renderer(ctx, bundle, options.bundle_name);
+    std::optional<BundleRenderer> renderer;
+    if (!options.external_render) renderer.emplace(ctx, bundle, options.bundle_name);
+    render::Settings render_settings = options.render;
+    if (renderer && options.core_material) {
+        const CoreMaterial core = bundle.core.value_or(CoreMaterial{});
+        renderer->renderer().set_material(core_material_gpu(core), core.has_specular());
+        render_settings.specular = render::SpecularPath::Analytic;
+    }
+    result.render = render_settings;
     std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
     if (options.metrics_backend == Backend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
     result.timings.setup_s = setup.seconds();
-    if (options.render.mode != render::Mode::Diffuse && !renderer.has_specular())
+    if (renderer && options.render.mode != render::Mode::Diffuse && !renderer->has_specular())
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
 
-    const std::vector<std::size_t> frames = evaluated_frames(desc, options);
+    std::vector<std::size_t> frames = evaluated_frames(desc, options);
+    // Another tool's images: the frames it rendered (read once here, in capture order).
+    std::map<std::size_t, Image> external;
+    if (options.external_render) {
+        for (const std::size_t f : frames)
+            if (std::optional<Image> im = options.external_render(f)) external.emplace(f, std::move(*im));
+        std::erase_if(frames, [&](std::size_t f) { return !external.contains(f); });
+    }
     std::set<std::size_t> sheet_set(options.sheet_frames.begin(), options.sheet_frames.end());
     if (options.sheet_dir && sheet_set.empty()) {
         for (const Split split : {Split::Train, Split::Test}) {
@@ -182,11 +198,23 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         fe.view_index = fd.view_index;
 
         const Stopwatch render_time;
-        render::Frame frame = renderer.render(fd.camera(), fd.light, options.render);
+        render::Frame frame;
+        if (renderer) {
+            frame = renderer->render(fd.camera(), fd.light, render_settings);
+        } else { // another tool's image: its nonzero pixels are its coverage
+            frame.color = std::move(external.at(fi));
+            const std::size_t n = static_cast<std::size_t>(frame.color.width) * frame.color.height;
+            frame.mask.assign(n, 0);
+            for (std::size_t p = 0; p < n; ++p)
+                for (int c = 0; c < frame.color.channels; ++c)
+                    if (frame.color.pixels[p * frame.color.channels + c] != 0.0f) frame.mask[p] = 255;
+            frame.info.covered_pixels = static_cast<std::size_t>(std::count(frame.mask.begin(), frame.mask.end(), 255));
+            frame.info.shadow_pass = options.render.shadows;
+        }
         fe.render_ms = 1000.0 * render_time.seconds();
         fe.covered_pixels = frame.info.covered_pixels;
         fe.shadowed = frame.info.shadow_pass;
-        if (options.render.shadows && !frame.info.shadow_pass) {
+        if (renderer && options.render.shadows && !frame.info.shadow_pass) {
             fe.shadow_note = frame.info.shadow_note;
             log::warn(desc.dir.string() + ": frames[" + std::to_string(fi) + "] rendered without shadows: " + fe.shadow_note);
         }

@@ -82,6 +82,16 @@ struct EvaluateOptions {
     /// frame (index into capture.desc.frames) and its render. When set, the masked figures of
     /// the render without it are kept too (FrameEvaluation::masked_direct, direct_metrics).
     std::function<void(std::size_t frame, Image& rendered)> add_light;
+    /// Images rendered by another tool (an ordinary glTF viewer: tools/threejs-render.mjs), scored
+    /// instead of the bundle's own renders: called with a frame (index into capture.desc.frames),
+    /// returns its linear image, or nullopt when the tool rendered no image of that frame (the frame
+    /// is then left out). The bundle's renderer is not used; a frame's coverage (and its mask when
+    /// the capture has none) is its nonzero pixels, and render.shadows says nothing about it.
+    std::function<std::optional<Image>(std::size_t frame)> external_render;
+    /// Render the bundle's glTF core material (Bundle::core; absent: the diffuse-only core,
+    /// material/core_material.h) instead of its own model, analytic path, direct light: what an
+    /// ordinary viewer (three.js) shows, the figure report.json gives as `viewer`.
+    bool core_material = false;
 };
 
 struct FrameEvaluation {

@@ -65,10 +65,11 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const NormalMapStage normals = normal_map_stage(run, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);
     record_specular_cost(run, specular, factorization);
-    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals, indirect);
+    const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals, indirect, specular);
     const std::unique_ptr<evaluate::IndirectLightAdder> indirect_light =
         indirect_light_of(indirect, geometry, visibility, texture, factorization);
     const std::optional<evaluate::EvaluationResult> evaluation = evaluation_stage(run, capture, bundle, indirect_light.get());
+    const std::optional<evaluate::EvaluationResult> viewer = viewer_stage(run, capture, bundle, evaluation);
 
     result.total_seconds = total.seconds();
     result.report = report_json(run, ReportInputs{.capture = capture,
@@ -83,7 +84,8 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
                                                   .normals = normals,
                                                   .factorization = factorization,
                                                   .bundle = bundle,
-                                                  .evaluation = evaluation});
+                                                  .evaluation = evaluation,
+                                                  .viewer = viewer});
     write_reports(run, result.report);
     out.commit();
     return result;

@@ -304,6 +304,40 @@ json evaluation_json(const PipelineRun& run, const std::optional<evaluate::Evalu
     return j;
 }
 
+// What ordinary viewers show (null without an evaluation): the core material in the bundle, its
+// fit, and its masked figures beside Specula's own renderer's on the same frames.
+json viewer_json(const SpecularStage& specular, const Bundle& bundle, const std::optional<evaluate::EvaluationResult>& viewer,
+                 const std::optional<evaluate::EvaluationResult>& evaluation) {
+    json j = {{"what", "the bundle's glTF core material (roughnessFactor, KHR_materials_ior, KHR_materials_specular, the base "
+                       "colour texture) rendered with glTF's BRDF as three.js r187 draws a point light, direct light only: what "
+                       "ordinary viewers show"},
+              {"material", to_json(bundle.core.value_or(CoreMaterial{}))},
+              {"fit", specular.core ? to_json(*specular.core) : json(nullptr)}};
+    if (!viewer || !evaluation) return j;
+    for (const Split split : {Split::Train, Split::Test}) {
+        double core_d = 0, core_l = 0, own_d = 0, own_l = 0;
+        std::size_t n = 0;
+        for (const evaluate::FrameEvaluation& v : viewer->frames) {
+            if (v.split != split) continue;
+            const auto it = std::find_if(evaluation->frames.begin(), evaluation->frames.end(),
+                                         [&](const evaluate::FrameEvaluation& e) { return e.frame == v.frame; });
+            if (it == evaluation->frames.end() || v.masked.pixels == 0) continue;
+            core_d += v.masked_display.psnr, core_l += v.masked.psnr;
+            own_d += it->masked_display.psnr, own_l += it->masked.psnr;
+            ++n;
+        }
+        if (n == 0) continue;
+        const double k = 1.0 / static_cast<double>(n);
+        j[split == Split::Train ? "train" : "test"] = {{"frames", n},
+                                                       {"psnr_display", core_d * k},
+                                                       {"psnr_linear", core_l * k},
+                                                       {"specula_psnr_display", own_d * k},
+                                                       {"specula_psnr_linear", own_l * k}};
+    }
+    j["seconds"] = viewer->timings.total_s;
+    return j;
+}
+
 // The refined normals (null when left out): how many particles, their angle to the mesh normals.
 json normal_map_json(const PipelineRun& run, const NormalMapStage& n, const Bundle& bundle) {
     if (!n.normals || !bundle.normal_map) return nullptr;
@@ -410,6 +444,7 @@ json report_json(PipelineRun& run, const ReportInputs& in) {
               {"has_normal_map", in.bundle.normal_map.has_value()}}},
             {"normal_map", normal_map_json(run, in.normals, in.bundle)},
             {"evaluation", evaluation_json(run, in.evaluation)},
+            {"viewer", viewer_json(in.specular, in.bundle, in.viewer, in.evaluation)},
             {"albedo_texture",
              {{"files", {"albedo.exr", "albedo.png"}},
               {"width", in.texture.image.width},

@@ -25,6 +25,8 @@ struct ReportInputs {
     const FactorizationStage& factorization;
     const Bundle& bundle;
     const std::optional<evaluate::EvaluationResult>& evaluation;
+    /// The core material as ordinary viewers draw it (viewer_stage), when evaluated.
+    const std::optional<evaluate::EvaluationResult>& viewer;
 };
 
 /// The content of report.json (run.result.total_seconds must be set).

@@ -8,6 +8,7 @@
 #include "evaluate/indirect_light.h"
 #include "gpu/context.h"
 #include "export/normal_map.h"
+#include "material/core_material.h"
 #include "pipeline/planner.h"
 #include "specula/version.h"
 
@@ -741,7 +742,15 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     //    moves the material by 0.12% from there, against 0.62% from a fit to the first solve's
     //    residuals), so one round fewer settles it. Without validation frames the candidates
     //    were fitted to the first solve's samples: the winner's fit is that fit.
-    const JointSteps steps = material_steps(run, s, diffuse.inputs, nullptr, winner, fo, "");
+    // Each fit's samples are kept (bounded, as total BRDF samples: the last two rounds') for the
+    // core material's fit to the state the rounds end in (a rejected round is the last one).
+    std::vector<std::pair<std::string, std::vector<MaterialSample>>> kept;
+    JointSteps steps = material_steps(run, s, diffuse.inputs, nullptr, winner, fo, "");
+    steps.fit = [&kept, fit = steps.fit, max = config.max_fit_samples](const ResidualSamples& r, const std::string& tag) {
+        if (kept.size() == 2) kept.erase(kept.begin());
+        kept.emplace_back(tag, to_material_samples(r.samples, max));
+        return fit(r, tag);
+    };
     const bool start_validated = split.held_out == 0 || (warm_start && s.candidates[best].fit.model());
     if (!start_validated && rs.samples.empty()) // the winner has no usable validated fit: fit the first solve's samples
         rs = run_residuals(run, diffuse.inputs, diffuse.solve, diffuse.options, "residual samples");
@@ -767,6 +776,24 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
     s.fit = std::move(state.fit);
     s.decision = config.specular == SpecularMode::On ? "fitted (--specular on)" : "fitted: residuals above the noise (--specular auto)";
     s.backend = run.particle_backend();
+    // The core material for ordinary viewers, from the same samples (total BRDF, image-space weights).
+    std::string kept_tag; // the round whose fit the state holds: the last accepted one ("": the first fit)
+    for (const JointRound& r : s.joint.rounds)
+        if (!r.rejected) kept_tag = " (joint round " + std::to_string(r.round) + ")";
+    const auto samples_of_state = std::find_if(kept.begin(), kept.end(), [&](const auto& k) { return k.first == kept_tag; });
+    s.core = run.stage("core material fit", [&] {
+        if (samples_of_state != kept.end()) return fit_core_material(samples_of_state->second);
+        // The validated estimate's fit with no final round accepted: its samples are gone; the
+        // final solve's residuals stand in (computed with the material that solve assumed).
+        const ResidualSamples r = steps.residuals(diffuse.solve, diffuse.options, " (core material)");
+        return fit_core_material(to_material_samples(r.samples, config.max_fit_samples));
+    });
+    std::vector<std::pair<std::string, std::vector<MaterialSample>>>().swap(kept);
+    log::info(s.core->fitted ? format_text("core material for ordinary viewers: roughness %.3f, F0 %.4f, F90 %.3f (pixel rms %.4g, "
+                                           "diffuse only %.4g)",
+                                           s.core->material.roughness, s.core->material.f0, s.core->material.f90, s.core->rms,
+                                           s.core->diffuse_only_rms)
+                             : "core material for ordinary viewers: " + s.core->note);
     std::vector<ResidualSample>().swap(state.residuals.samples); // memory back (`= {}` keeps the capacity)
     s.residuals = std::move(state.residuals);
     return s;
@@ -976,7 +1003,8 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 }
 
 Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const AlbedoTexture& texture,
-                    const FactorizationStage& factorization, const NormalMapStage& normals, const IndirectStage& indirect) {
+                    const FactorizationStage& factorization, const NormalMapStage& normals, const IndirectStage& indirect,
+                    const SpecularStage& specular) {
     return run.stage("bundle", [&] {
         Material material;
         material.specular = factorization.material;
@@ -984,6 +1012,9 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         if (factorization.cubes) material.factorized = factorization.cubes->cubes;
         Bundle b = make_bundle(capture.mesh, geometry.atlas.corner_uv, texture.image, std::move(material));
         if (normals.normals) b.normal_map = encode_normal_map(b.mesh, geometry, *normals.normals);
+        // What ordinary viewers draw: the fit, or without one (no specular) no specular term and
+        // the albedo as the base colour, not glTF's default F0 of 0.04 dimming it.
+        b.core = specular.core && specular.core->fitted ? specular.core->material : CoreMaterial{};
         b.info = {{"generator", std::string("specula ") + kVersion}, {"capture", folder_name(capture.desc.dir)}}; // no machine path
         // What an engine needs to know: this albedo is the surface's own, with the light that
         // bounced off the object removed; an engine that renders global illumination adds it back.
@@ -998,6 +1029,26 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
         write_bundle(run.config.out_dir / "object.glb", b,
                      {.float_albedo_file = run.config.embed_float_albedo ? std::string() : std::string("albedo.exr")});
         return b;
+    });
+}
+
+std::optional<evaluate::EvaluationResult> viewer_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
+                                                       const std::optional<evaluate::EvaluationResult>& evaluation) {
+    if (!evaluation) return std::nullopt; // left out with the evaluation (it said why)
+    gpu::Context* ctx = run.render_context();
+    if (ctx == nullptr) return std::nullopt;
+    return run.stage("viewer evaluation", [&] {
+        evaluate::EvaluateOptions eo;
+        eo.metrics_backend = evaluation->metrics_backend;
+        eo.metrics.hausdorff = false;
+        eo.max_frames_per_split = run.config.evaluate_max_frames;
+        eo.max_train_frames = kViewerTrainFrames;
+        eo.include_train = run.config.evaluate_train;
+        eo.threads = run.config.threads;
+        eo.bundle_name = "object.glb (core material)";
+        eo.progress = false;
+        eo.core_material = true;
+        return evaluate::evaluate(*ctx, bundle, capture, eo);
     });
 }
 

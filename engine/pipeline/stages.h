@@ -19,6 +19,7 @@
 #include "pipeline/planner.h"
 #include "pipeline/run.h"
 #include "refine/albedo_refine.h"
+#include "specular/core_fit.h"
 #include "specular/lafortune_fit.h"
 #include "specular/residuals.h"
 #include "visibility/visibility.h"
@@ -125,6 +126,9 @@ struct SpecularStage {
     JointResult joint;                    ///< the final estimate's rounds
     double seconds = 0.0;                 ///< the candidates, the final fit and its joint rounds
     Backend backend = Backend::Cpu;       ///< where the per-particle passes ran
+    /// glTF's core material for ordinary viewers, fitted to the final estimate's samples
+    /// (specular/core_fit.h); absent when no material was fitted (the bundle's core is then diffuse only).
+    std::optional<CoreFit> core;
 };
 [[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse);
 
@@ -180,10 +184,11 @@ struct FactorizationStage {
 /// The cost of specular stages that a flag forced on: the fits, the joint rounds and the factorization.
 void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const FactorizationStage& factorization);
 
-/// 10. The bundle object.glb: mesh with atlas coordinates, albedo, lobe, cube-maps.
+/// 10. The bundle object.glb: mesh with atlas coordinates, albedo, lobe, cube-maps, and the core
+///     material for ordinary viewers (the specular stage's fit; without one, diffuse only).
 [[nodiscard]] Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                   const AlbedoTexture& texture, const FactorizationStage& factorization,
-                                  const NormalMapStage& normals, const IndirectStage& indirect);
+                                  const NormalMapStage& normals, const IndirectStage& indirect, const SpecularStage& specular);
 
 /// 11. Self-evaluation: every test frame and a sample of the train frames (config.evaluate_train_frames)
 ///     re-rendered from the bundle and scored, with `add_light`'s light added when given (writes
@@ -191,6 +196,13 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 [[nodiscard]] std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture,
                                                                          const Bundle& bundle,
                                                                          evaluate::IndirectLightAdder* add_light = nullptr);
+
+/// 11b. What ordinary viewers show: the bundle's core material rendered (glTF's BRDF as three.js
+///      draws it, direct light) on the test frames and at most kViewerTrainFrames train frames,
+///      scored like the evaluation. Absent when the evaluation was left out.
+inline constexpr std::size_t kViewerTrainFrames = 8;
+[[nodiscard]] std::optional<evaluate::EvaluationResult> viewer_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
+                                                                     const std::optional<evaluate::EvaluationResult>& evaluation);
 
 /// The indirect light of each frame for the evaluation (evaluate::EvaluateOptions::add_light):
 /// from the final albedo texture and material; null when the stage was left out.

@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/format.h"
+#include "core/image.h"
 #include "core/log.h"
 #include "core/output_dir.h"
 #include "evaluate/bundle_render.h"
@@ -42,6 +43,7 @@ struct EvaluateArgs {
     bool no_hausdorff = false;
     int threads = 2;
     std::string device;
+    std::string renders;
     IndirectArgs indirect;
 };
 
@@ -66,6 +68,7 @@ void run_evaluate(const EvaluateArgs& a) {
     o.threads = static_cast<unsigned>(a.threads);
     o.sheet_frames = a.sheet_frames;
     o.bundle_name = a.bundle;
+    o.core_material = a.specular == "core";
     // The sheets folder is written as a whole (core/output_dir.h), checked and locked before
     // any work: it may not hold the bundle or the capture, and replaces only an earlier one.
     std::optional<OutputFolder> sheets;
@@ -88,11 +91,25 @@ void run_evaluate(const EvaluateArgs& a) {
     }
     const Capture capture = load_capture(a.capture, {.load_mesh = false, .load_images = true, .threads = a.threads});
     for (const std::string& w : capture.warnings) log::warn(w);
+    if (!a.renders.empty()) {
+        // Another tool's renders (tools/threejs-render.mjs): RENDERS/<the frame's image stem>.pfm
+        // or .exr, linear; the frames without one are left out.
+        const std::filesystem::path dir = a.renders;
+        if (!std::filesystem::is_directory(dir)) throw UsageError("--renders " + a.renders + ": not a folder");
+        o.external_render = [dir, &capture](std::size_t frame) -> std::optional<Image> {
+            const std::string stem = capture.desc.frames[frame].file_path.stem().string();
+            for (const char* ext : {".pfm", ".exr"}) {
+                const std::filesystem::path file = dir / (stem + ext);
+                if (std::filesystem::is_regular_file(file)) return read_image(file, ColorSpace::Linear, "--renders");
+            }
+            return std::nullopt;
+        };
+    }
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
     // The light that bounced off the object (evaluate/indirect_light.h), from the bundle alone.
     std::optional<evaluate::BundleIndirectLight> indirect;
     evaluate::BundleIndirectOptions io;
-    if (a.indirect.wanted(bundle)) {
+    if (a.renders.empty() && a.specular != "core" && a.indirect.wanted(bundle)) {
         io = a.indirect.options(bundle, static_cast<unsigned>(a.threads));
         const VisibilityInputs in = visibility_inputs(capture);
         log::info(format_text("indirect light: %.0f bounces, %.0f rays a row, from the bundle's texture coordinates", double(io.bounces),
@@ -108,7 +125,9 @@ void run_evaluate(const EvaluateArgs& a) {
                               st.visibility_s, st.transfer_s, st.view_maps_s));
         o.add_light = [&indirect](std::size_t frame, Image& rendered) { indirect->add(frame, rendered); };
     } else {
-        log::info(a.indirect.mode == "off" ? "indirect light: left out (--indirect off): the renders are direct light only"
+        log::info(!a.renders.empty()  ? "indirect light: left out: the renders are another tool's (--renders)"
+                  : a.specular == "core" ? "indirect light: left out: an ordinary viewer draws direct light only (--specular core)"
+                  : a.indirect.mode == "off" ? "indirect light: left out (--indirect off): the renders are direct light only"
                                       : "indirect light: left out (the bundle's albedo keeps the light that bounced off the object, "
                                         "so a direct-only render shows it; --indirect on adds it anyway)");
     }
@@ -169,8 +188,10 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_option("--mode", a->mode, "Terms rendered: both, diffuse or specular")
         ->check(CLI::IsMember({"both", "diffuse", "specular"}))
         ->capture_default_str();
-    cmd->add_option("--specular", a->specular, "Specular model: analytic (the lobe) or factorized (the bundle's G/H cube-maps)")
-        ->check(CLI::IsMember({"analytic", "factorized"}))
+    cmd->add_option("--specular", a->specular,
+                    "Specular model: analytic (the lobe), factorized (the bundle's G/H cube-maps), or core (the bundle's glTF\n"
+                    "core material with glTF's BRDF as three.js draws it, direct light only: what ordinary viewers show)")
+        ->check(CLI::IsMember({"analytic", "factorized", "core"}))
         ->capture_default_str();
     cmd->add_flag("--no-shadows", a->no_shadows,
                   "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped, like the captures)");
@@ -184,6 +205,10 @@ void add_evaluate_command(CLI::App& app) {
     add_indirect_options(cmd, a->indirect, "Seconds to a minute on 2 cores; the JSON gives\n"
                                  "the figures without it too (without_added_light)");
     cmd->add_option("--threads", a->threads, "Threads for image decoding, the indirect light and the C++ metrics (--metrics cpu)")->check(CLI::Range(1, 256))->capture_default_str();
+    cmd->add_option("--renders", a->renders,
+                    "Score another tool's renders instead of the bundle's own: this folder's <image stem>.pfm or .exr\n"
+                    "(linear, the frame's size), e.g. three.js's from tools/threejs-render.mjs; frames without a file are\n"
+                    "left out, and so is the indirect light (an ordinary viewer draws direct light only)");
     cmd->add_option("-d,--device", a->device, "Vulkan device: index or name substring (see `specula devices`)");
     cmd->callback([a] { run_evaluate(*a); });
 }

@@ -47,10 +47,14 @@ void run_render(const RenderArgs& a) {
     evaluate::require_specular_model(bundle, settings.specular, a.bundle);
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
     evaluate::BundleRenderer renderer(ctx, bundle, a.bundle);
+    if (a.specular == "core") { // what ordinary viewers show (material/core_material.h)
+        const CoreMaterial core = bundle.core.value_or(CoreMaterial{});
+        renderer.renderer().set_material(core_material_gpu(core), core.has_specular());
+    }
     render::Frame frame = renderer.render(pose.camera, pose.light, settings);
     // The light that bounced off the object (evaluate/indirect_light.h), for this one view and light.
     std::string indirect_note = ", direct light only";
-    if (a.indirect.wanted(bundle)) {
+    if (a.specular != "core" && a.indirect.wanted(bundle)) {
         const Stopwatch clock;
         const evaluate::BundleIndirectOptions io = a.indirect.options(bundle, static_cast<unsigned>(a.threads));
         const VisibilityView view{.camera = pose.camera, .flags = {}};
@@ -65,7 +69,7 @@ void run_render(const RenderArgs& a) {
     if (settings.shadows && !frame.info.shadow_pass) log::warn("rendered without shadows: " + frame.info.shadow_note);
     log::info("wrote " + a.out + ": " + pose.what + ", " + std::to_string(frame.color.width) + "x" +
               std::to_string(frame.color.height) + ", " + render::mode_name(settings.mode) + "/" +
-              render::specular_path_name(settings.specular) + note + indirect_note + ", " + std::to_string(frame.info.wall_ms) + " ms");
+              (a.specular == "core" ? std::string("core") : std::string(render::specular_path_name(settings.specular))) + note + indirect_note + ", " + std::to_string(frame.info.wall_ms) + " ms");
 }
 
 } // namespace
@@ -88,8 +92,10 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--mode", a->mode, "Terms drawn: both, diffuse or specular")
         ->check(CLI::IsMember({"both", "diffuse", "specular"}))
         ->capture_default_str();
-    cmd->add_option("--specular", a->specular, "Specular model: analytic (the lobe) or factorized (the bundle's G/H cube-maps)")
-        ->check(CLI::IsMember({"analytic", "factorized"}))
+    cmd->add_option("--specular", a->specular,
+                    "Specular model: analytic (the lobe), factorized (the bundle's G/H cube-maps), or core (the bundle's glTF\n"
+                    "core material with glTF's BRDF as three.js draws it, direct light only: what ordinary viewers show)")
+        ->check(CLI::IsMember({"analytic", "factorized", "core"}))
         ->capture_default_str();
     cmd->add_flag("--no-shadows", a->no_shadows,
                   "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped)");
