@@ -23,8 +23,23 @@ fi
 # tools/gltf-validate.js and the bundle test (export_tests.Bundle.KhronosValidatorReportsNoErrors).
 # Pinned; installed globally, outside the source tree. Idempotent: skipped when present.
 GLTF_VALIDATOR_VERSION=2.0.0-dev.3.10
-if [ "$(npm ls -g --depth=0 --parseable "gltf-validator@${GLTF_VALIDATOR_VERSION}" 2>/dev/null | wc -l)" -lt 2 ]; then
+# The version of a globally installed npm package (empty when absent).
+npm_global_version() { node -p "require('$(npm root -g)/$1/package.json').version" 2>/dev/null || true; }
+if [ "$(npm_global_version gltf-validator)" != "$GLTF_VALIDATOR_VERSION" ]; then
   $SUDO npm install -g --no-audit --no-fund "gltf-validator@${GLTF_VALIDATOR_VERSION}" >/dev/null ||
     echo "install-deps: warning: could not install gltf-validator from npm; the bundle validator test will be skipped" >&2
 fi
+# The browser check (tests/browser, tools/threejs-render.mjs): Debian's Chromium, and three.js and
+# puppeteer-core from npm, pinned, installed globally like the validator. A missing one makes the
+# browser test skip with the reason, not fail.
+$SUDO apt-get install -y -qq --no-install-recommends chromium >/dev/null ||
+  echo "install-deps: warning: could not install chromium; the browser test will be skipped" >&2
+THREE_VERSION=0.187.0
+PUPPETEER_CORE_VERSION=24.43.1
+for pkg in "three@${THREE_VERSION}" "puppeteer-core@${PUPPETEER_CORE_VERSION}"; do
+  if [ "$(npm_global_version "${pkg%@*}")" != "${pkg##*@}" ]; then
+    $SUDO npm install -g --no-audit --no-fund "$pkg" >/dev/null ||
+      echo "install-deps: warning: could not install $pkg from npm; the browser test will be skipped" >&2
+  fi
+done
 echo "install-deps: done"
