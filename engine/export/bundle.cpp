@@ -51,6 +51,7 @@ constexpr int kModelVersion = 5;
 // a viewer without them still shows the base colour and the roughness.
 constexpr const char* kIorExtension = "KHR_materials_ior";
 constexpr const char* kSpecularExtension = "KHR_materials_specular";
+constexpr const char* kClearcoatExtension = "KHR_materials_clearcoat";
 constexpr std::size_t kMaxExtraTerms = kMaxFactorTerms - 1; // cubeTerms: terms 2..K
 
 constexpr int kLinear = 9729, kClampToEdge = 33071; // glTF 2.0 section 3.8.4 (samplers)
@@ -259,9 +260,34 @@ std::optional<Image> read_normal_map(const GltfFile& f) {
     return out;
 }
 
+/// The extension's `core` object (Bundle::core), absent when the extension has none.
+std::optional<CoreMaterial> read_core(const GltfFile& f, const json& ext, const std::string& ext_field) {
+    if (!ext.contains("core")) return std::nullopt;
+    const std::string cf = ext_field + ".core";
+    const json& c = ext["core"];
+    if (!c.is_object()) f.fail(cf, "not an object");
+    const auto number = [&](const char* key) { // a double, read back exactly
+        (void)read_number(f, c, key, cf);    // present, a number, finite
+        return c[key].get<double>();
+    };
+    CoreMaterial core{.roughness = number("roughness"), .f0 = number("f0"), .f90 = number("f90")};
+    if (c.contains("clearcoat") || c.contains("clearcoat_roughness")) {
+        core.clearcoat = number("clearcoat");
+        core.clearcoat_roughness = number("clearcoat_roughness");
+    }
+    for (const auto& [key, v] : {std::pair{"roughness", core.roughness}, std::pair{"clearcoat", core.clearcoat},
+                                 std::pair{"clearcoat_roughness", core.clearcoat_roughness}})
+        if (!(v >= 0.0 && v <= 1.0)) f.fail(cf + "." + key, "outside [0, 1]");
+    if (!(core.f90 >= 0.0 && core.f90 <= 1.0)) f.fail(cf + ".f90", "outside [0, 1]");
+    if (!(core.f0 >= 0.0 && core.f0 <= core.f90 && core.f0 < 1.0)) f.fail(cf + ".f0", "outside [0, f90] (and below 1)");
+    return core;
+}
+
 /// The extension's linear float albedo: from its bufferView, or from the file `uri` names
-/// beside the .glb, or (that file missing) from the 8-bit base colour texture with a warning.
-Image read_albedo(const GltfFile& f, const json& ext, const std::string& ext_field, std::vector<std::string>& warnings) {
+/// beside the .glb, or (that file missing) from the 8-bit base colour texture with a warning,
+/// divided by `base_color_scale` (the core material's, Bundle::core).
+Image read_albedo(const GltfFile& f, const json& ext, const std::string& ext_field, std::vector<std::string>& warnings,
+                  double base_color_scale) {
     const std::string af = ext_field + ".albedo";
     if (!ext.contains("albedo")) f.fail(af, "missing");
     const json& a = ext["albedo"];
@@ -280,6 +306,7 @@ Image read_albedo(const GltfFile& f, const json& ext, const std::string& ext_fie
         albedo = std::move(*file);
     } else {
         albedo = read_base_color(f, warnings);
+        for (float& v : albedo.pixels) v = static_cast<float>(v / base_color_scale);
         warnings.push_back(af + ".uri: " + a["uri"].get<std::string>() + " is not beside " + f.path().string() +
                            ": the albedo is decoded from the 8-bit sRGB base colour texture (quantized; keep the "
                            "file beside the bundle, or write the bundle with --embed-float-albedo)");
@@ -394,9 +421,11 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
     // The base colour for ordinary viewers: the albedo as 8-bit sRGB PNG (glTF images are
     // PNG or JPEG), RGB (grey replicated), clamped to [0, 1].
     // With a fitted core material, times its scale 1 / (1 - F0) (glTF dims the diffuse by 1 - F).
+    const auto unit = [](double v) { return v >= 0.0 && v <= 1.0; };
     if (bundle.core && (!(bundle.core->f0 >= 0.0) || !(bundle.core->f90 >= bundle.core->f0) || !(bundle.core->f90 <= 1.0) ||
-                        !(bundle.core->f0 < 1.0) || !(bundle.core->roughness >= 0.0) || !(bundle.core->roughness <= 1.0)))
-        throw InputError(path, "core", "not 0 <= f0 <= f90 <= 1, f0 < 1 and roughness in [0, 1]");
+                        !(bundle.core->f0 < 1.0) || !unit(bundle.core->roughness) || !unit(bundle.core->clearcoat) ||
+                        !unit(bundle.core->clearcoat_roughness)))
+        throw InputError(path, "core", "not 0 <= f0 <= f90 <= 1, f0 < 1, and roughness, clearcoat and its roughness in [0, 1]");
     const float base_scale = bundle.core ? static_cast<float>(bundle.core->base_color_scale()) : 1.0f;
     Image rgb(albedo.width, albedo.height, 3);
     for (std::size_t i = 0; i < static_cast<std::size_t>(albedo.width) * albedo.height; ++i)
@@ -453,7 +482,13 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         if (mirrored || warped) ext["parametrization"] = to_string(mat.factorized->param);
         if (warped) ext["warp"] = {w.x, w.y, w.z, w.w};
     }
-    if (bundle.core) ext["core"] = {{"roughness", bundle.core->roughness}, {"f0", bundle.core->f0}, {"f90", bundle.core->f90}};
+    if (bundle.core) {
+        ext["core"] = {{"roughness", bundle.core->roughness}, {"f0", bundle.core->f0}, {"f90", bundle.core->f90}};
+        if (bundle.core->clearcoat > 0.0) {
+            ext["core"]["clearcoat"] = bundle.core->clearcoat;
+            ext["core"]["clearcoat_roughness"] = bundle.core->clearcoat_roughness;
+        }
+    }
     ext["info"] = bundle.info.is_object() ? bundle.info : json::object();
 
     json extensions = {{kExtension, ext}};
@@ -466,6 +501,11 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         extensions[kSpecularExtension] = {{"specularColorFactor", {sc, sc, sc}}, {"specularFactor", g.specular_factor}};
         extensions_used.push_back(kIorExtension);
         extensions_used.push_back(kSpecularExtension);
+        if (g.clearcoat_factor > 0.0) {
+            extensions[kClearcoatExtension] = {{"clearcoatFactor", g.clearcoat_factor},
+                                               {"clearcoatRoughnessFactor", g.clearcoat_roughness_factor}};
+            extensions_used.push_back(kClearcoatExtension);
+        }
     } else if (coated) {
         // glTF's dielectric with both extensions has F0 = min(((ior - 1) / (ior + 1))^2
         // specularColorFactor, 1) specularFactor (KHR_materials_specular, "Interaction with other
@@ -640,7 +680,8 @@ Bundle read_bundle(const fs::path& path) {
             }
         }
     }
-    b.albedo = read_albedo(f, *ext, ext_field, b.warnings);
+    b.core = read_core(f, *ext, ext_field);
+    b.albedo = read_albedo(f, *ext, ext_field, b.warnings, b.core ? b.core->base_color_scale() : 1.0);
     b.normal_map = read_normal_map(f);
     if (ext->contains("cubeG") != ext->contains("cubeH"))
         f.fail(ext_field + (ext->contains("cubeG") ? ".cubeH" : ".cubeG"), "missing: G and H go together");
@@ -686,20 +727,6 @@ Bundle read_bundle(const fs::path& path) {
         glm::vec4& warp = b.material.factorized->warp;
         for (int c = 0; c < 4; ++c) warp[c] = w[static_cast<std::size_t>(c)].get<float>();
         if (!valid_warp(warp)) f.fail(wf, "must be (+-1, k_r, k_g, k_b) with every k in [1/64, 64]");
-    }
-    if (ext->contains("core")) { // the fitted core material (Bundle::core)
-        const std::string cf = ext_field + ".core";
-        const json& c = (*ext)["core"];
-        if (!c.is_object()) f.fail(cf, "not an object");
-        const auto number = [&](const char* key) { // a double, read back exactly
-            (void)read_number(f, c, key, cf);    // present, a number, finite
-            return c[key].get<double>();
-        };
-        CoreMaterial core{.roughness = number("roughness"), .f0 = number("f0"), .f90 = number("f90")};
-        if (!(core.roughness >= 0.0 && core.roughness <= 1.0)) f.fail(cf + ".roughness", "outside [0, 1]");
-        if (!(core.f90 >= 0.0 && core.f90 <= 1.0)) f.fail(cf + ".f90", "outside [0, 1]");
-        if (!(core.f0 >= 0.0 && core.f0 <= core.f90 && core.f0 < 1.0)) f.fail(cf + ".f0", "outside [0, f90] (and below 1)");
-        b.core = core;
     }
     if (ext->contains("info")) {
         if (!(*ext)["info"].is_object()) f.fail(ext_field + ".info", "not an object");

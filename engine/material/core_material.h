@@ -20,10 +20,13 @@ struct CoreMaterial {
     double roughness = 1.0; ///< glTF's roughnessFactor (alpha = roughness^2), in [0, 1]
     double f0 = 0.0;        ///< Fresnel reflectance at normal incidence, in [0, f90]
     double f90 = 0.0;       ///< at grazing incidence: KHR_materials_specular's specularFactor, in [0, 1]
-    /// The base colour is the albedo times this, 1 / (1 - f0): glTF's diffuse term is weighted by
-    /// 1 - F, so at normal incidence a viewer then shows the albedo's diffuse light.
-    [[nodiscard]] double base_color_scale() const noexcept { return 1.0 / (1.0 - f0); }
-    [[nodiscard]] bool has_specular() const noexcept { return f90 > 0.0 && roughness >= 0.0; }
+    double clearcoat = 0.0; ///< KHR_materials_clearcoat's clearcoatFactor, in [0, 1] (0: none)
+    double clearcoat_roughness = 0.0; ///< its clearcoatRoughnessFactor, in [0, 1]
+    /// The base colour is the albedo times this, 1 / ((1 - f0)(1 - 0.04 clearcoat)): glTF's diffuse
+    /// term is weighted by 1 - F and the clearcoat's 1 - Fcc, so at normal incidence a viewer then
+    /// shows the albedo's diffuse light.
+    [[nodiscard]] double base_color_scale() const noexcept { return 1.0 / ((1.0 - f0) * (1.0 - 0.04 * clearcoat)); }
+    [[nodiscard]] bool has_specular() const noexcept { return f90 > 0.0 || clearcoat > 0.0; }
 };
 
 /// The glTF fields that give a CoreMaterial in a viewer (KHR_materials_specular with
@@ -35,6 +38,8 @@ struct CoreGltfFields {
     double ior = 1.5;
     double specular_factor = 0.0;
     double specular_color_factor = 1.0; ///< grey
+    double clearcoat_factor = 0.0;      ///< KHR_materials_clearcoat (written when above 0)
+    double clearcoat_roughness_factor = 0.0;
 };
 [[nodiscard]] CoreGltfFields core_gltf_fields(const CoreMaterial& c) noexcept;
 
@@ -45,7 +50,8 @@ struct CoreGltfFields {
 /// For the shaders (family kMaterialGltfCore).
 [[nodiscard]] shared::MaterialGpu core_material_gpu(const CoreMaterial& c) noexcept;
 
-/// {roughness, f0, f90, base_color_scale, gltf: {roughnessFactor, ior, specularFactor, specularColorFactor}}.
+/// {roughness, f0, f90, clearcoat, clearcoat_roughness, base_color_scale, gltf: {roughnessFactor, ior,
+/// specularFactor, specularColorFactor, clearcoatFactor, clearcoatRoughnessFactor}}.
 [[nodiscard]] nlohmann::json to_json(const CoreMaterial& c);
 
 } // namespace specula

@@ -57,7 +57,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     VisibilityStage visibility = visibility_stage(run, capture, geometry); // the indirect stage completes its lit bits
     DiffuseStage diffuse = diffuse_stage(run, capture, geometry, visibility, lambert);
     IndirectStage indirect = indirect_stage(run, capture, geometry, visibility, diffuse); // may correct `diffuse`'s images
-    const SpecularStage specular = specular_stage(run, diffuse); // joint rounds update `diffuse`
+    const SpecularStage specular = specular_stage(run, diffuse, display_is_srgb(capture)); // joint rounds update `diffuse`
     indirect_update_stage(run, capture, geometry, visibility, specular, indirect, diffuse);
     atlas_decision(run, geometry);
     const RefineStage refine = refine_stage(run, capture, geometry, diffuse);

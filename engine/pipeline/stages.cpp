@@ -9,6 +9,7 @@
 #include "gpu/context.h"
 #include "export/normal_map.h"
 #include "material/core_material.h"
+#include "metrics/display_values.h"
 #include "pipeline/planner.h"
 #include "specula/version.h"
 
@@ -602,7 +603,13 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
 
 } // namespace
 
-SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
+bool display_is_srgb(const Capture& capture) {
+    for (const FrameImage& f : capture.images)
+        if (metrics::display_encoding_of(f.file_info, capture.desc.color_space).transfer != ColorSpace::Srgb) return false;
+    return true;
+}
+
+SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_display) {
     const ReconstructConfig& config = run.config;
     SpecularStage s;
     if (config.specular == SpecularMode::Off) {
@@ -782,18 +789,23 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse) {
         if (!r.rejected) kept_tag = " (joint round " + std::to_string(r.round) + ")";
     const auto samples_of_state = std::find_if(kept.begin(), kept.end(), [&](const auto& k) { return k.first == kept_tag; });
     s.core = run.stage("core material fit", [&] {
-        if (samples_of_state != kept.end()) return fit_core_material(samples_of_state->second);
+        const CoreFitOptions co{.srgb_display = srgb_display};
+        if (samples_of_state != kept.end()) return fit_core_material(samples_of_state->second, co);
         // The validated estimate's fit with no final round accepted: its samples are gone; the
         // final solve's residuals stand in (computed with the material that solve assumed).
         const ResidualSamples r = steps.residuals(diffuse.solve, diffuse.options, " (core material)");
-        return fit_core_material(to_material_samples(r.samples, config.max_fit_samples));
+        return fit_core_material(to_material_samples(r.samples, config.max_fit_samples), co);
     });
     std::vector<std::pair<std::string, std::vector<MaterialSample>>>().swap(kept);
-    log::info(s.core->fitted ? format_text("core material for ordinary viewers: roughness %.3f, F0 %.4f, F90 %.3f (pixel rms %.4g, "
-                                           "diffuse only %.4g)",
-                                           s.core->material.roughness, s.core->material.f0, s.core->material.f90, s.core->rms,
-                                           s.core->diffuse_only_rms)
-                             : "core material for ordinary viewers: " + s.core->note);
+    const CoreMaterial& cm = s.core->material;
+    log::info(!s.core->fitted ? "core material for ordinary viewers: " + s.core->note
+              : cm.clearcoat > 0.0
+                  ? format_text("core material for ordinary viewers: a clearcoat of weight %.3f, roughness %.3f (pixel rms %.4g, "
+                                "diffuse only %.4g)",
+                                cm.clearcoat, cm.clearcoat_roughness, s.core->rms, s.core->diffuse_only_rms)
+                  : format_text("core material for ordinary viewers: roughness %.3f, F0 %.4f, F90 %.3f (pixel rms %.4g, diffuse "
+                                "only %.4g)",
+                                cm.roughness, cm.f0, cm.f90, s.core->rms, s.core->diffuse_only_rms));
     std::vector<ResidualSample>().swap(state.residuals.samples); // memory back (`= {}` keeps the capacity)
     s.residuals = std::move(state.residuals);
     return s;

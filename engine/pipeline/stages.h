@@ -130,7 +130,12 @@ struct SpecularStage {
     /// (specular/core_fit.h); absent when no material was fitted (the bundle's core is then diffuse only).
     std::optional<CoreFit> core;
 };
-[[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse);
+/// `srgb_display`: the capture's display values are sRGB-encoded (every frame: metrics/display_values.h),
+/// so the core material is fitted on them (CoreFitOptions::srgb_display).
+[[nodiscard]] SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_display);
+
+/// Whether every frame's display values are sRGB-encoded (metrics::display_encoding_of).
+[[nodiscard]] bool display_is_srgb(const Capture& capture);
 
 /// 6b. After the specular stages, when the indirect light is on and a material was fitted: one
 ///     more round with the material known (its lobe reflects light between the surfaces too,

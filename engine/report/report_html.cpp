@@ -137,6 +137,30 @@ std::string quality_section(const json& report) {
     return out;
 }
 
+// What ordinary glTF viewers show (report.json `viewer`): the core material and its masked display
+// PSNR beside Specula's own renderer's on the same frames.
+std::string viewer_section(const json& report) {
+    const json& v = report.value("viewer", json());
+    if (!v.is_object()) return {};
+    std::string out = "<h2 id=\"viewer\">What ordinary viewers show</h2>\n<p>Viewers that do not read Specula's extension "
+                      "(three.js, Blender, model-viewer) draw the glTF core material: ";
+    const json& g = at(v, {"material", "gltf"});
+    out += "roughness " + num(g.value("roughnessFactor", json()), "%.3f") + ", IOR " + num(g.value("ior", json()), "%.3f") +
+           ", specular " + num(g.value("specularFactor", json()), "%.4f") + " &times; colour " +
+           num(g.value("specularColorFactor", json()), "%.3f") + ", clearcoat " + num(g.value("clearcoatFactor", json()), "%.3f") +
+           " (roughness " + num(g.value("clearcoatRoughnessFactor", json()), "%.3f") +
+           "), fitted to the train frames in glTF's BRDF. Rendered as three.js draws it, direct light only, masked PSNR "
+           "on display values:</p>\n<table>\n";
+    out += row({"split", "frames", "viewers dB", "Specula dB"}, true);
+    for (const char* split : {"train", "test"}) {
+        const json& s = v.value(split, json());
+        if (!s.is_object()) continue;
+        out += row({split, num(s.value("frames", json())), num(s.value("psnr_display", json()), "%.2f"),
+                    num(s.value("specula_psnr_display", json()), "%.2f")});
+    }
+    return out + "</table>\n";
+}
+
 std::string planner_section(const json& report) {
     std::string out = "<h2 id=\"planner\">Planner decisions</h2>\n"
                       "<p>What this scene needed (pipeline.md section 9). <b>auto</b>: the planner chose; <b>forced</b>: a "
@@ -381,9 +405,10 @@ std::string report_html(const json& r, const ReportHtmlOptions& o) {
            " triangles. Specula " + str(r.value("specula_version", json())) + ". Outputs beside this page: "
            "<code>object.glb</code>, <code>albedo.png</code>, <code>albedo.exr</code>, <code>evaluation.json</code>, "
            "<code>sheets/</code>, <code>report.json</code>.</p>\n";
-    out += "<nav><a href=\"#quality\">quality</a><a href=\"#planner\">planner</a><a href=\"#left-out\">left out</a>"
+    out += "<nav><a href=\"#quality\">quality</a><a href=\"#viewer\">viewers</a><a href=\"#planner\">planner</a><a href=\"#left-out\">left out</a>"
            "<a href=\"#time\">time</a><a href=\"#counts\">counts</a><a href=\"#material\">material</a><a href=\"#lobe\">lobe</a><a href=\"#sheets\">sheets</a></nav>\n";
     out += quality_section(r);
+    out += viewer_section(r);
     out += planner_section(r);
     out += left_out_section(r);
     out += time_section(r);

@@ -13,6 +13,9 @@
 // Left out, as small: three.js's multiple-scattering compensation of the specular term (a factor
 // 1 + f0 (1 / E_ss - 1), E_ss the lobe's directional albedo: below 1.05 for f0 <= 0.1 and
 // roughness <= 0.6) and the roughness it adds from the normal's screen-space derivative.
+// With KHR_materials_clearcoat (weight cc, roughness rc), as three.js adds it:
+//     f_total = (1 - cc Fcc(n.v)) f + cc F_c D_c V_c,   Fcc, F_c Schlick with F0 0.04, F90 1
+// (Fcc at n.v, F_c at v.h); the base colour scale is then 1 / ((1 - f0)(1 - 0.04 cc)).
 // Grey parameters (one f0, one f90). Written once over CORE_REAL (gltf_core_impl.h),
 // instantiated for float (GLSL and C++: specula::shared) and double (specula::shared::f64).
 #ifndef SPECULA_SHARED_GLTF_CORE_H

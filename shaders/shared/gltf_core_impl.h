@@ -36,3 +36,17 @@ SHARED_FN CORE_REAL core_diffuse_factor(CORE_REAL ci, CORE_REAL co, CORE_REAL cu
     CORE_REAL f = f0 + (f90 - f0) * core_schlick_weight(cuv);
     return s * (CORE_REAL(1.0) - f);
 }
+
+// KHR_materials_clearcoat as three.js draws it: a second GGX layer with F0 0.04 and F90 1, weight
+// cc, over the rest, which it dims by 1 - cc Fcc(n.v) (Fcc: Schlick at the view cosine).
+SHARED_FN CORE_REAL core_clearcoat_dim(CORE_REAL co, CORE_REAL cc) {
+    CORE_REAL x = CORE_REAL(1.0) - clamp(co, CORE_REAL(0.0), CORE_REAL(1.0));
+    CORE_REAL x2 = x * x;
+    return CORE_REAL(1.0) - cc * (CORE_REAL(0.04) + CORE_REAL(0.96) * x2 * x2 * x);
+}
+
+// The clearcoat layer's reflection, cc F(v.h) D V at its roughness.
+SHARED_FN CORE_REAL core_clearcoat_specular(CORE_REAL ci, CORE_REAL co, CORE_REAL cuv, CORE_REAL cc, CORE_REAL roughness) {
+    if (!(cc > CORE_REAL(0.0))) return CORE_REAL(0.0);
+    return cc * core_specular(ci, co, cuv, roughness, CORE_REAL(0.04), CORE_REAL(1.0));
+}

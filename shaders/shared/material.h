@@ -6,8 +6,9 @@
 //                              f_d = rho / pi,  f_s = max(0, Cx (u.v - ci co) + Cz ci co)^N
 //   family kMaterialCoated:    a = (eta, alpha, 0, 0), b = tint rgb     (shared/coated.h)
 //                              f_d = rho / pi T(ci) T(co) / T(1)^2,  f_s = tint F D G / (4 ci co)
-//   family kMaterialGltfCore:  a = (roughness, f0, f90, s)              (shared/gltf_core.h)
-//                              f_d = rho / pi s (1 - F(u.v)),  f_s = F D V: glTF's core material as
+//   family kMaterialGltfCore:  a = (roughness, f0, f90, s), b = (clearcoat, its roughness, 0, 0)
+//                              (shared/gltf_core.h) f_d = rho / pi s (1 - F(u.v)) dim,
+//                              f_s = F D V dim + clearcoat: glTF's core material as
 //                              ordinary viewers draw it; rendered only (no kernel fits it), and its
 //                              diffuse factor needs u.v: material_diffuse_factor_uv
 // A zero material (family lafortune, every parameter 0) adds no specular light and leaves the

@@ -8,7 +8,9 @@ SHARED_FN MATERIAL_VEC3 material_specular(MaterialGpu m, MATERIAL_REAL ci, MATER
         return MATERIAL_VEC3(m.b.x, m.b.y, m.b.z) * s;
     }
     if (m.family.x == kMaterialGltfCore)
-        return MATERIAL_VEC3(core_specular(ci, co, cuv, MATERIAL_REAL(m.a.x), MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z)));
+        return MATERIAL_VEC3(core_clearcoat_dim(co, MATERIAL_REAL(m.b.x)) *
+                                 core_specular(ci, co, cuv, MATERIAL_REAL(m.a.x), MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z)) +
+                             core_clearcoat_specular(ci, co, cuv, MATERIAL_REAL(m.b.x), MATERIAL_REAL(m.b.y)));
     // Lafortune, from the isotropic products (shared/lafortune.h lafortune_eval_ab).
     MATERIAL_REAL a = cuv - ci * co;
     MATERIAL_REAL b = ci * co;
@@ -26,6 +28,7 @@ SHARED_FN MATERIAL_REAL material_diffuse_factor(MaterialGpu m, MATERIAL_REAL ci,
 // k_d for any family, from u.v too (the glTF core family's Fresnel depends on v.h).
 SHARED_FN MATERIAL_REAL material_diffuse_factor_uv(MaterialGpu m, MATERIAL_REAL ci, MATERIAL_REAL co, MATERIAL_REAL cuv) {
     if (m.family.x == kMaterialGltfCore)
-        return core_diffuse_factor(ci, co, cuv, MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z), MATERIAL_REAL(m.a.w));
+        return core_clearcoat_dim(co, MATERIAL_REAL(m.b.x)) *
+               core_diffuse_factor(ci, co, cuv, MATERIAL_REAL(m.a.y), MATERIAL_REAL(m.a.z), MATERIAL_REAL(m.a.w));
     return material_diffuse_factor(m, ci, co);
 }

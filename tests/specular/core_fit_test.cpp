@@ -68,6 +68,18 @@ TEST(CoreFit, ExplainsMostOfALafortuneLobesLight) {
     EXPECT_LE(fit.material.f90, 1.0);
 }
 
+TEST(CoreFit, ACoatedTruthGetsAClearcoatOfItsRoughness) {
+    // The coated family (another model: exact Fresnel, separable Smith, T(ci) T(co) diffuse): its
+    // coating is what glTF's clearcoat layer is, so the fit takes it, with glTF's roughness sqrt(alpha).
+    const CoatedParams truth{.eta = 1.5f, .alpha = 0.12f};
+    const CoreFit fit = fit_core_material(make_samples(material_gpu(SpecularModel(truth)), 30000, 11));
+    ASSERT_TRUE(fit.fitted) << fit.note;
+    EXPECT_GT(fit.material.clearcoat, 0.9);
+    EXPECT_NEAR(fit.material.clearcoat_roughness, std::sqrt(0.12), 0.03);
+    EXPECT_EQ(fit.material.f90, 0.0);
+    EXPECT_LT(fit.rms, 0.5 * fit.diffuse_only_rms);
+}
+
 TEST(CoreFit, NoSampleGivesTheDiffuseOnlyCore) {
     const CoreFit fit = fit_core_material({});
     EXPECT_FALSE(fit.fitted);
@@ -80,6 +92,7 @@ TEST(CoreFit, NoSampleGivesTheDiffuseOnlyCore) {
 TEST(CoreMaterial, GltfFieldsGiveTheMaterialBack) {
     for (const CoreMaterial c : {CoreMaterial{.roughness = 0.4, .f0 = 0.05, .f90 = 0.8},   // through the IOR
                                  CoreMaterial{.roughness = 0.5, .f0 = 0.058, .f90 = 0.058}, // F0 = F90: the colour too
+                                 CoreMaterial{.roughness = 1.0, .f0 = 0.0, .f90 = 0.0, .clearcoat = 1.0, .clearcoat_roughness = 0.33},
                                  CoreMaterial{.roughness = 1.0, .f0 = 0.0, .f90 = 0.0}}) {
         const CoreGltfFields g = core_gltf_fields(c);
         EXPECT_GE(g.ior, 1.0);
@@ -88,6 +101,8 @@ TEST(CoreMaterial, GltfFieldsGiveTheMaterialBack) {
         EXPECT_NEAR(back.roughness, c.roughness, 1e-12);
         EXPECT_NEAR(back.f0, c.f0, 1e-12);
         EXPECT_NEAR(back.f90, c.f90, 1e-12);
+        EXPECT_EQ(back.clearcoat, c.clearcoat);
+        EXPECT_EQ(back.clearcoat_roughness, c.clearcoat_roughness);
     }
 }
 
