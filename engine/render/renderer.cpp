@@ -18,10 +18,14 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <map>
 #include <tuple>
+#include <unordered_map>
 
 namespace specula::render {
 
@@ -157,21 +161,32 @@ const char* specular_path_name(SpecularPath model) noexcept {
     return model == SpecularPath::Analytic ? "analytic" : "factorized";
 }
 
-std::vector<shared::RenderVertex> expand_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv) {
+IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv) {
     if (corner_uv.size() != 3 * mesh.triangles.size())
         throw Error("renderer: " + std::to_string(corner_uv.size()) + " corner texture coordinates for " +
                     std::to_string(mesh.triangles.size()) + " triangles (3 per triangle expected)");
     if (mesh.normals.size() != mesh.positions.size())
         throw Error("renderer: the mesh needs one normal per position");
-    std::vector<shared::RenderVertex> out(3 * mesh.triangles.size());
+    IndexedVertices out;
+    out.indices.resize(3 * mesh.triangles.size());
+    // (position index, atlas coordinate bits) -> vertex
+    std::unordered_map<uint64_t, std::vector<std::pair<uint64_t, uint32_t>>> seen;
+    seen.reserve(mesh.positions.size());
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
         const glm::uvec3 tri = mesh.triangles[t];
         for (int k = 0; k < 3; ++k) {
             const uint32_t v = tri[k];
             if (v >= mesh.positions.size()) throw Error("renderer: triangle " + std::to_string(t) + " has an index out of range");
             const glm::vec2 uv = corner_uv[3 * t + static_cast<std::size_t>(k)];
-            out[3 * t + static_cast<std::size_t>(k)] = {glm::vec4(mesh.positions[v], uv.x),
-                                                        glm::vec4(glm::normalize(mesh.normals[v]), uv.y)};
+            const uint64_t uv_bits = (uint64_t{std::bit_cast<uint32_t>(uv.x)} << 32) | std::bit_cast<uint32_t>(uv.y);
+            std::vector<std::pair<uint64_t, uint32_t>>& at = seen[v];
+            auto it = std::find_if(at.begin(), at.end(), [&](const auto& e) { return e.first == uv_bits; });
+            if (it == at.end()) {
+                at.emplace_back(uv_bits, static_cast<uint32_t>(out.vertices.size()));
+                out.vertices.push_back({glm::vec4(mesh.positions[v], uv.x), glm::vec4(glm::normalize(mesh.normals[v]), uv.y)});
+                it = std::prev(at.end());
+            }
+            out.indices[3 * t + static_cast<std::size_t>(k)] = it->second;
         }
     }
     return out;
@@ -213,10 +228,13 @@ struct Renderer::Impl {
     }
     Bounds bounds;
     std::size_t triangles = 0;
-    uint32_t vertex_count = 0;
+    uint32_t index_count = 0;
 
     gpu::Buffer params;
-    gpu::Buffer vertices;
+    struct MeshBuffers {
+        gpu::Buffer vertices;
+        gpu::Buffer indices;
+    } mesh_buffers;
     gpu::Image albedo;
     std::vector<gpu::Image> cubes_g, cubes_h; // one per term (empty before set_factorization)
     FactorParam factor_param = FactorParam::Gshd; // their parametrization: params.flags.w
@@ -253,7 +271,7 @@ struct Renderer::Impl {
           specular(scene.material.specular), material(material_gpu(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
           triangles(scene.mesh->triangles.size()),
           params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
-          vertices(upload_vertices(c, scene)),
+          mesh_buffers(upload_mesh(c, scene)),
           albedo(upload_albedo(c, scene)),
           sampler(gpu::make_linear_clamp_sampler(c, "render textures")),
           // Pipelines are built against a 1x1 target's render pass; every target has the
@@ -276,7 +294,7 @@ struct Renderer::Impl {
           both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized), gbuffer_set(c, gbuffer),
           deferred_analytic_set(c, deferred_analytic), deferred_factorized_set(c, deferred_factorized),
           sequence(c, 8) {
-        vertex_count = static_cast<uint32_t>(3 * triangles);
+        index_count = static_cast<uint32_t>(3 * triangles);
         gbuffer_set.write_buffer(kBindingParams, params);
         for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
                                         &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set}) {
@@ -340,11 +358,21 @@ struct Renderer::Impl {
         return scene.mesh;
     }
 
-    static gpu::Buffer upload_vertices(gpu::Context& c, const Scene& scene) {
-        const std::vector<shared::RenderVertex> data = expand_vertices(*scene.mesh, scene.corner_uv);
-        gpu::Buffer buffer = gpu::Buffer::of<shared::RenderVertex>(c, data.size(), "render vertices");
-        buffer.upload(data);
-        return buffer;
+    /// The vertex and index buffers (index_vertices).
+    static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene) {
+        const IndexedVertices data = index_vertices(*scene.mesh, scene.corner_uv);
+        MeshBuffers b{gpu::Buffer::of<shared::RenderVertex>(c, data.vertices.size(), "render vertices"),
+                      gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices")};
+        b.vertices.upload(data.vertices);
+        b.indices.upload(data.indices);
+        return b;
+    }
+
+    /// Binds the mesh and draws every triangle (the pipeline and its set bound).
+    void draw_mesh(VkCommandBuffer cmd) const {
+        gpu::bind_vertex_buffer(cmd, mesh_buffers.vertices);
+        vkCmdBindIndexBuffer(cmd, mesh_buffers.indices.handle(), 0, VK_INDEX_TYPE_UINT32);
+        vkCmdDrawIndexed(cmd, index_count, 1, 0, 0, 0);
     }
 
     static gpu::Image upload_albedo(gpu::Context& c, const Scene& scene) {
@@ -451,8 +479,7 @@ struct Renderer::Impl {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.pipeline());
         const VkDescriptorSet s = shadow_set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.layout(), 0, 1, &s, 0, nullptr);
-        gpu::bind_vertex_buffer(cmd, vertices);
-        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        draw_mesh(cmd);
         shadow_map.end(cmd);
     }
 
@@ -467,14 +494,14 @@ struct Renderer::Impl {
              gpu::RenderTarget::Load::Clear);
     }
     // Passes::Deferred: the G-buffer, then each pixel shaded once (params.flags say which terms).
-    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model) {
+    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model, gpu::PassClock* clock = nullptr) {
         use_gbuffer_of(t);
         t.begin_deferred(cmd);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.pipeline());
         const VkDescriptorSet g = gbuffer_set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.layout(), 0, 1, &g, 0, nullptr);
-        gpu::bind_vertex_buffer(cmd, vertices);
-        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        draw_mesh(cmd);
+        if (clock != nullptr) clock->mark(cmd, "g-buffer");
         t.next_subpass(cmd);
         // Without a factorization the analytic shader serves (flags.z is 0 unless the specular term is drawn).
         const bool factorized = model == SpecularPath::Factorized && !cubes_g.empty();
@@ -509,8 +536,7 @@ struct Renderer::Impl {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.pipeline());
         const VkDescriptorSet s = set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
-        gpu::bind_vertex_buffer(cmd, vertices);
-        vkCmdDraw(cmd, vertex_count, 1, 0, 0);
+        draw_mesh(cmd);
         t.end(cmd);
     }
 };
@@ -574,24 +600,36 @@ void Renderer::set_factorization(const FactorizedSpecular& cubes) {
 }
 
 FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,
-                            const PointLight& light, const Settings& settings) {
+                            const PointLight& light, const Settings& settings, gpu::PassClock* clock) {
     Impl& m = *m_impl;
     const Intrinsics& k = camera.intrinsics;
     if (target.width() != static_cast<uint32_t>(k.w) || target.height() != static_cast<uint32_t>(k.h))
         throw Error("renderer: the target is " + std::to_string(target.width()) + "x" + std::to_string(target.height()) +
                     " but the camera's image is " + std::to_string(k.w) + "x" + std::to_string(k.h));
     FrameInfo info = m.prepare(camera, light, settings);
-    if (info.shadow_pass) m.draw_shadow_map(cmd);
+    const auto mark = [&](const char* label) {
+        if (clock != nullptr) clock->mark(cmd, label);
+    };
+    if (info.shadow_pass) {
+        m.draw_shadow_map(cmd);
+        mark("shadow map");
+    }
     if (info.deferred) {
-        m.draw_deferred(cmd, target, settings.specular);
+        m.draw_deferred(cmd, target, settings.specular, clock);
+        mark("shading");
         return info;
     }
     if (info.fused) {
         m.draw_fused(cmd, target, settings.specular);
+        mark("fused pass");
         return info;
     }
     m.draw_diffuse(cmd, target);
-    if (info.specular_pass) m.draw_specular(cmd, target, settings.specular);
+    mark("diffuse pass");
+    if (info.specular_pass) {
+        m.draw_specular(cmd, target, settings.specular);
+        mark("specular pass");
+    }
     return info;
 }
 

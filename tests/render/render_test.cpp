@@ -18,6 +18,8 @@
 #include "geometry/atlas.h"
 #include "geometry/particles.h"
 #include "gpu/image.h"
+#include "gpu/pass_clock.h"
+#include "material/core_material.h"
 #include "gpu/render_target.h"
 #include "gpu/sequence.h"
 #include "render/projection.h"
@@ -838,8 +840,8 @@ CoatedParams coated(float alpha, float eta = 1.5f, glm::vec3 tint = glm::vec3(1.
 /// evaluation of the same definitions: the point where the pixel centre's ray meets the plane
 /// (point `p0`, unit normal `n`), then (rho / pi) k_d + f_s (or the factorized f_s `factor`
 /// when given) times I max(0, n.u) / d^2.
-glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
-                        const glm::dvec3& rho, const SpecularModel& model, Mode mode, std::optional<glm::dvec3> factor) {
+glm::dvec3 direct_pixel_of(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
+                           const glm::dvec3& rho, const shared::MaterialGpu& m, Mode mode, std::optional<glm::dvec3> factor) {
     const Intrinsics& k = cam.intrinsics;
     const glm::dvec3 o = cam.center();
     const glm::dvec3 c((x + 0.5 - k.cx) / k.fl_x, -(y + 0.5 - k.cy) / k.fl_y, -1.0);
@@ -850,11 +852,15 @@ glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, c
     const glm::dvec3 u = to_light / std::sqrt(d2), v = glm::normalize(o - p);
     const double ci = glm::dot(n, u), co = glm::dot(n, v);
     const glm::dvec3 irradiance = light.intensity * (std::max(ci, 0.0) / d2);
-    const shared::MaterialGpu m = material_gpu(model);
     glm::dvec3 f(0.0);
-    if (mode != Mode::Specular) f += rho / kPi * shared::f64::material_diffuse_factor(m, ci, co);
+    if (mode != Mode::Specular) f += rho / kPi * shared::f64::material_diffuse_factor_uv(m, ci, co, glm::dot(u, v));
     if (mode != Mode::Diffuse) f += factor ? *factor : shared::f64::material_specular(m, ci, co, glm::dot(u, v));
     return f * irradiance;
+}
+
+glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
+                        const glm::dvec3& rho, const SpecularModel& model, Mode mode, std::optional<glm::dvec3> factor) {
+    return direct_pixel_of(cam, x, y, p0, n, light, rho, material_gpu(model), mode, factor);
 }
 
 // The analytic render of a coated material equals the direct C++ evaluation of the model at
@@ -932,6 +938,97 @@ TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
 // A warped factorization multiplies by the Lafortune lobe's radial factor: a coated model does
 // not have it, so the renderer refuses the pair (at set_factorization, or at a factorized render
 // when the model changes after it), and draws the analytic path still.
+// glTF's core material drawn instead of the model (Renderer::set_material: what ordinary viewers
+// show) equals the direct evaluation of shared/gltf_core.h on a tilted plane, base layer and
+// clearcoat, in every mode and pass arrangement (the same tolerance as the coated family's); the
+// factorized path is refused.
+TEST_F(RenderTest, CoreMaterialMatchesDirectEvaluation) {
+    const glm::dvec3 n = glm::normalize(glm::dvec3(0.25, 0.15, 1.0));
+    const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0))), b = glm::cross(n, t);
+    Mesh quad;
+    const double corners[4][2] = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
+    for (const auto& c : corners) quad.positions.push_back(glm::vec3(c[0] * t + c[1] * b));
+    quad.normals.assign(4, glm::vec3(n));
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    if (glm::dot(glm::cross(glm::dvec3(quad.positions[1] - quad.positions[0]), glm::dvec3(quad.positions[2] - quad.positions[0])), n) < 0.0)
+        quad.triangles = {{0, 2, 1}, {0, 3, 2}}; // counter-clockwise about n
+    const glm::dvec3 rho(0.55, 0.4, 0.3);
+    const SceneData data = constant_albedo(quad, glm::vec3(rho));
+    const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
+    const PointLight light{{0.9, 0.3, 2.6}, {5.0, 4.5, 4.0}};
+    Renderer r(ctx(), data.scene(LafortuneRgb{}));
+    for (const CoreMaterial& core : {CoreMaterial{.roughness = 0.4, .f0 = 0.05, .f90 = 0.8},
+                                     CoreMaterial{.roughness = 1.0, .clearcoat = 0.9, .clearcoat_roughness = 0.3}}) {
+        const shared::MaterialGpu m = core_material_gpu(core);
+        r.set_material(m, core.has_specular());
+        EXPECT_TRUE(r.has_specular());
+        double worst = 0.0;
+        for (const Mode mode : {Mode::Both, Mode::Diffuse, Mode::Specular})
+            for (const Passes passes : {Passes::Separate, Passes::Fused, Passes::Deferred}) {
+                const Frame f = r.render(cam, light, {.mode = mode, .passes = passes, .shadows = false});
+                const std::string what = std::string(mode_name(mode)) + "/" + passes_name(passes);
+                double peak = 0.0;
+                for (const float x : f.color.pixels) peak = std::max(peak, static_cast<double>(x));
+                ASSERT_GT(peak, 0.0) << what;
+                for (int y = 0; y < 64; ++y)
+                    for (int x = 0; x < 64; ++x) {
+                        if (!interior(f.mask, 64, 64, x, y)) continue;
+                        const glm::dvec3 e = direct_pixel_of(cam, x, y, glm::dvec3(0.0), n, light, rho, m, mode, std::nullopt);
+                        for (int c = 0; c < 3; ++c) {
+                            const double got = f.color.pixels[(static_cast<std::size_t>(y) * 64 + x) * 3 + c];
+                            worst = std::max(worst, std::abs(got - e[c]) / (2e-4 * std::abs(e[c]) + 1e-5 * peak));
+                        }
+                    }
+            }
+        EXPECT_LE(worst, 1.0) << "roughness " << core.roughness << ", clearcoat " << core.clearcoat;
+        EXPECT_THROW((void)r.render(cam, light, {.specular = SpecularPath::Factorized}), Error);
+    }
+    r.set_specular(LafortuneRgb{}); // ends the override: a zero lobe draws no specular
+    EXPECT_FALSE(r.has_specular());
+}
+
+// The indexed mesh reproduces every triangle's corners exactly (position, normal, atlas
+// coordinate) with fewer vertices than corners; a PassClock marks each deferred pass.
+TEST_F(RenderTest, IndexedVerticesReproduceTheCornersAndPassesAreTimed) {
+    const synth::Preset preset = synth::make_preset("knot");
+    SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
+    const Mesh& mesh = preset.mesh;
+    const IndexedVertices iv = index_vertices(mesh, data.corner_uv);
+    ASSERT_EQ(iv.indices.size(), 3 * mesh.triangles.size());
+    EXPECT_LT(iv.vertices.size(), iv.indices.size() / 2);
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k) {
+            const shared::RenderVertex& v = iv.vertices.at(iv.indices[3 * t + k]);
+            const uint32_t p = mesh.triangles[t][k];
+            const glm::vec2 uv = data.corner_uv[3 * t + k];
+            ASSERT_EQ(glm::vec3(v.position_u), mesh.positions[p]) << t;
+            ASSERT_EQ(v.position_u.w, uv.x) << t;
+            ASSERT_EQ(v.normal_v.w, uv.y) << t;
+            ASSERT_EQ(glm::vec3(v.normal_v), glm::normalize(mesh.normals[p])) << t;
+        }
+    Renderer r(ctx(), data.scene(preset.material.lobe));
+    const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
+    gpu::RenderTarget target(ctx(), 96, 80, "timed target");
+    gpu::PassClock clock(ctx());
+    gpu::Sequence seq(ctx(), 1);
+    seq.record([&](VkCommandBuffer cmd) {
+        clock.start(cmd);
+        (void)r.record(cmd, target, cam, light, {.passes = Passes::Deferred, .shadows = true}, &clock);
+    });
+    seq.submit_and_wait();
+    const auto marks = clock.read();
+    if (!clock.available()) GTEST_SKIP() << "no timestamps on this device";
+    ASSERT_EQ(marks.size(), 3u);
+    EXPECT_EQ(marks[0].first, "shadow map");
+    EXPECT_EQ(marks[1].first, "g-buffer");
+    EXPECT_EQ(marks[2].first, "shading");
+    for (const auto& [label, ms] : marks) {
+        EXPECT_GE(ms, 0.0) << label;
+        EXPECT_LT(ms, 10000.0) << label;
+    }
+}
+
 TEST_F(RenderTest, WarpedFactorizationNeedsALafortuneModel) {
     const synth::Preset preset = synth::make_preset("sphere");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));

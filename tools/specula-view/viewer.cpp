@@ -11,6 +11,7 @@
 #include "export/bundle.h"
 #include "gpu/context.h"
 #include "gpu/image.h"
+#include "gpu/pass_clock.h"
 #include "gpu/presenter.h"
 #include "gpu/render_target.h"
 #include "gpu/sequence.h"
@@ -82,22 +83,55 @@ std::string lavapipe_threads() {
     return t != nullptr ? std::string(t) : "unset (lavapipe default: " + std::to_string(std::thread::hardware_concurrency()) + ")";
 }
 
+/// The p-quantile (0 < p <= 1) of sorted values.
+double quantile(const std::vector<double>& sorted, double p) {
+    const std::size_t i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(sorted.size()))) - 1;
+    return sorted[std::min(i, sorted.size() - 1)];
+}
+
 struct FrameStats {
     std::vector<double> ms;
+    /// Per pass (gpu::PassClock labels, in first-seen order): its GPU milliseconds per frame.
+    std::vector<std::pair<std::string, std::vector<double>>> passes;
+
+    void add_passes(const std::vector<std::pair<std::string, double>>& marks) {
+        for (const auto& [label, t] : marks) {
+            auto it = std::find_if(passes.begin(), passes.end(), [&](const auto& p) { return p.first == label; });
+            if (it == passes.end()) it = passes.insert(passes.end(), {label, {}});
+            it->second.push_back(t);
+        }
+    }
+
     void report(const std::string& what) const {
         if (ms.empty()) return;
         std::vector<double> v = ms;
         std::sort(v.begin(), v.end());
-        const auto pct = [&](double p) {
-            const std::size_t i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(v.size()))) - 1;
-            return v[std::min(i, v.size() - 1)];
-        };
-        const double median = pct(0.5);
+        const double median = quantile(v, 0.5);
         char line[512];
         std::snprintf(line, sizeof line,
                       "bench: %s: %zu frames, median %.2f ms (%.1f fps), p95 %.2f ms, p99 %.2f ms, min %.2f ms, max %.2f ms",
-                      what.c_str(), v.size(), median, 1e3 / median, pct(0.95), pct(0.99), v.front(), v.back());
+                      what.c_str(), v.size(), median, 1e3 / median, quantile(v, 0.95), quantile(v, 0.99), v.front(), v.back());
         std::printf("%s\n", line);
+        // Where a frame's time goes: each pass's median GPU time (timestamps), and the rest of the
+        // median frame (blit and present, recording, submission, waiting).
+        if (!passes.empty()) {
+            std::string out = "bench: passes, median GPU ms:";
+            double sum = 0.0;
+            for (const auto& [label, t] : passes) {
+                std::vector<double> sorted = t;
+                std::sort(sorted.begin(), sorted.end());
+                const double m = quantile(sorted, 0.5);
+                sum += m;
+                char part[96];
+                std::snprintf(part, sizeof part, " %s %.2f,", label.c_str(), m);
+                out += part;
+            }
+            char rest[128];
+            std::snprintf(rest, sizeof rest, " the rest of the median frame %.2f (blit, present, CPU)", std::max(0.0, median - sum));
+            std::printf("%s%s\n", out.c_str(), rest);
+        } else {
+            std::printf("bench: passes: no timestamps on this device\n");
+        }
         std::fflush(stdout);
     }
 };
@@ -148,14 +182,21 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
     if (c.bench) {
         gpu::RenderTarget target(*ctx, static_cast<uint32_t>(w), static_cast<uint32_t>(h), "viewer target");
         gpu::Sequence seq(*ctx, 1);
+        gpu::PassClock clock(*ctx);
         FrameStats stats;
         for (int i = 0; i < kBenchWarmup + c.bench_frames; ++i) {
             const Stopwatch sw;
             const Camera cam = view.camera(w, h);
             seq.reset();
-            seq.record([&](VkCommandBuffer cmd) { (void)renderer.renderer().record(cmd, target, cam, view.light(), settings); });
+            seq.record([&](VkCommandBuffer cmd) {
+                clock.start(cmd);
+                (void)renderer.renderer().record(cmd, target, cam, view.light(), settings, &clock);
+            });
             seq.submit_and_wait();
-            if (i >= kBenchWarmup) stats.ms.push_back(sw.seconds() * 1e3);
+            if (i >= kBenchWarmup) {
+                stats.ms.push_back(sw.seconds() * 1e3);
+                stats.add_passes(clock.read());
+            }
             bench_step(view, c.bench_frames);
         }
         stats.report(std::to_string(w) + "x" + std::to_string(h) + " " + settings_name(settings) + ", offscreen (no present), " + ctx->info().name +
@@ -432,6 +473,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
         const Stopwatch running;
         int drawn = 0;
         FrameStats stats;
+        gpu::PassClock clock(ctx);
         while (!glfwWindowShouldClose(window.get())) {
             const bool want_frame = headless || c.continuous || input.dirty;
             // Nothing to draw (or minimized): sleep until an event arrives.
@@ -468,7 +510,9 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
             const bool ok = show_photo ? presenter.present_image(*photo, pixel_rect(view.image_rect(fb_w, fb_h)), readback)
                                        : presenter.present_target(
                                              [&](VkCommandBuffer cmd, const gpu::RenderTarget& target) {
-                                                 (void)renderer.renderer().record(cmd, target, camera, view.light(), settings);
+                                                 if (c.bench) clock.start(cmd);
+                                                 (void)renderer.renderer().record(cmd, target, camera, view.light(), settings,
+                                                                                  c.bench ? &clock : nullptr);
                                              },
                                              readback);
             if (!ok) {
@@ -498,7 +542,10 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
                                                       start.pose.what, ms, fb_w, fb_h)
                                                  .c_str());
             if (c.bench) {
-                if (drawn > kBenchWarmup) stats.ms.push_back(ms);
+                if (drawn > kBenchWarmup) {
+                    stats.ms.push_back(ms);
+                    stats.add_passes(clock.read()); // present_target waited for the frame
+                }
                 bench_step(view, c.bench_frames);
             }
             if (shot) {
