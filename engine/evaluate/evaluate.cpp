@@ -209,7 +209,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
                 for (int c = 0; c < frame.color.channels; ++c)
                     if (frame.color.pixels[p * frame.color.channels + c] != 0.0f) frame.mask[p] = 255;
             frame.info.covered_pixels = static_cast<std::size_t>(std::count(frame.mask.begin(), frame.mask.end(), 255));
-            frame.info.shadow_pass = options.render.shadows;
+            frame.info.shadow_note = "another tool's render";
         }
         fe.render_ms = 1000.0 * render_time.seconds();
         fe.covered_pixels = frame.info.covered_pixels;

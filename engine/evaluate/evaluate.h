@@ -86,7 +86,7 @@ struct EvaluateOptions {
     /// instead of the bundle's own renders: called with a frame (index into capture.desc.frames),
     /// returns its linear image, or nullopt when the tool rendered no image of that frame (the frame
     /// is then left out). The bundle's renderer is not used; a frame's coverage (and its mask when
-    /// the capture has none) is its nonzero pixels, and render.shadows says nothing about it.
+    /// the capture has none) is its nonzero pixels, and FrameEvaluation::shadowed is false (unknown).
     std::function<std::optional<Image>(std::size_t frame)> external_render;
     /// Render the bundle's glTF core material (Bundle::core; absent: the diffuse-only core,
     /// material/core_material.h) instead of its own model, analytic path, direct light: what an

@@ -275,11 +275,8 @@ std::optional<CoreMaterial> read_core(const GltfFile& f, const json& ext, const 
         core.clearcoat = number("clearcoat");
         core.clearcoat_roughness = number("clearcoat_roughness");
     }
-    for (const auto& [key, v] : {std::pair{"roughness", core.roughness}, std::pair{"clearcoat", core.clearcoat},
-                                 std::pair{"clearcoat_roughness", core.clearcoat_roughness}})
-        if (!(v >= 0.0 && v <= 1.0)) f.fail(cf + "." + key, "outside [0, 1]");
-    if (!(core.f90 >= 0.0 && core.f90 <= 1.0)) f.fail(cf + ".f90", "outside [0, 1]");
-    if (!(core.f0 >= 0.0 && core.f0 <= core.f90 && core.f0 < 1.0)) f.fail(cf + ".f0", "outside [0, f90] (and below 1)");
+    if (const std::optional<std::string> why = invalid_parameters(core))
+        f.fail(cf + "." + why->substr(0, why->find(':')), why->substr(why->find(':') + 2));
     return core;
 }
 
@@ -420,12 +417,11 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
 
     // The base colour for ordinary viewers: the albedo as 8-bit sRGB PNG (glTF images are
     // PNG or JPEG), RGB (grey replicated), clamped to [0, 1].
-    // With a fitted core material, times its scale 1 / (1 - F0) (glTF dims the diffuse by 1 - F).
-    const auto unit = [](double v) { return v >= 0.0 && v <= 1.0; };
-    if (bundle.core && (!(bundle.core->f0 >= 0.0) || !(bundle.core->f90 >= bundle.core->f0) || !(bundle.core->f90 <= 1.0) ||
-                        !(bundle.core->f0 < 1.0) || !unit(bundle.core->roughness) || !unit(bundle.core->clearcoat) ||
-                        !unit(bundle.core->clearcoat_roughness)))
-        throw InputError(path, "core", "not 0 <= f0 <= f90 <= 1, f0 < 1, and roughness, clearcoat and its roughness in [0, 1]");
+    // With a fitted core material, times its base_color_scale() (glTF dims the diffuse by 1 - F,
+    // and by 1 - Fcc under a clearcoat).
+    if (bundle.core)
+        if (const std::optional<std::string> why = invalid_parameters(*bundle.core))
+            throw InputError(path, "core." + why->substr(0, why->find(':')), *why);
     const float base_scale = bundle.core ? static_cast<float>(bundle.core->base_color_scale()) : 1.0f;
     Image rgb(albedo.width, albedo.height, 3);
     for (std::size_t i = 0; i < static_cast<std::size_t>(albedo.width) * albedo.height; ++i)

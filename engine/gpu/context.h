@@ -15,6 +15,7 @@
 #include "gpu/vk_unique.h"
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -48,6 +49,14 @@ struct DeviceInfo {
     bool queue_has_graphics = false;
     [[nodiscard]] bool timestamps_supported() const noexcept {
         return timestamp_valid_bits > 0 && timestamp_period > 0.0f;
+    }
+    /// Nanoseconds between two timestamp queries' values (valid bits only, surviving one wrap);
+    /// nullopt when not finite and non-negative.
+    [[nodiscard]] std::optional<double> timestamp_ns(uint64_t begin, uint64_t end) const noexcept {
+        const uint64_t mask = timestamp_valid_bits >= 64 ? ~uint64_t{0} : ((uint64_t{1} << timestamp_valid_bits) - 1);
+        const double ns = static_cast<double>(((end & mask) - (begin & mask)) & mask) * timestamp_period;
+        if (std::isfinite(ns) && ns >= 0.0) return ns;
+        return std::nullopt;
     }
     /// Empty when Specula can run on the device; otherwise why not.
     std::string unusable_reason;

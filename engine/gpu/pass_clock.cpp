@@ -3,7 +3,6 @@
 #include "core/error.h"
 #include "gpu/vk_check.h"
 
-#include <cmath>
 
 namespace specula::gpu {
 
@@ -39,14 +38,8 @@ std::vector<std::pair<std::string, double>> PassClock::read() const {
     SPECULA_VK_CHECK(vkGetQueryPoolResults(m_ctx->device(), m_queries.get(), 0, n, n * sizeof(uint64_t), ticks.data(),
                                            sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
                      "reading the pass clock");
-    const uint32_t bits = m_ctx->info().timestamp_valid_bits;
-    const uint64_t mask = bits >= 64 ? ~uint64_t{0} : ((uint64_t{1} << bits) - 1);
-    const double period = m_ctx->info().timestamp_period;
-    for (std::size_t i = 0; i < m_labels.size(); ++i) {
-        const uint64_t delta = ((ticks[i + 1] & mask) - (ticks[i] & mask)) & mask; // survives one wrap
-        const double ms = static_cast<double>(delta) * period * 1e-6;
-        out.emplace_back(m_labels[i], std::isfinite(ms) ? ms : 0.0);
-    }
+    for (std::size_t i = 0; i < m_labels.size(); ++i)
+        out.emplace_back(m_labels[i], m_ctx->info().timestamp_ns(ticks[i], ticks[i + 1]).value_or(0.0) * 1e-6);
     return out;
 }
 

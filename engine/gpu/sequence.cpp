@@ -288,14 +288,9 @@ void Sequence::submit_and_wait() {
     SPECULA_VK_CHECK(vkGetQueryPoolResults(dev, m_queries.get(), 0, n, n * sizeof(uint64_t), ticks.data(),
                                            sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
                      "reading timestamps");
-    const uint32_t bits = m_ctx->info().timestamp_valid_bits;
-    const uint64_t mask = bits >= 64 ? ~uint64_t{0} : ((uint64_t{1} << bits) - 1);
-    const double period = m_ctx->info().timestamp_period;
     for (std::size_t i = 0; i < m_timer_labels.size(); ++i) {
-        const uint64_t delta = ((ticks[2 * i + 1] & mask) - (ticks[2 * i] & mask)) & mask; // survives one wrap
-        const double ns = static_cast<double>(delta) * period;
-        if (std::isfinite(ns) && ns >= 0.0)
-            m_timings.push_back({m_timer_labels[i], ns, {}});
+        if (const std::optional<double> ns = m_ctx->info().timestamp_ns(ticks[2 * i], ticks[2 * i + 1]))
+            m_timings.push_back({m_timer_labels[i], *ns, {}});
         else
             m_timings.push_back({m_timer_labels[i], std::nullopt, "unavailable: the timestamps were not usable"});
     }

@@ -39,6 +39,14 @@ CoreMaterial core_from_gltf_fields(const CoreGltfFields& g) noexcept {
     return c;
 }
 
+std::optional<std::string> invalid_parameters(const CoreMaterial& c) {
+    for (const auto& [name, v] : {std::pair{"roughness", c.roughness}, std::pair{"clearcoat", c.clearcoat},
+                                  std::pair{"clearcoat_roughness", c.clearcoat_roughness}, std::pair{"f90", c.f90}})
+        if (!(v >= 0.0 && v <= 1.0)) return std::string(name) + ": outside [0, 1]";
+    if (!(c.f0 >= 0.0 && c.f0 <= c.f90 && c.f0 < 1.0)) return std::string("f0: outside [0, f90] (and below 1)");
+    return std::nullopt;
+}
+
 shared::MaterialGpu core_material_gpu(const CoreMaterial& c) noexcept {
     shared::MaterialGpu m{};
     m.family = glm::uvec4(shared::kMaterialGltfCore, 0u, 0u, 0u);

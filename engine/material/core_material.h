@@ -14,6 +14,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
+#include <string>
+
 namespace specula {
 
 struct CoreMaterial {
@@ -46,6 +49,11 @@ struct CoreGltfFields {
 /// The material from its glTF fields (specularColorFactor's mean stands for a grey); base colour
 /// scale as above. Inverse of core_gltf_fields.
 [[nodiscard]] CoreMaterial core_from_gltf_fields(const CoreGltfFields& g) noexcept;
+
+/// Why the parameters are not a core material, naming the parameter ("f0: outside [0, f90] (and
+/// below 1)"): 0 <= f0 <= f90 <= 1, f0 < 1, roughness, clearcoat and clearcoat_roughness in [0, 1];
+/// nullopt when they are fine.
+[[nodiscard]] std::optional<std::string> invalid_parameters(const CoreMaterial& c);
 
 /// For the shaders (family kMaterialGltfCore).
 [[nodiscard]] shared::MaterialGpu core_material_gpu(const CoreMaterial& c) noexcept;

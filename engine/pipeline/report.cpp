@@ -308,9 +308,9 @@ json evaluation_json(const PipelineRun& run, const std::optional<evaluate::Evalu
 // fit, and its masked figures beside Specula's own renderer's on the same frames.
 json viewer_json(const SpecularStage& specular, const Bundle& bundle, const std::optional<evaluate::EvaluationResult>& viewer,
                  const std::optional<evaluate::EvaluationResult>& evaluation) {
-    json j = {{"what", "the bundle's glTF core material (roughnessFactor, KHR_materials_ior, KHR_materials_specular, the base "
-                       "colour texture) rendered with glTF's BRDF as three.js r187 draws a point light, direct light only: what "
-                       "ordinary viewers show"},
+    json j = {{"what", "the bundle's glTF core material (roughnessFactor, KHR_materials_ior, KHR_materials_specular, "
+                       "KHR_materials_clearcoat, the base colour texture) rendered with glTF's BRDF as three.js r187 draws a point "
+                       "light, direct light only: what ordinary viewers show"},
               {"material", to_json(bundle.core.value_or(CoreMaterial{}))},
               {"fit", specular.core ? to_json(*specular.core) : json(nullptr)}};
     if (!viewer || !evaluation) return j;

@@ -139,49 +139,6 @@ TEST(Bundle, RoundTripWithLobeAndCubeMapsIsExact) {
     EXPECT_EQ(read_text_file(dir / "again.glb"), read_text_file(file));
 }
 
-TEST(Bundle, RoundTripWithTheCoreMaterialIsExact) {
-    const test::BundlePieces p = test::make_pieces();
-    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
-    b.core = CoreMaterial{.roughness = 0.4923, .f0 = 0.0581, .f90 = 0.0581, .clearcoat = 0.5, .clearcoat_roughness = 0.31};
-    TempDir dir("bundle");
-    const auto file = dir / "out.glb";
-    write_bundle(file, b);
-    const Bundle r = read_bundle(file);
-    ASSERT_TRUE(r.core.has_value());
-    EXPECT_EQ(r.core->roughness, b.core->roughness);
-    EXPECT_EQ(r.core->f0, b.core->f0);
-    EXPECT_EQ(r.core->f90, b.core->f90);
-    EXPECT_EQ(r.core->clearcoat, b.core->clearcoat);
-    EXPECT_EQ(r.core->clearcoat_roughness, b.core->clearcoat_roughness);
-    EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatFactor"], 0.5);
-    // The viewer's fields give the same material; the base colour is the albedo times 1 / (1 - F0).
-    const auto m = test::glb_json(file)["materials"][0];
-    const CoreMaterial viewed = core_from_gltf_fields({.roughness_factor = m["pbrMetallicRoughness"]["roughnessFactor"],
-                                                       .ior = m["extensions"]["KHR_materials_ior"]["ior"],
-                                                       .specular_factor = m["extensions"]["KHR_materials_specular"]["specularFactor"],
-                                                       .specular_color_factor =
-                                                           m["extensions"]["KHR_materials_specular"]["specularColorFactor"][0]});
-    EXPECT_NEAR(viewed.f0, b.core->f0, 1e-12);
-    EXPECT_NEAR(viewed.f90, b.core->f90, 1e-12);
-    EXPECT_NEAR(viewed.roughness, b.core->roughness, 1e-12);
-    // Without the float albedo file the albedo comes from the base colour, divided by the scale again.
-    write_bundle(dir / "lean.glb", b, {.float_albedo_file = "albedo.exr"});
-    std::filesystem::remove(dir / "albedo.exr");
-    const Bundle lean = read_bundle(dir / "lean.glb");
-    ASSERT_EQ(lean.albedo.pixels.size(), b.albedo.pixels.size());
-    for (std::size_t i = 0; i < b.albedo.pixels.size(); ++i) {
-        const float want = std::clamp(b.albedo.pixels[i], 0.0f, 1.0f);
-        const float scale = static_cast<float>(b.core->base_color_scale());
-        if (want * scale > 1.0f) continue; // clipped in the 8-bit base colour
-        // Half an 8-bit sRGB code at the scaled value, back in albedo units.
-        const float code = linear_to_srgb(want * scale);
-        const float half_code = (srgb_to_linear(std::min(1.0f, code + 0.5f / 255.0f)) - want * scale) / scale;
-        ASSERT_NEAR(lean.albedo.pixels[i], want, half_code + 1e-6f) << i;
-    }
-    b.core->f0 = 0.2; // above F90: refused, naming the field
-    EXPECT_THROW(write_bundle(dir / "bad.glb", b), InputError);
-}
-
 TEST(Bundle, RoundTripWithSeveralFactorTermsIsExact) {
     const test::BundlePieces p = test::make_pieces();
     Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
@@ -1045,6 +1002,72 @@ TEST(ImageCodec, PngAndExrRoundTripInMemory) {
     } catch (const InputError& e) {
         EXPECT_NE(e.message().find("5 x 3"), std::string::npos) << e.what();
     }
+}
+
+TEST(Bundle, RoundTripWithTheCoreMaterialIsExact) {
+    const test::BundlePieces p = test::make_pieces();
+    Bundle b = make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, with_lobe(p.lobe));
+    b.core = CoreMaterial{.roughness = 0.4923, .f0 = 0.0581, .f90 = 0.0581, .clearcoat = 0.5, .clearcoat_roughness = 0.31};
+    TempDir dir("bundle");
+    const auto file = dir / "out.glb";
+    write_bundle(file, b);
+    const Bundle r = read_bundle(file);
+    ASSERT_TRUE(r.core.has_value());
+    EXPECT_EQ(r.core->roughness, b.core->roughness);
+    EXPECT_EQ(r.core->f0, b.core->f0);
+    EXPECT_EQ(r.core->f90, b.core->f90);
+    EXPECT_EQ(r.core->clearcoat, b.core->clearcoat);
+    EXPECT_EQ(r.core->clearcoat_roughness, b.core->clearcoat_roughness);
+    EXPECT_EQ(test::glb_json(file)["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatFactor"], 0.5);
+    // The viewer's fields give the same material; the base colour is the albedo times 1 / (1 - F0).
+    const auto m = test::glb_json(file)["materials"][0];
+    const CoreMaterial viewed = core_from_gltf_fields({.roughness_factor = m["pbrMetallicRoughness"]["roughnessFactor"],
+                                                       .ior = m["extensions"]["KHR_materials_ior"]["ior"],
+                                                       .specular_factor = m["extensions"]["KHR_materials_specular"]["specularFactor"],
+                                                       .specular_color_factor =
+                                                           m["extensions"]["KHR_materials_specular"]["specularColorFactor"][0]});
+    EXPECT_NEAR(viewed.f0, b.core->f0, 1e-12);
+    EXPECT_NEAR(viewed.f90, b.core->f90, 1e-12);
+    EXPECT_NEAR(viewed.roughness, b.core->roughness, 1e-12);
+    // Without the float albedo file the albedo comes from the base colour, divided by the scale again.
+    write_bundle(dir / "lean.glb", b, {.float_albedo_file = "albedo.exr"});
+    std::filesystem::remove(dir / "albedo.exr");
+    const Bundle lean = read_bundle(dir / "lean.glb");
+    ASSERT_EQ(lean.albedo.pixels.size(), b.albedo.pixels.size());
+    for (std::size_t i = 0; i < b.albedo.pixels.size(); ++i) {
+        const float want = std::clamp(b.albedo.pixels[i], 0.0f, 1.0f);
+        const float scale = static_cast<float>(b.core->base_color_scale());
+        if (want * scale > 1.0f) continue; // clipped in the 8-bit base colour
+        // Half an 8-bit sRGB code at the scaled value, back in albedo units.
+        const float code = linear_to_srgb(want * scale);
+        const float half_code = (srgb_to_linear(std::min(1.0f, code + 0.5f / 255.0f)) - want * scale) / scale;
+        ASSERT_NEAR(lean.albedo.pixels[i], want, half_code + 1e-6f) << i;
+    }
+    b.core->f0 = 0.2; // above F90: refused, naming the field
+    EXPECT_THROW(write_bundle(dir / "bad.glb", b), InputError);
+
+    // A core object a reader must refuse, naming the field.
+    const json good = test::glb_json(file);
+    const std::string ext = "materials[0].extensions.SPECULA_lafortune";
+    const auto with = [&](const std::function<void(json&)>& edit) {
+        json d = good;
+        edit(d["materials"][0]["extensions"]["SPECULA_lafortune"]);
+        test::rewrite_glb_json(file, d);
+    };
+    with([](json&) {}); // the control
+    EXPECT_NO_THROW((void)read_bundle(file));
+    with([](json& e) { e["core"]["f0"] = 0.5; });
+    expect_bundle_refusal(file, ext + ".core.f0", "outside");
+    with([](json& e) { e["core"]["roughness"] = -0.1; });
+    expect_bundle_refusal(file, ext + ".core.roughness", "outside");
+    with([](json& e) { e["core"]["clearcoat"] = 1.5; });
+    expect_bundle_refusal(file, ext + ".core.clearcoat", "outside");
+    with([](json& e) { e["core"].erase("clearcoat_roughness"); }); // both or neither
+    expect_bundle_refusal(file, ext + ".core.clearcoat_roughness", "missing");
+    with([](json& e) { e["core"]["f90"] = "1"; });
+    expect_bundle_refusal(file, ext + ".core.f90", "not a number");
+    with([](json& e) { e["core"] = json::array(); });
+    expect_bundle_refusal(file, ext + ".core", "not an object");
 }
 
 } // namespace

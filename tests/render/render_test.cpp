@@ -840,6 +840,22 @@ CoatedParams coated(float alpha, float eta = 1.5f, glm::vec3 tint = glm::vec3(1.
 /// evaluation of the same definitions: the point where the pixel centre's ray meets the plane
 /// (point `p0`, unit normal `n`), then (rho / pi) k_d + f_s (or the factorized f_s `factor`
 /// when given) times I max(0, n.u) / d^2.
+// A 2x2 square through the origin with the constant normal kTiltedNormal (counter-clockwise about
+// it): the renderer's interpolation is exact on it, so a pixel's value has a closed form.
+const glm::dvec3 kTiltedNormal = glm::normalize(glm::dvec3(0.25, 0.15, 1.0));
+Mesh tilted_quad() {
+    const glm::dvec3 n = kTiltedNormal;
+    const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0))), b = glm::cross(n, t);
+    Mesh quad;
+    const double corners[4][2] = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
+    for (const auto& c : corners) quad.positions.push_back(glm::vec3(c[0] * t + c[1] * b));
+    quad.normals.assign(4, glm::vec3(n));
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    if (glm::dot(glm::cross(glm::dvec3(quad.positions[1] - quad.positions[0]), glm::dvec3(quad.positions[2] - quad.positions[0])), n) < 0.0)
+        quad.triangles = {{0, 2, 1}, {0, 3, 2}};
+    return quad;
+}
+
 glm::dvec3 direct_pixel_of(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
                            const glm::dvec3& rho, const shared::MaterialGpu& m, Mode mode, std::optional<glm::dvec3> factor) {
     const Intrinsics& k = cam.intrinsics;
@@ -871,15 +887,8 @@ glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, c
 // sharp lobe's slope, 4 theta / alpha^2 per radian, over float's direction error is below it).
 // A lafortune model of zero lobe draws the plain Lambertian term (k_d = 1), which differs.
 TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
-    const glm::dvec3 n = glm::normalize(glm::dvec3(0.25, 0.15, 1.0));
-    const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0))), b = glm::cross(n, t);
-    Mesh quad;
-    const double corners[4][2] = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
-    for (const auto& c : corners) quad.positions.push_back(glm::vec3(c[0] * t + c[1] * b));
-    quad.normals.assign(4, glm::vec3(n));
-    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
-    if (glm::dot(glm::cross(glm::dvec3(quad.positions[1] - quad.positions[0]), glm::dvec3(quad.positions[2] - quad.positions[0])), n) < 0.0)
-        quad.triangles = {{0, 2, 1}, {0, 3, 2}}; // counter-clockwise about n
+    const glm::dvec3 n = kTiltedNormal;
+    const Mesh quad = tilted_quad();
     const glm::dvec3 rho(0.55, 0.4, 0.3);
     const SceneData data = constant_albedo(quad, glm::vec3(rho));
     const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
@@ -943,15 +952,8 @@ TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
 // clearcoat, in every mode and pass arrangement (the same tolerance as the coated family's); the
 // factorized path is refused.
 TEST_F(RenderTest, CoreMaterialMatchesDirectEvaluation) {
-    const glm::dvec3 n = glm::normalize(glm::dvec3(0.25, 0.15, 1.0));
-    const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0))), b = glm::cross(n, t);
-    Mesh quad;
-    const double corners[4][2] = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
-    for (const auto& c : corners) quad.positions.push_back(glm::vec3(c[0] * t + c[1] * b));
-    quad.normals.assign(4, glm::vec3(n));
-    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
-    if (glm::dot(glm::cross(glm::dvec3(quad.positions[1] - quad.positions[0]), glm::dvec3(quad.positions[2] - quad.positions[0])), n) < 0.0)
-        quad.triangles = {{0, 2, 1}, {0, 3, 2}}; // counter-clockwise about n
+    const glm::dvec3 n = kTiltedNormal;
+    const Mesh quad = tilted_quad();
     const glm::dvec3 rho(0.55, 0.4, 0.3);
     const SceneData data = constant_albedo(quad, glm::vec3(rho));
     const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
