@@ -48,6 +48,11 @@ void require_specular_model(const Bundle& bundle, render::SpecularPath model, st
 BundleRenderer::BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name)
     : m_name(std::move(name)), m_renderer(make_renderer(ctx, bundle, m_name)) {}
 
+void BundleRenderer::draw_core_material(const std::optional<CoreMaterial>& core) {
+    const CoreMaterial c = core.value_or(CoreMaterial{});
+    m_renderer.set_material(core_material_gpu(c), c.has_specular());
+}
+
 render::Frame BundleRenderer::render(const Camera& camera, const PointLight& light, const render::Settings& settings) {
     if (settings.specular == render::SpecularPath::Factorized && !m_renderer.has_factorization())
         throw Error(m_name +

@@ -39,6 +39,9 @@ public:
     /// True when the bundle's material has a specular term to draw (any family, not zero).
     [[nodiscard]] bool has_specular() const noexcept { return m_renderer.has_specular(); }
     [[nodiscard]] render::Renderer& renderer() noexcept { return m_renderer; }
+    /// From now on draws glTF's core material `core` (Bundle::core; absent: the diffuse-only core)
+    /// instead of the bundle's model, analytic path only: what ordinary viewers show.
+    void draw_core_material(const std::optional<CoreMaterial>& core);
 
 private:
     std::string m_name;

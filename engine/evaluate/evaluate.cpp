@@ -149,8 +149,7 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     if (!options.external_render) renderer.emplace(ctx, bundle, options.bundle_name);
     render::Settings render_settings = options.render;
     if (renderer && options.core_material) {
-        const CoreMaterial core = bundle.core.value_or(CoreMaterial{});
-        renderer->renderer().set_material(core_material_gpu(core), core.has_specular());
+        renderer->draw_core_material(bundle.core);
         render_settings.specular = render::SpecularPath::Analytic;
     }
     result.render = render_settings;

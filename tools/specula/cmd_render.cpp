@@ -47,10 +47,7 @@ void run_render(const RenderArgs& a) {
     evaluate::require_specular_model(bundle, settings.specular, a.bundle);
     gpu::Context ctx(gpu::ContextOptions{.device = a.device});
     evaluate::BundleRenderer renderer(ctx, bundle, a.bundle);
-    if (a.specular == "core") { // what ordinary viewers show (material/core_material.h)
-        const CoreMaterial core = bundle.core.value_or(CoreMaterial{});
-        renderer.renderer().set_material(core_material_gpu(core), core.has_specular());
-    }
+    if (a.specular == "core") renderer.draw_core_material(bundle.core); // what ordinary viewers show
     render::Frame frame = renderer.render(pose.camera, pose.light, settings);
     // The light that bounced off the object (evaluate/indirect_light.h), for this one view and light.
     std::string indirect_note = ", direct light only";
