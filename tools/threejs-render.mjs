@@ -9,9 +9,10 @@
 //        [--frames 0,5,9 | --max-per-split N] [--no-shadows] [--screenshot FILE.png]
 //        [--chromium PATH]
 //
-// The light: three.js's PointLight with decay 2 gives L = BRDF * intensity * cos / d^2 and
-// BRDF_Lambert = color / pi, the capture format's radiometry (docs/capture-format.md), so the
-// capture's intensity goes in unchanged. The camera: the frame's transform_matrix (OpenGL axes, as
+// The light: three.js's PointLight (and a SpotLight inside its cone, used here for its shadow
+// map) with decay 2 gives L = BRDF * intensity * cos / d^2 and BRDF_Lambert = color / pi, the
+// capture format's radiometry (docs/capture-format.md), so the capture's intensity goes in
+// unchanged. The camera: the frame's transform_matrix (OpenGL axes, as
 // three.js) and a projection matrix made from fl_x, fl_y, cx, cy (pixel centres at +0.5, as
 // WebGL rasterizes). No tone mapping; the render target is float, so the image is linear.
 // Needs Node.js, Debian's chromium and npm's three and puppeteer-core (tools/install-deps.sh).
@@ -129,8 +130,13 @@ window.setup = async (p) => {
   const box = new THREE.Box3().setFromObject(gltf.scene);
   const sphere = box.getBoundingSphere(new THREE.Sphere());
   gltf.scene.traverse(o => { if (o.isMesh) { o.castShadow = p.shadows; o.receiveShadow = p.shadows; } });
-  const light = new THREE.PointLight(0xffffff, 1, 0, 2);
+  // A spot light aimed at the object, its cone just covering the bounding sphere: inside the cone
+  // (penumbra 0) three.js lights exactly as a point light does, and its shadow map spends all its
+  // texels on the object (a point light's cube map spreads them over the whole sphere of directions
+  // and loses the can's thin rim shadows).
+  const light = new THREE.SpotLight(0xffffff, 1, 0, Math.PI / 4, 0, 2);
   light.castShadow = p.shadows;
+  scene.add(light.target);
   light.shadow.mapSize.set(2048, 2048);
   light.shadow.bias = -1e-4;
   light.shadow.normalBias = sphere.radius * 2e-3;
@@ -167,6 +173,10 @@ window.renderFrame = (f) => {
   // The shadow map's depth range around the object only (three.js packs depth into 8-bit RGBA:
   // a wide range would leave no precision).
   const ld = light.position.distanceTo(sphere.center);
+  if (ld <= sphere.radius * 1.05) throw new Error('the light is inside the bounding sphere: no spot cone covers the object');
+  light.target.position.copy(sphere.center);
+  light.target.updateMatrixWorld();
+  light.angle = Math.min(Math.asin(sphere.radius / ld) * 1.05, Math.PI / 2 - 1e-3);
   light.shadow.camera.near = Math.max(ld - sphere.radius * 1.05, ld * 1e-3);
   light.shadow.camera.far = ld + sphere.radius * 1.05;
   light.shadow.camera.updateProjectionMatrix();
