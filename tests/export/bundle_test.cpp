@@ -464,8 +464,10 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
     TempDir dir("bundle");
     // lobe; mirrored (version 3); warped (version 4); diffuse only; coated (version 5, with
     // KHR_materials_ior and KHR_materials_specular, which the validator checks); with a normal
-    // map (normalTexture and the TANGENT attribute, whose unit length and sign it checks).
-    for (const int kind : {0, 1, 2, 3, 4, 5}) {
+    // map (normalTexture and the TANGENT attribute, whose unit length and sign it checks); the
+    // fitted core material, a base layer (IOR 3 with a specular colour above 1) and a clearcoat
+    // (KHR_materials_clearcoat).
+    for (const int kind : {0, 1, 2, 3, 4, 5, 6, 7}) {
         if (kind == 1) b.material.factorized->param = FactorParam::Mirrored;
         if (kind == 2) {
             b.material.factorized->param = FactorParam::Warped;
@@ -477,12 +479,16 @@ TEST(Bundle, KhronosValidatorReportsNoErrors) {
         }
         if (kind == 4) b.material.specular = CoatedParams{.eta = 1.4537f, .alpha = 0.0837f, .tint = {0.91f, 1.0f, 1.23f}};
         if (kind == 5) b.normal_map = Image(b.albedo.width, b.albedo.height, 3, 0.5f);
+        if (kind == 6) b.core = CoreMaterial{.roughness = 0.49, .f0 = 0.057, .f90 = 0.057};
+        if (kind == 7) b.core = CoreMaterial{.roughness = 1.0, .clearcoat = 1.0, .clearcoat_roughness = 0.335};
         const auto file = dir / (kind == 0   ? "lobe.glb"
                                  : kind == 1 ? "mirrored.glb"
                                  : kind == 2 ? "warped.glb"
                                  : kind == 3 ? "diffuse.glb"
                                  : kind == 4 ? "coated.glb"
-                                             : "normal_map.glb");
+                                 : kind == 5 ? "normal_map.glb"
+                                 : kind == 6 ? "core.glb"
+                                             : "clearcoat.glb");
         write_bundle(file, b);
         const std::string cmd = "SPECULA_GLTF_VALIDATOR_PATHS='" + std::string(SPECULA_NODE_MODULES_DIR) +
                                 "' node '" + std::string(SPECULA_GLTF_VALIDATE_JS) + "' '" +
