@@ -145,11 +145,14 @@ std::string viewer_section(const json& report) {
     std::string out = "<h2 id=\"viewer\">What ordinary viewers show</h2>\n<p>Viewers that do not read Specula's extension "
                       "(three.js, Blender, model-viewer) draw the glTF core material: ";
     const json& g = at(v, {"material", "gltf"});
-    out += "roughness " + num(g.value("roughnessFactor", json()), "%.3f") + ", IOR " + num(g.value("ior", json()), "%.3f") +
-           ", specular " + num(g.value("specularFactor", json()), "%.4f") + " &times; colour " +
-           num(g.value("specularColorFactor", json()), "%.3f") + ", clearcoat " + num(g.value("clearcoatFactor", json()), "%.3f") +
-           " (roughness " + num(g.value("clearcoatRoughnessFactor", json()), "%.3f") +
-           "), fitted to the train frames in glTF's BRDF. Rendered as three.js draws it, direct light only, masked PSNR "
+    const json& cc = g.value("clearcoatFactor", json());
+    const bool coat = cc.is_number() && cc.get<double>() > 0.0;
+    out += (coat ? "a clearcoat of weight " + num(cc, "%.3f") + " and roughness " +
+                       num(g.value("clearcoatRoughnessFactor", json()), "%.3f") + " (KHR_materials_clearcoat)"
+                 : "roughness " + num(g.value("roughnessFactor", json()), "%.3f") + ", IOR " + num(g.value("ior", json()), "%.3f") +
+                       ", specular " + num(g.value("specularFactor", json()), "%.4f") + " &times; colour " +
+                       num(g.value("specularColorFactor", json()), "%.3f")) +
+           ", fitted to the train frames in glTF's BRDF. Rendered as three.js draws it, direct light only, masked PSNR "
            "on display values:</p>\n<table>\n";
     out += row({"split", "frames", "viewers dB", "Specula dB"}, true);
     for (const char* split : {"train", "test"}) {
