@@ -147,7 +147,7 @@ window.setup = async (p) => {
   const materials = [];
   gltf.scene.traverse(o => { if (o.isMesh) materials.push(o.material.type); });
   window.state = { renderer, scene, light, camera, target, sphere, p };
-  return { materials, three: THREE.REVISION, webgl2: renderer.capabilities.isWebGL2 !== false };
+  return { materials, three: THREE.REVISION };
 };
 window.renderFrame = (f) => {
   const { renderer, scene, light, camera, target, sphere, p } = window.state;
@@ -198,7 +198,7 @@ window.ready = true;
 </script></body></html>`;
 
 const files = { '/bundle.glb': path.resolve(args.bundle) };
-const types = { '.js': 'text/javascript', '.glb': 'model/gltf-binary', '.html': 'text/html' };
+const types = { '.js': 'text/javascript', '.glb': 'model/gltf-binary' };
 const server = http.createServer((req, res) => {
     const url = decodeURIComponent(new URL(req.url, 'http://x').pathname);
     let file = files[url];

@@ -616,6 +616,15 @@ TEST(Bundle, LegacyBundlesReadExactlyAndRewriteByteForByte) {
 
 // ---- the loader's guards, through read_bundle (capture/gltf_io.h) ---------------------
 
+/// Rewrites `file` with its extension object (as written now) edited by the function given.
+std::function<void(const std::function<void(json&)>&)> extension_editor(const std::filesystem::path& file) {
+    return [file, good = test::glb_json(file)](const std::function<void(json&)>& edit) {
+        json d = good;
+        edit(d["materials"][0]["extensions"]["SPECULA_lafortune"]);
+        test::rewrite_glb_json(file, d);
+    };
+}
+
 void expect_bundle_refusal(const std::filesystem::path& file, const std::string& field, const std::string& words) {
     try {
         (void)read_bundle(file);
@@ -777,13 +786,8 @@ TEST(BundleCoated, ReadingRefusesUnknownModelsVersionsAndBadParametersNamingTheF
     TempDir dir("bundle");
     const auto file = dir / "c.glb";
     write_bundle(file, make_bundle(p.mesh, p.atlas.corner_uv, p.albedo, Material{.specular = coated_params()}));
-    const json good = test::glb_json(file);
     const std::string ext = "materials[0].extensions.SPECULA_lafortune";
-    const auto with = [&](const std::function<void(json&)>& edit) {
-        json d = good;
-        edit(d["materials"][0]["extensions"]["SPECULA_lafortune"]);
-        test::rewrite_glb_json(file, d);
-    };
+    const auto with = extension_editor(file);
     with([](json&) {}); // the control: the unedited file reads
     EXPECT_NO_THROW((void)read_bundle(file));
 
@@ -1053,13 +1057,8 @@ TEST(Bundle, RoundTripWithTheCoreMaterialIsExact) {
     EXPECT_THROW(write_bundle(dir / "bad.glb", b), InputError);
 
     // A core object a reader must refuse, naming the field.
-    const json good = test::glb_json(file);
     const std::string ext = "materials[0].extensions.SPECULA_lafortune";
-    const auto with = [&](const std::function<void(json&)>& edit) {
-        json d = good;
-        edit(d["materials"][0]["extensions"]["SPECULA_lafortune"]);
-        test::rewrite_glb_json(file, d);
-    };
+    const auto with = extension_editor(file);
     with([](json&) {}); // the control
     EXPECT_NO_THROW((void)read_bundle(file));
     with([](json& e) { e["core"]["f0"] = 0.5; });

@@ -856,6 +856,14 @@ Mesh tilted_quad() {
     return quad;
 }
 
+// The tilted plane's scene: a constant albedo, a camera looking at it and a light near it.
+struct TiltedPlane {
+    glm::dvec3 rho{0.55, 0.4, 0.3};
+    SceneData data = constant_albedo(tilted_quad(), glm::vec3(rho));
+    Camera camera = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
+    PointLight light{{0.9, 0.3, 2.6}, {5.0, 4.5, 4.0}};
+};
+
 glm::dvec3 direct_pixel_of(const Camera& cam, int x, int y, const glm::dvec3& p0, const glm::dvec3& n, const PointLight& light,
                            const glm::dvec3& rho, const shared::MaterialGpu& m, Mode mode, std::optional<glm::dvec3> factor) {
     const Intrinsics& k = cam.intrinsics;
@@ -887,12 +895,12 @@ glm::dvec3 direct_pixel(const Camera& cam, int x, int y, const glm::dvec3& p0, c
 // sharp lobe's slope, 4 theta / alpha^2 per radian, over float's direction error is below it).
 // A lafortune model of zero lobe draws the plain Lambertian term (k_d = 1), which differs.
 TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
-    const glm::dvec3 n = kTiltedNormal;
-    const Mesh quad = tilted_quad();
-    const glm::dvec3 rho(0.55, 0.4, 0.3);
-    const SceneData data = constant_albedo(quad, glm::vec3(rho));
-    const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
-    const PointLight light{{0.9, 0.3, 2.6}, {5.0, 4.5, 4.0}};
+    const TiltedPlane plane;
+    const glm::dvec3& n = kTiltedNormal;
+    const glm::dvec3& rho = plane.rho;
+    const SceneData& data = plane.data;
+    const Camera& cam = plane.camera;
+    const PointLight& light = plane.light;
     const glm::vec3 a(0.3f, 0.5f, 0.7f), bb(0.9f, 0.4f, 0.2f);
     const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
         return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
@@ -944,20 +952,17 @@ TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
     }
 }
 
-// A warped factorization multiplies by the Lafortune lobe's radial factor: a coated model does
-// not have it, so the renderer refuses the pair (at set_factorization, or at a factorized render
-// when the model changes after it), and draws the analytic path still.
 // glTF's core material drawn instead of the model (Renderer::set_material: what ordinary viewers
 // show) equals the direct evaluation of shared/gltf_core.h on a tilted plane, base layer and
 // clearcoat, in every mode and pass arrangement (the same tolerance as the coated family's); the
 // factorized path is refused.
 TEST_F(RenderTest, CoreMaterialMatchesDirectEvaluation) {
-    const glm::dvec3 n = kTiltedNormal;
-    const Mesh quad = tilted_quad();
-    const glm::dvec3 rho(0.55, 0.4, 0.3);
-    const SceneData data = constant_albedo(quad, glm::vec3(rho));
-    const Camera cam = make_camera(64, 64, 56.0, 56.0, 32.0, 32.0, {0.1, -0.2, 3.0}, {0, 0, 0});
-    const PointLight light{{0.9, 0.3, 2.6}, {5.0, 4.5, 4.0}};
+    const TiltedPlane plane;
+    const glm::dvec3& n = kTiltedNormal;
+    const glm::dvec3& rho = plane.rho;
+    const SceneData& data = plane.data;
+    const Camera& cam = plane.camera;
+    const PointLight& light = plane.light;
     Renderer r(ctx(), data.scene(LafortuneRgb{}));
     for (const CoreMaterial& core : {CoreMaterial{.roughness = 0.4, .f0 = 0.05, .f90 = 0.8},
                                      CoreMaterial{.roughness = 1.0, .clearcoat = 0.9, .clearcoat_roughness = 0.3}}) {
@@ -1031,6 +1036,9 @@ TEST_F(RenderTest, IndexedVerticesReproduceTheCornersAndPassesAreTimed) {
     }
 }
 
+// A warped factorization multiplies by the Lafortune lobe's radial factor: a coated model does
+// not have it, so the renderer refuses the pair (at set_factorization, or at a factorized render
+// when the model changes after it), and draws the analytic path still.
 TEST_F(RenderTest, WarpedFactorizationNeedsALafortuneModel) {
     const synth::Preset preset = synth::make_preset("sphere");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
