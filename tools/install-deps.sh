@@ -42,4 +42,8 @@ for pkg in "three@${THREE_VERSION}" "puppeteer-core@${PUPPETEER_CORE_VERSION}"; 
       echo "install-deps: warning: could not install $pkg from npm; the browser test will be skipped" >&2
   fi
 done
+# The Blender check (tests/browser/blender_check.sh, tools/blender-import.py): Debian's Blender and the
+# numpy its glTF importer needs. Without them that test skips with the reason.
+$SUDO apt-get install -y -qq --no-install-recommends blender python3-numpy >/dev/null ||
+  echo "install-deps: warning: could not install blender; the Blender import test will be skipped" >&2
 echo "install-deps: done"
