@@ -76,8 +76,10 @@ std::string read_text_file(const fs::path& path, const std::string& field) {
 }
 
 std::string path_relative_to(const fs::path& target, const fs::path& from) {
-    const fs::path t = fs::absolute(target).lexically_normal();
-    const fs::path rel = t.lexically_relative(fs::absolute(from).lexically_normal());
+    // An empty path is the current folder (a file named without a folder has an empty parent).
+    const auto absolute = [](const fs::path& p) { return fs::absolute(p.empty() ? fs::path(".") : p).lexically_normal(); };
+    const fs::path t = absolute(target);
+    const fs::path rel = t.lexically_relative(absolute(from));
     if (rel.empty()) return folder_name(t); // no relative path between them (another root)
     std::string s = rel.generic_string();
     if (s.size() > 1 && s.back() == '/') s.pop_back();
@@ -85,7 +87,7 @@ std::string path_relative_to(const fs::path& target, const fs::path& from) {
 }
 
 std::string folder_name(const fs::path& folder) {
-    fs::path p = fs::absolute(folder).lexically_normal();
+    fs::path p = fs::absolute(folder.empty() ? fs::path(".") : folder).lexically_normal();
     if (p.filename().empty()) p = p.parent_path(); // a trailing '/'
     return p.filename().string();
 }

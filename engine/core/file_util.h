@@ -21,8 +21,9 @@ void write_text_file(const std::filesystem::path& path, std::string_view text);
 
 /// `target` as written in a file that travels with an output folder, which must hold no
 /// machine path: relative to the folder `from` (both taken absolute, "." and ".." folded),
-/// in '/' form. An output's staging folder sits beside it (core/output_dir.h), so a path
-/// relative to the staging folder holds for the output folder too.
+/// in '/' form; an empty path is the current folder ("out.json"'s parent). An output's staging
+/// folder sits beside it (core/output_dir.h), so a path relative to the staging folder holds for
+/// the output folder too.
 [[nodiscard]] std::string path_relative_to(const std::filesystem::path& target, const std::filesystem::path& from);
 
 /// The last name of a folder's path ("captures/can/" and "captures/can" give "can").

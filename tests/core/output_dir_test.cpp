@@ -222,3 +222,19 @@ TEST(OutputFolder, AKillBetweenTheTwoRenamesIsUndoneByTheNextRun) {
 
 } // namespace
 } // namespace specula
+
+namespace specula {
+namespace {
+
+// A file named without a folder ("--json out.json") has an empty parent: the current folder,
+// not an error.
+TEST(FileUtil, PathsRelativeToTheCurrentFolder) {
+    EXPECT_EQ(path_relative_to("captures/can", ""), "captures/can");
+    EXPECT_EQ(path_relative_to("", "captures"), "..");
+    EXPECT_EQ(path_relative_to("a/../b/", "b"), ".");
+    EXPECT_EQ(folder_name(""), std::filesystem::current_path().filename().string());
+    EXPECT_EQ(folder_name("captures/can/"), "can");
+}
+
+} // namespace
+} // namespace specula
