@@ -201,20 +201,52 @@ ParamCandidate candidate_of(const SpecularModel& model, const Factorization& f) 
                           .direct_rms = direct_relative_rms(model, f, 0, kParamChoicePairs).cube};
 }
 
-/// The warp of the warped parametrization for `model`; throws Error naming why it has none.
-glm::vec4 required_warp(const SpecularModel& model) {
+/// The warp of the warped parametrization for `model`, shared by the channels when `o` says so
+/// (automatic: not here, with_param_choice decides); throws Error naming why it has none.
+glm::vec4 required_warp(const SpecularModel& model, const FactorizationOptions& o) {
     std::string why;
     const std::optional<glm::vec4> w = warp_for_model(model, &why);
     if (!w) throw Error("factorize: the warped parametrization does not fit this model: " + why);
-    return *w;
+    return o.shared_warp.value_or(false) ? shared_warp_of(*w) : *w;
 }
 
-/// ParamChoice's rule: `run(param, errors)` factorizes in one parametrization (errors: F's matrix
-/// errors are needed even where the path would skip them).
+/// Where the warped factorization with a warp per channel is kept (not forced either way, the
+/// channels' k differ), the one with a shared warp: kept instead when its error against the lobe
+/// through the cube-maps is within kSharedWarpGoodEnough and it makes no more lookups a pixel (2 K
+/// against 6 K). `run(options)` factorizes in the warped parametrization.
 template <class Run>
-Factorization with_param_choice(const SpecularModel& model, const FactorizationOptions& o, Run&& run) {
+Factorization with_shared_warp_choice(const SpecularModel& model, const FactorizationOptions& o, Factorization per_channel,
+                                      Run&& run) {
+    if (o.shared_warp.has_value() || is_shared_warp(per_channel.cubes.warp)) return per_channel;
+    FactorizationOptions shared_options = o;
+    shared_options.shared_warp = true;
+    Factorization shared = run(shared_options);
+    ParamCandidate per = per_channel.param_choice.of(FactorParam::Warped);
+    ParamCandidate one = candidate_of(model, shared);
+    const uint32_t lookups_per = 6 * per.terms.count, lookups_one = 2 * one.terms.count;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "; one warp shared by the channels (k %.3f): K=%u, %.2f%% vs the lobe, %u lookups a pixel against %u",
+                  static_cast<double>(shared.cubes.warp.y), one.terms.count, 100.0 * one.direct_rms, lookups_one, lookups_per);
+    if (one.direct_rms > kSharedWarpGoodEnough || lookups_one > lookups_per) {
+        per_channel.param_choice.reason +=
+            std::string(buf) + (one.direct_rms > kSharedWarpGoodEnough ? ": over " + percent(kSharedWarpGoodEnough) : "") +
+            ", so a warp per channel";
+        return per_channel;
+    }
+    ParamChoice c = std::move(per_channel.param_choice);
+    c.reason += std::string(buf) + ": kept";
+    c.candidates[static_cast<std::size_t>(FactorParam::Warped)] = one;
+    c.warped_per_channel = per;
+    shared.param_choice = std::move(c);
+    shared.timings.total_s += per_channel.timings.total_s;
+    return shared;
+}
+
+/// ParamChoice's rule with the options' warp (a warp per channel unless forced shared).
+template <class Run>
+Factorization with_param_choice_per_channel(const SpecularModel& model, const FactorizationOptions& o, Run&& run) {
     if (o.param) {
-        Factorization f = run(*o.param, false);
+        Factorization f = run(*o.param, false, o);
         ParamChoice& c = f.param_choice;
         c.param = *o.param;
         c.forced = true;
@@ -230,7 +262,7 @@ Factorization with_param_choice(const SpecularModel& model, const FactorizationO
     std::string errors;
     const auto add = [&](FactorParam p) {
         params.push_back(p);
-        runs.push_back(run(p, true));
+        runs.push_back(run(p, true, o));
         c.candidates[static_cast<std::size_t>(p)] = candidate_of(model, runs.back());
         errors += std::string(errors.empty() ? " (" : "; ") + to_string(p) + " " + param_errors(c.of(p));
     };
@@ -287,10 +319,20 @@ Factorization with_param_choice(const SpecularModel& model, const FactorizationO
     return f;
 }
 
+/// ParamChoice's rule: `run(param, errors, options)` factorizes in one parametrization (errors: F's
+/// matrix errors are needed even where the path would skip them), then with_shared_warp_choice.
+template <class Run>
+Factorization with_param_choice(const SpecularModel& model, const FactorizationOptions& o, Run&& run) {
+    Factorization f = with_param_choice_per_channel(model, o, run);
+    if (f.cubes.param != FactorParam::Warped) return f;
+    return with_shared_warp_choice(model, o, std::move(f),
+                                   [&](const FactorizationOptions& so) { return run(FactorParam::Warped, true, so); });
+}
+
 Factorization factorize_cpu_param(const SpecularModel& model, const FactorizationOptions& options, FactorParam param) {
     Factorization f;
     f.cubes.param = param;
-    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model);
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model, options);
     f.resolution = resolve_resolution(model, options, param);
     f.weight_q = weight_exponent(model, options, f.resolution);
     f.p = options.p;
@@ -335,21 +377,25 @@ Factorization factorize_cpu_param(const SpecularModel& model, const Factorizatio
 } // namespace
 
 Factorization factorize_cpu(const SpecularModel& model, const FactorizationOptions& options) {
-    return with_param_choice(model, options, [&](FactorParam param, bool) { return factorize_cpu_param(model, options, param); });
+    return with_param_choice(model, options, [&](FactorParam param, bool, const FactorizationOptions& o) {
+        return factorize_cpu_param(model, o, param);
+    });
 }
 
 FactorizeVk::FactorizeVk(gpu::Context& ctx)
     : m_ctx(&ctx), m_matrix(ctx), m_decomposition(ctx), m_residual(ctx), m_cubemaps(ctx) {}
 
 Factorization FactorizeVk::run(const SpecularModel& model, const FactorizationOptions& options) {
-    return with_param_choice(model, options, [&](FactorParam param, bool errors) { return run_param(model, options, param, errors); });
+    return with_param_choice(model, options, [&](FactorParam param, bool errors, const FactorizationOptions& o) {
+        return run_param(model, o, param, errors);
+    });
 }
 
 Factorization FactorizeVk::run_param(const SpecularModel& model, const FactorizationOptions& options, FactorParam param,
                                      bool errors) {
     Factorization f;
     f.cubes.param = param;
-    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model);
+    if (param == FactorParam::Warped) f.cubes.warp = required_warp(model, options);
     f.resolution = resolve_resolution(model, options, param);
     f.weight_q = weight_exponent(model, options, f.resolution);
     f.p = options.p;

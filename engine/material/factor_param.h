@@ -73,6 +73,18 @@ inline std::optional<glm::vec4> warp_for_lobe(const LafortuneRgb& lobe, std::str
     return w;
 }
 
+/// One warp for the three channels: (s, k, k, k) with k the geometric mean of the channels' k.
+/// Each channel's F is then rank 1 only where its k is that one, but a pixel computes one pair of
+/// coordinates and makes 2 K cube-map lookups instead of 6 K (render/terms.glsl), where lavapipe
+/// spends most of the factorized shading pass (docs/pipeline.md 7.4).
+inline glm::vec4 shared_warp_of(const glm::vec4& warp) {
+    const float k = static_cast<float>(std::cbrt(static_cast<double>(warp.y) * warp.z * warp.w));
+    return {warp.x, k, k, k};
+}
+
+/// True when the warp's three k are equal: one pair of coordinates serves every channel.
+inline bool is_shared_warp(const glm::vec4& warp) { return warp.y == warp.z && warp.z == warp.w; }
+
 /// Whether w is a warp warp_for_lobe could return: s = +-1, every k in [kWarpMinK, kWarpMaxK].
 [[nodiscard]] inline bool valid_warp(const glm::vec4& w) noexcept {
     if (std::abs(w.x) != 1.0f) return false;

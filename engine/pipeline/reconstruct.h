@@ -66,6 +66,9 @@ struct ReconstructConfig {
     /// Parametrization of the factorization (shared/gshd.h part 4): nullopt = automatic (both,
     /// factorization::ParamChoice), else forced (Gshd: the thesis's).
     std::optional<FactorParam> factor_param;
+    /// The warped parametrization's warp: nullopt = automatic (factorization::FactorizationOptions::
+    /// shared_warp), true = one warp shared by the channels, false = a warp per channel.
+    std::optional<bool> shared_warp;
     /// Auto: specular energy is present when the mean squared residual exceeds this many noise
     /// variances (lambert.noise_sigma, floored at one 16-bit step).
     double specular_energy_threshold = 4.0;

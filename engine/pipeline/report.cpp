@@ -248,16 +248,18 @@ json refinement_json(const PipelineRun& run, const RefineStage& r) {
 
 /// Every parametrization's factorization as the choice saw it (only the forced one when forced).
 json param_candidates_json(const factorization::ParamChoice& c) {
+    const auto candidate = [](const factorization::ParamCandidate& k) {
+        return json{{"grid_h", k.resolution.grid_h},
+                    {"grid_d", k.resolution.grid_d},
+                    {"terms", k.terms.count},
+                    {"matrix_relative_rms", k.terms.matrix_rms},
+                    {"relative_rms_vs_lobe_cubemaps", k.direct_rms}};
+    };
     json out = json::object();
-    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped}) {
-        const factorization::ParamCandidate& k = c.of(p);
-        if (!k.computed) continue;
-        out[to_string(p)] = {{"grid_h", k.resolution.grid_h},
-                             {"grid_d", k.resolution.grid_d},
-                             {"terms", k.terms.count},
-                             {"matrix_relative_rms", k.terms.matrix_rms},
-                             {"relative_rms_vs_lobe_cubemaps", k.direct_rms}};
-    }
+    for (const FactorParam p : {FactorParam::Gshd, FactorParam::Mirrored, FactorParam::Warped})
+        if (c.of(p).computed) out[to_string(p)] = candidate(c.of(p));
+    // The warped candidate is then the one with the warp shared by the channels (the kept one).
+    if (c.warped_per_channel) out["warped_per_channel"] = candidate(*c.warped_per_channel);
     return out;
 }
 

@@ -580,6 +580,46 @@ TEST(WarpedGshd, AutomaticChoiceKeepsWarpedForThePresets) {
     EXPECT_FALSE(warp_for_lobe(LafortuneRgb{{-1.0f, 1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, {8.0f, 8.0f, 8.0f}}).has_value());
 }
 
+// A lobe whose channels' warps differ a little (knot_hd's fit: k = |Cz| / |Cx| 0.932, 0.960,
+// 0.991) keeps one warp shared by the channels, the geometric mean, at an error within
+// kSharedWarpGoodEnough, and report.json's warped_per_channel keeps the exact one's figures; one
+// whose warps differ by a factor of 4 keeps a warp per channel and says why; either can be forced.
+TEST(WarpedGshd, OneWarpForTheChannelsWhereItsErrorAllows) {
+    const LafortuneRgb near{{-1.0213f, -1.0105f, -0.9771f}, {0.9515f, 0.9702f, 0.9683f}, {14.2f, 14.7f, 15.0f}};
+    const glm::vec4 exact = *warp_for_lobe(near);
+    const Factorization f = factorize_cpu(near, {});
+    std::printf("near: %s\n", f.param_choice.reason.c_str());
+    ASSERT_EQ(f.cubes.param, FactorParam::Warped);
+    EXPECT_TRUE(is_shared_warp(f.cubes.warp)) << f.param_choice.reason;
+    EXPECT_NEAR(f.cubes.warp.y, std::cbrt(double(exact.y) * exact.z * exact.w), 1e-6);
+    EXPECT_EQ(f.cubes.warp.x, exact.x);
+    EXPECT_EQ(f.grids[0].warp, f.cubes.warp);
+    ASSERT_TRUE(f.param_choice.warped_per_channel.has_value());
+    const double shared_rms = f.param_choice.of(FactorParam::Warped).direct_rms;
+    const double per_rms = f.param_choice.warped_per_channel->direct_rms;
+    EXPECT_LE(shared_rms, kSharedWarpGoodEnough);
+    EXPECT_LT(per_rms, shared_rms); // the exact warps are the better fit, at three times the lookups
+    EXPECT_LE(f.term_count(), 3 * f.param_choice.warped_per_channel->terms.count);
+    EXPECT_NE(f.param_choice.reason.find("kept"), std::string::npos) << f.param_choice.reason;
+    // The error the choice measured is that of the cube-maps kept.
+    EXPECT_NEAR(direct_relative_rms(near, f, 0, kParamChoicePairs).cube, shared_rms, 1e-12);
+
+    const Factorization per = factorize_cpu(near, {.shared_warp = false});
+    EXPECT_EQ(per.cubes.warp, exact);
+    EXPECT_FALSE(per.param_choice.warped_per_channel.has_value());
+    EXPECT_NEAR(per.param_choice.of(FactorParam::Warped).direct_rms, per_rms, 1e-12);
+    const Factorization forced = factorize_cpu(near, {.shared_warp = true});
+    EXPECT_EQ(forced.cubes.warp, f.cubes.warp);
+
+    const LafortuneRgb apart{{-1.6f, -1.0f, -0.4f}, {0.8f, 1.0f, 1.2f}, {14.0f, 14.0f, 14.0f}}; // k 0.5, 1, 3
+    const Factorization g = factorize_cpu(apart, {});
+    std::printf("apart: %s\n", g.param_choice.reason.c_str());
+    ASSERT_EQ(g.cubes.param, FactorParam::Warped);
+    EXPECT_EQ(g.cubes.warp, *warp_for_lobe(apart));
+    EXPECT_FALSE(g.param_choice.warped_per_channel.has_value());
+    EXPECT_NE(g.param_choice.reason.find("so a warp per channel"), std::string::npos) << g.param_choice.reason;
+}
+
 // The mirrored grids swap the plain rule's axes (resolution.cpp), the peak's (d) finer: a narrow
 // lobe needs the fine grid along d there.
 TEST(MirroredGshd, DefaultResolutionSwapsTheAxes) {

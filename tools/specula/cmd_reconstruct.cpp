@@ -32,6 +32,7 @@ struct ReconstructArgs {
     std::string material = "auto";
     bool coated_tint = false;
     std::string factor_param = "auto";
+    std::string factor_warp = "auto";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -60,6 +61,7 @@ void run_reconstruct(ReconstructArgs& args) {
         c.factorization_grid_d = args.grid.size() > 1 ? args.grid[1] : args.grid[0];
     }
     c.factor_param = factor_param_from_string(args.factor_param); // "auto": nullopt
+    if (args.factor_warp != "auto") c.shared_warp = args.factor_warp == "shared";
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.material = material_family_from_string(args.material); // "auto": nullopt (CLI11 checked the name)
@@ -230,6 +232,12 @@ void add_reconstruct_command(CLI::App& app) {
                     "the cube-maps holding the lobe over its closed-form radial factor |C u|^N: separable for any Lafortune\n"
                     "lobe), or auto (each that fits the lobe, the one of least error against the lobe)")
         ->check(CLI::IsMember({"auto", "gshd", "mirrored", "warped"}))
+        ->capture_default_str();
+    cmd->add_option("--factor-warp", args->factor_warp,
+                    "The warped parametrization's warp: per-channel (each channel's own: exact, 6 cube-map lookups a pixel\n"
+                    "and term), shared (one for the three channels: 2 lookups, at some error where the channels' lobes\n"
+                    "differ), or auto (shared where its error against the lobe stays within 1%)")
+        ->check(CLI::IsMember({"auto", "per-channel", "shared"}))
         ->capture_default_str();
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");
     cmd->add_flag("--embed-float-albedo", args->config.embed_float_albedo,
