@@ -10,7 +10,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
   libvulkan-dev vulkan-validationlayers mesa-vulkan-drivers vulkan-tools \
   glslang-tools glslang-dev spirv-tools \
   libglm-dev libeigen3-dev libembree-dev libopenimageio-dev openimageio-tools \
-  libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev \
+  libtinygltf-dev nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libmeshoptimizer-dev \
   libglfw3-dev xvfb xauth xdotool \
   clang-14 libclang-rt-14-dev >/dev/null
 # (clang-14 and its compiler-rt: libFuzzer and the sanitizer runtimes for tools/fuzz.sh.)

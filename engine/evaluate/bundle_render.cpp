@@ -21,13 +21,14 @@ render::Scene scene_of(const Bundle& bundle, const std::vector<glm::vec2>& corne
     return render::Scene{.mesh = &bundle.mesh, .corner_uv = corner_uv, .albedo = &bundle.albedo, .material = bundle.material};
 }
 
-render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const std::string& name) {
+render::Renderer make_renderer(gpu::Context& ctx, const Bundle& bundle, const std::string& name,
+                               const render::Options& options) {
     if (bundle.albedo.empty()) throw Error(name + ": the bundle has no albedo atlas");
     if (!bundle.mesh.has_texcoords())
         throw Error(name + ": mesh: every vertex needs an atlas coordinate (" + std::to_string(bundle.mesh.texcoords.size()) +
                     " texcoords for " + std::to_string(bundle.mesh.positions.size()) + " vertices)");
     const std::vector<glm::vec2> corner_uv = corner_uvs(bundle.mesh);
-    return render::Renderer(ctx, scene_of(bundle, corner_uv));
+    return render::Renderer(ctx, scene_of(bundle, corner_uv), options);
 }
 
 std::string lower(std::string s) {
@@ -45,8 +46,8 @@ void require_specular_model(const Bundle& bundle, render::SpecularPath model, st
                     "render with --specular analytic, or reconstruct with the factorization");
 }
 
-BundleRenderer::BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name)
-    : m_name(std::move(name)), m_renderer(make_renderer(ctx, bundle, m_name)) {}
+BundleRenderer::BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name, const render::Options& options)
+    : m_name(std::move(name)), m_renderer(make_renderer(ctx, bundle, m_name, options)) {}
 
 void BundleRenderer::draw_core_material(const std::optional<CoreMaterial>& core) {
     const CoreMaterial c = core.value_or(CoreMaterial{});

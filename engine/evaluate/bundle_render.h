@@ -29,7 +29,8 @@ class BundleRenderer {
 public:
     /// `name` (usually the bundle's path) is used in error messages. Throws Error when the
     /// bundle is inconsistent (no albedo, a vertex without an atlas coordinate).
-    BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name = "bundle");
+    /// `options` as render::Renderer takes them (the viewer's levels of detail).
+    BundleRenderer(gpu::Context& ctx, const Bundle& bundle, std::string name = "bundle", const render::Options& options = {});
 
     /// Renders one frame. Throws Error naming the bundle when `settings` asks for the
     /// factorized model and the bundle has no cube-maps.

@@ -30,10 +30,23 @@ const char* split_name(Split s) { return s == Split::Train ? "train" : "test"; }
 /// Display value of a linear one, for the sheet's difference panel.
 float display(float linear) { return linear_to_srgb(std::clamp(linear, 0.0f, 1.0f)); }
 
+/// The levels of detail kept: triangles, and each coarser level's display PSNR against the whole mesh.
+nlohmann::json lod_levels_json(const EvaluationResult& r) {
+    nlohmann::json levels = nlohmann::json::array();
+    for (std::size_t k = 0; k < r.lod_levels.size(); ++k) {
+        nlohmann::json l{{"triangles", r.lod_levels[k].first}};
+        if (k > 0) l["display_psnr_vs_whole_mesh"] = r.lod_levels[k].second;
+        levels.push_back(l);
+    }
+    return levels;
+}
+
 nlohmann::json settings_json(const EvaluationResult& r) {
     return {{"mode", render::mode_name(r.render.mode)},
             {"specular", render::specular_path_name(r.render.specular)},
             {"shadows", r.render.shadows}, // cast shadows drawn (false: the thesis's unshadowed render)
+            {"lod_max_error_px", r.lod_max_error_px}, // levels of detail (0: every triangle drawn)
+            {"lod_levels", lod_levels_json(r)},
             {"metrics_backend", to_string(r.metrics_backend)},
             {"masked_pixels", "the capture's mask (render coverage where a frame has no mask); missing pixels left out"},
             {"rendered_clipped_at_saturation", true},
@@ -142,11 +155,12 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
     result.bundle_name = options.bundle_name;
     result.capture_dir = desc.dir.string();
     result.render = options.render;
+    result.lod_max_error_px = options.external_render ? 0.0 : options.renderer.lod_max_error_px;
     result.metrics_backend = options.metrics_backend;
 
     const Stopwatch setup;
     std::optional<BundleRenderer> renderer;
-    if (!options.external_render) renderer.emplace(ctx, bundle, options.bundle_name);
+    if (!options.external_render) renderer.emplace(ctx, bundle, options.bundle_name, options.renderer);
     render::Settings render_settings = options.render;
     if (renderer && options.core_material) {
         renderer->draw_core_material(bundle.core);
@@ -160,6 +174,20 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         result.warnings.push_back(options.bundle_name + ": no specular lobe: frames are rendered diffuse only");
 
     std::vector<std::size_t> frames = evaluated_frames(desc, options);
+    if (renderer && renderer->renderer().levels_of_detail().size() > 1 && !frames.empty()) {
+        // The levels kept as specula-view keeps them, scored on 4 of the evaluated frames.
+        std::vector<Camera> cameras;
+        std::vector<PointLight> lights;
+        for (std::size_t i = 0; i < 4; ++i) {
+            const FrameDesc& fd = desc.frames[frames[i * frames.size() / 4]];
+            cameras.push_back(fd.camera());
+            lights.push_back(fd.light);
+        }
+        render::Renderer& r = renderer->renderer();
+        const std::vector<double> psnr = r.accept_levels_of_detail(cameras, lights, render_settings, options.lod_min_psnr_db);
+        for (std::size_t k = 0; k < r.accepted_levels_of_detail(); ++k)
+            result.lod_levels.emplace_back(r.levels_of_detail()[k].index_count / 3, psnr[k]);
+    }
     // Another tool's images: the frames it rendered (read once here, in capture order).
     std::map<std::size_t, Image> external;
     if (options.external_render) {
@@ -444,6 +472,15 @@ std::string format_summary(const EvaluationResult& r) {
                   n, r.timings.per_frame_ms(n), n ? 1000.0 * r.timings.render_s / n : 0.0,
                   n ? 1000.0 * r.timings.metrics_s / n : 0.0, r.timings.setup_s, r.timings.total_s);
     out << line;
+    if (!r.lod_levels.empty()) {
+        out << "levels of detail kept (error under " << r.lod_max_error_px << " px):";
+        for (std::size_t k = 0; k < r.lod_levels.size(); ++k) {
+            std::snprintf(line, sizeof line, k == 0 ? " %zu triangles (the whole mesh)" : ", %zu (%.1f dB against it)",
+                          r.lod_levels[k].first, r.lod_levels[k].second);
+            out << line;
+        }
+        out << "\n";
+    }
     return out.str();
 }
 

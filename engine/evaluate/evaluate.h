@@ -58,6 +58,11 @@ inline constexpr double kSheetAmplification = 4.0;
 
 struct EvaluateOptions {
     render::Settings render;                       ///< mode (both/diffuse/specular) and specular model
+    /// The renderer's options: levels of detail (lod_max_error_px) to measure what they cost the
+    /// image, kept as specula-view keeps them: those scoring at least lod_min_psnr_db against the
+    /// whole mesh on 4 of the evaluated frames (render::Renderer::accept_levels_of_detail).
+    render::Options renderer;
+    double lod_min_psnr_db = render::kDefaultLodMinPsnrDb;
     Backend metrics_backend = Backend::Vulkan;
     metrics::MetricsOptions metrics;
     /// At most this many frames per split, evenly spaced over the split (0: all).
@@ -147,6 +152,10 @@ struct EvaluationResult {
     std::string bundle_name;
     std::string capture_dir;
     render::Settings render;
+    double lod_max_error_px = 0.0; ///< EvaluateOptions::renderer's (0: every triangle drawn)
+    /// With levels of detail: the triangles each kept level has and its worst display PSNR
+    /// against the whole mesh on the frames accept_levels_of_detail rendered (the whole mesh first).
+    std::vector<std::pair<std::size_t, double>> lod_levels;
     Backend metrics_backend = Backend::Vulkan;
 };
 

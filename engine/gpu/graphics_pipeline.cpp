@@ -35,6 +35,13 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
     const bool depth_only = desc.fragment_spirv.empty();
     const UniqueShaderModule frag =
         depth_only ? UniqueShaderModule{} : detail::make_shader_module(dev, desc.fragment_spirv, what + ": fragment shader module");
+    std::vector<VkSpecializationMapEntry> entries;
+    for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
+        entries.push_back({.constantID = i, .offset = i * static_cast<uint32_t>(sizeof(uint32_t)), .size = sizeof(uint32_t)});
+    const VkSpecializationInfo fragment_spec{.mapEntryCount = static_cast<uint32_t>(entries.size()),
+                                             .pMapEntries = entries.data(),
+                                             .dataSize = desc.fragment_constants.size() * sizeof(uint32_t),
+                                             .pData = desc.fragment_constants.data()};
     const std::array stages{
         VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
                                         .stage = VK_SHADER_STAGE_VERTEX_BIT,
@@ -43,7 +50,8 @@ GraphicsPipeline::GraphicsPipeline(Context& ctx, const GraphicsPipelineDesc& des
         VkPipelineShaderStageCreateInfo{.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
                                         .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
                                         .module = frag.get(),
-                                        .pName = "main"}};
+                                        .pName = "main",
+                                        .pSpecializationInfo = entries.empty() ? nullptr : &fragment_spec}};
 
     for (const VkVertexInputAttributeDescription& a : desc.vertex_attributes)
         if (a.binding != 0 || desc.vertex_stride == 0)

@@ -55,6 +55,10 @@ struct GraphicsPipelineDesc {
     // fetch is the faster path on lavapipe, whose vertex stage runs on one thread.
     uint32_t vertex_stride = 0;
     std::vector<VkVertexInputAttributeDescription> vertex_attributes; // .binding must be 0
+    // Specialization constants of the fragment shader: constant_id i takes fragment_constants[i]
+    // (32-bit). The driver compiles the branches they decide away; lavapipe runs both sides of a
+    // branch on a uniform value, texture lookups included.
+    std::vector<uint32_t> fragment_constants;
 };
 
 /// Binds `buffer` as vertex input binding 0 of the bound pipeline (offset 0).

@@ -16,6 +16,8 @@
 #include "render/specular_analytic.frag.h"
 #include "render/specular_factorized.frag.h"
 
+#include <meshoptimizer.h>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <algorithm>
@@ -23,6 +25,7 @@
 #include <cmath>
 #include <cstring>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <unordered_map>
@@ -192,6 +195,42 @@ IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corn
     return out;
 }
 
+std::vector<LevelOfDetail> build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels) {
+    if (mesh.indices.size() % 3 != 0 || mesh.indices.empty())
+        throw Error("renderer: levels of detail need whole triangles (" + std::to_string(mesh.indices.size()) + " indices)");
+    const std::size_t full = mesh.indices.size();
+    std::vector<LevelOfDetail> levels{{.first_index = 0, .index_count = static_cast<uint32_t>(full), .error = 0.0}};
+    constexpr std::size_t kMinTriangles = 1000;
+    const auto* positions = reinterpret_cast<const float*>(mesh.vertices.data()); // position_u: xyz first
+    const float scale = meshopt_simplifyScale(positions, mesh.vertices.size(), sizeof(shared::RenderVertex));
+    std::vector<uint32_t> out(full);
+    while (levels.size() < max_levels) {
+        const std::size_t previous = levels.back().index_count;
+        const std::size_t target = (full >> levels.size()) / 3 * 3;
+        if (target / 3 < kMinTriangles) break;
+        float relative_error = 0.0f;
+        // target_error 1: no bound on the error (the mesh's extent); the level is chosen per frame by its error.
+        const std::size_t count = meshopt_simplify(out.data(), mesh.indices.data(), full, positions, mesh.vertices.size(),
+                                                   sizeof(shared::RenderVertex), target, 1.0f, 0, &relative_error);
+        if (4 * count > 3 * previous || count < 3 * kMinTriangles) break;
+        levels.push_back({.first_index = static_cast<uint32_t>(mesh.indices.size()), .index_count = static_cast<uint32_t>(count),
+                          .error = static_cast<double>(relative_error) * scale});
+        mesh.indices.insert(mesh.indices.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
+    }
+    return levels;
+}
+
+std::size_t choose_level_of_detail(std::span<const LevelOfDetail> levels, const Camera& camera, const glm::dvec3& center,
+                                   double radius, double max_error_px) {
+    if (!(max_error_px > 0.0) || levels.empty()) return 0;
+    const double distance = std::max(glm::length(camera.center() - center) - radius, radius / 100.0);
+    const double focal = std::max(camera.intrinsics.fl_x, camera.intrinsics.fl_y);
+    std::size_t chosen = 0;
+    for (std::size_t k = 1; k < levels.size(); ++k)
+        if (levels[k].error * focal / distance <= max_error_px) chosen = k;
+    return chosen;
+}
+
 bool is_closed_outward(const Mesh& mesh) {
     if (mesh.triangles.empty()) return false;
     // Weld by exact position: texture seams duplicate vertices at the same place.
@@ -228,17 +267,31 @@ struct Renderer::Impl {
     }
     Bounds bounds;
     std::size_t triangles = 0;
-    uint32_t index_count = 0;
 
     gpu::Buffer params;
     struct MeshBuffers {
         gpu::Buffer vertices;
         gpu::Buffer indices;
+        std::vector<LevelOfDetail> levels; // [0]: every triangle; more with Options::lod_max_error_px
     } mesh_buffers;
+    std::size_t drawn_level = 0; // the frame's level of detail (prepare), drawn by every pass
+    std::optional<std::size_t> forced_level; // accept_levels_of_detail's renders: this level
+    std::size_t accepted_levels = 1;         // levels a frame may draw (accept_levels_of_detail)
     gpu::Image albedo;
     std::vector<gpu::Image> cubes_g, cubes_h; // one per term (empty before set_factorization)
-    FactorParam factor_param = FactorParam::Gshd; // their parametrization: params.flags.w
-    glm::vec4 factor_warp{1.0f};            // and its warp: params.factor_warp
+    FactorParam factor_param = FactorParam::Gshd; // their parametrization
+    glm::vec4 factor_warp{1.0f};                  // and its warp: params.factor_warp
+    // The lit passes' specialization constants (render/terms.glsl): what lavapipe would otherwise
+    // evaluate on every side of a branch. prepare() rebuilds the lit pipelines when a frame needs
+    // other values (a new factorization or material family, shadows turned on or off).
+    struct ShaderConstants {
+        uint32_t factor_terms = 1; // kFactorTerms: the cube-maps' term count (1 before any)
+        uint32_t factor_param = 0; // kFactorParam: their parametrization
+        uint32_t family = 0;       // kMaterialFamily: the material's family (params.material.family.x)
+        uint32_t shadows = 1;      // kShadows: the shadow map may be sampled (Settings::shadows)
+        uint32_t shared_warp = 0;  // kSharedWarp: the warped cube-maps have one warp for the channels
+        bool operator==(const ShaderConstants&) const = default;
+    } built;
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
@@ -271,8 +324,14 @@ struct Renderer::Impl {
           specular(scene.material.specular), material(material_gpu(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
           triangles(scene.mesh->triangles.size()),
           params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
-          mesh_buffers(upload_mesh(c, scene)),
+          mesh_buffers(upload_mesh(c, scene, opts.lod_max_error_px > 0.0)), accepted_levels(mesh_buffers.levels.size()),
           albedo(upload_albedo(c, scene)),
+          factor_param(scene.material.factorized ? scene.material.factorized->param : FactorParam::Gshd),
+          built{.factor_terms = scene.material.factorized ? static_cast<uint32_t>(std::max<std::size_t>(scene.material.factorized->terms.size(), 1)) : 1u,
+                .factor_param = static_cast<uint32_t>(factor_param),
+                .family = material.family.x,
+                .shadows = 1u,
+                .shared_warp = factor_param == FactorParam::Warped && is_shared_warp(scene.material.factorized->warp) ? 1u : 0u},
           sampler(gpu::make_linear_clamp_sampler(c, "render textures")),
           // Pipelines are built against a 1x1 target's render pass; every target has the
           // same formats, so its passes are compatible with them.
@@ -280,29 +339,97 @@ struct Renderer::Impl {
           shadow_map(c, opts.shadow_map_size, "shadow map"),
           shadow_pass(c, shadow_pass_desc()),
           shadow_set(c, shadow_pass),
-          diffuse(c, pipeline_desc("diffuse pass", render_diffuse_frag, kLitBindings, false)),
-          specular_analytic(c, pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, kLitBindings, true)),
-          specular_factorized(c, pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, kFactorizedBindings, true)),
-          both_analytic(c, pipeline_desc("fused pass (analytic)", render_both_analytic_frag, kLitBindings, false)),
-          both_factorized(c, pipeline_desc("fused pass (factorized)", render_both_factorized_frag, kFactorizedBindings, false)),
+          diffuse(c, lit_desc(LitPass::Diffuse)),
+          specular_analytic(c, lit_desc(LitPass::SpecularAnalytic)),
+          specular_factorized(c, lit_desc(LitPass::SpecularFactorized)),
+          both_analytic(c, lit_desc(LitPass::FusedAnalytic)),
+          both_factorized(c, lit_desc(LitPass::FusedFactorized)),
           gbuffer(c, gbuffer_desc()),
-          deferred_analytic(c, shading_desc("deferred shading (analytic)", render_deferred_analytic_frag,
-                                            bindings_for(kLitBindings, 2))),
-          deferred_factorized(c, shading_desc("deferred shading (factorized)", render_deferred_factorized_frag,
-                                              bindings_for(kFactorizedBindings, 2))),
+          deferred_analytic(c, lit_desc(LitPass::DeferredAnalytic)),
+          deferred_factorized(c, lit_desc(LitPass::DeferredFactorized)),
           diffuse_set(c, diffuse), analytic_set(c, specular_analytic), factorized_set(c, specular_factorized),
           both_analytic_set(c, both_analytic), both_factorized_set(c, both_factorized), gbuffer_set(c, gbuffer),
           deferred_analytic_set(c, deferred_analytic), deferred_factorized_set(c, deferred_factorized),
           sequence(c, 8) {
-        index_count = static_cast<uint32_t>(3 * triangles);
         gbuffer_set.write_buffer(kBindingParams, params);
         for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
-                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set}) {
-            set->write_buffer(kBindingParams, params);
-            set->write_image(kBindingAlbedo, albedo, sampler.get());
-            set->write_image(kBindingShadow, shadow_map.depth(), shadow_map.compare_sampler());
-        }
+                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set})
+            write_lit_bindings(*set);
         shadow_set.write_buffer(kBindingParams, params);
+    }
+
+    // What every lit pass's set holds: the frame's parameters, the albedo atlas, the shadow map.
+    void write_lit_bindings(gpu::DescriptorSet& set) const {
+        set.write_buffer(kBindingParams, params);
+        set.write_image(kBindingAlbedo, albedo, sampler.get());
+        set.write_image(kBindingShadow, shadow_map.depth(), shadow_map.compare_sampler());
+    }
+
+    // The factorized passes' sets: term k's G and H at kBindingCubeG + k and kBindingCubeH + k; the
+    // unused bindings repeat term 1 (valid descriptors; the shaders do not read them).
+    void write_cubes(gpu::DescriptorSet& set) const {
+        for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
+            const std::size_t t = k < cubes_g.size() ? k : 0;
+            set.write_image(kBindingCubeG + k, cubes_g[t], sampler.get());
+            set.write_image(kBindingCubeH + k, cubes_h[t], sampler.get());
+        }
+    }
+
+    enum class LitPass { Diffuse, SpecularAnalytic, SpecularFactorized, FusedAnalytic, FusedFactorized, DeferredAnalytic,
+                         DeferredFactorized };
+    // A lit pass's pipeline, with the specialization constants `built`.
+    gpu::GraphicsPipelineDesc lit_desc(LitPass pass) const {
+        gpu::GraphicsPipelineDesc d;
+        switch (pass) {
+        case LitPass::Diffuse: d = pipeline_desc("diffuse pass", render_diffuse_frag, kLitBindings, false); break;
+        case LitPass::SpecularAnalytic:
+            d = pipeline_desc("specular pass (analytic)", render_specular_analytic_frag, kLitBindings, true);
+            break;
+        case LitPass::SpecularFactorized:
+            d = pipeline_desc("specular pass (factorized)", render_specular_factorized_frag, kFactorizedBindings, true);
+            break;
+        case LitPass::FusedAnalytic: d = pipeline_desc("fused pass (analytic)", render_both_analytic_frag, kLitBindings, false); break;
+        case LitPass::FusedFactorized:
+            d = pipeline_desc("fused pass (factorized)", render_both_factorized_frag, kFactorizedBindings, false);
+            break;
+        case LitPass::DeferredAnalytic:
+            d = shading_desc("deferred shading (analytic)", render_deferred_analytic_frag, bindings_for(kLitBindings, 2));
+            break;
+        case LitPass::DeferredFactorized:
+            d = shading_desc("deferred shading (factorized)", render_deferred_factorized_frag, bindings_for(kFactorizedBindings, 2));
+            break;
+        }
+        d.fragment_constants = {built.factor_terms, built.factor_param, built.family, built.shadows, built.shared_warp};
+        return d;
+    }
+
+    // Rebuilds every lit pass's pipeline and set for `wanted`, unless they are built for it already
+    // (nothing is in flight: render() waits, record()'s caller waits for the previous frame).
+    void use_constants(const ShaderConstants& wanted) {
+        if (wanted == built) return;
+        built = wanted;
+        const std::pair<gpu::GraphicsPipeline*, LitPass> passes[] = {
+            {&diffuse, LitPass::Diffuse},
+            {&specular_analytic, LitPass::SpecularAnalytic},
+            {&specular_factorized, LitPass::SpecularFactorized},
+            {&both_analytic, LitPass::FusedAnalytic},
+            {&both_factorized, LitPass::FusedFactorized},
+            {&deferred_analytic, LitPass::DeferredAnalytic},
+            {&deferred_factorized, LitPass::DeferredFactorized}};
+        for (const auto& [pipeline, pass] : passes) *pipeline = gpu::GraphicsPipeline(*ctx, lit_desc(pass));
+        diffuse_set = gpu::DescriptorSet(*ctx, diffuse);
+        analytic_set = gpu::DescriptorSet(*ctx, specular_analytic);
+        factorized_set = gpu::DescriptorSet(*ctx, specular_factorized);
+        both_analytic_set = gpu::DescriptorSet(*ctx, both_analytic);
+        both_factorized_set = gpu::DescriptorSet(*ctx, both_factorized);
+        deferred_analytic_set = gpu::DescriptorSet(*ctx, deferred_analytic);
+        deferred_factorized_set = gpu::DescriptorSet(*ctx, deferred_factorized);
+        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
+                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set})
+            write_lit_bindings(*set);
+        if (!cubes_g.empty())
+            for (gpu::DescriptorSet* set : {&factorized_set, &both_factorized_set, &deferred_factorized_set}) write_cubes(*set);
+        gbuffer_bound = VK_NULL_HANDLE; // the deferred sets' G-buffer inputs are written when next drawn
     }
 
     gpu::GraphicsPipelineDesc shadow_pass_desc() const {
@@ -358,21 +485,25 @@ struct Renderer::Impl {
         return scene.mesh;
     }
 
-    /// The vertex and index buffers (index_vertices).
-    static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene) {
-        const IndexedVertices data = index_vertices(*scene.mesh, scene.corner_uv);
+    /// The vertex and index buffers (index_vertices), with the levels of detail when `lod`.
+    static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene, bool lod) {
+        IndexedVertices data = index_vertices(*scene.mesh, scene.corner_uv);
+        std::vector<LevelOfDetail> levels =
+            lod ? build_levels_of_detail(data)
+                : std::vector<LevelOfDetail>{{.index_count = static_cast<uint32_t>(data.indices.size())}};
         MeshBuffers b{gpu::Buffer::of<shared::RenderVertex>(c, data.vertices.size(), "render vertices"),
-                      gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices")};
+                      gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices"), std::move(levels)};
         b.vertices.upload(data.vertices);
         b.indices.upload(data.indices);
         return b;
     }
 
-    /// Binds the mesh and draws every triangle (the pipeline and its set bound).
+    /// Binds the mesh and draws the frame's level of detail (the pipeline and its set bound).
     void draw_mesh(VkCommandBuffer cmd) const {
+        const LevelOfDetail& lod = mesh_buffers.levels[drawn_level];
         gpu::bind_vertex_buffer(cmd, mesh_buffers.vertices);
         vkCmdBindIndexBuffer(cmd, mesh_buffers.indices.handle(), 0, VK_INDEX_TYPE_UINT32);
-        vkCmdDrawIndexed(cmd, index_count, 1, 0, 0, 0);
+        vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
     }
 
     static gpu::Image upload_albedo(gpu::Context& c, const Scene& scene) {
@@ -420,7 +551,11 @@ struct Renderer::Impl {
         if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
             throw Error("renderer: the camera needs a positive image size and focal lengths");
         FrameInfo info;
-        info.triangles = triangles;
+        drawn_level = forced_level.value_or(
+            choose_level_of_detail(std::span(mesh_buffers.levels).first(accepted_levels), camera, glm::dvec3(bounds.center()),
+                                   bounds.radius(), options.lod_max_error_px));
+        info.lod_level = drawn_level;
+        info.triangles = mesh_buffers.levels[drawn_level].index_count / 3;
         const bool want_diffuse = settings.mode != Mode::Specular;
         const bool want_specular = settings.mode != Mode::Diffuse;
         info.diffuse_pass = want_diffuse;
@@ -451,6 +586,11 @@ struct Renderer::Impl {
                                     info.shadow_note);
         info.shadow_pass = frustum.has_value();
 
+        use_constants({.factor_terms = static_cast<uint32_t>(std::max<std::size_t>(cubes_g.size(), 1)),
+                       .factor_param = static_cast<uint32_t>(factor_param),
+                       .family = material.family.x,
+                       .shadows = settings.shadows ? 1u : 0u,
+                       .shared_warp = factor_param == FactorParam::Warped && is_shared_warp(factor_warp) ? 1u : 0u});
         const double near = settings.near.value_or(near_plane_for(camera, bounds));
         shared::RenderParams p{};
         p.world_to_clip = glm::mat4(world_to_clip(camera, near));
@@ -458,8 +598,7 @@ struct Renderer::Impl {
         p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
         p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
         p.material = material;
-        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, static_cast<uint32_t>(cubes_g.size()), info.specular_pass ? 1u : 0u,
-                             static_cast<uint32_t>(factor_param));
+        p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, info.specular_pass ? 1u : 0u, 0u);
         p.factor_warp = factor_warp;
         if (frustum) {
             p.light_to_clip = glm::mat4(frustum->to_clip);
@@ -562,6 +701,53 @@ const std::optional<SpecularModel>& Renderer::specular() const noexcept { return
 bool Renderer::has_specular() const noexcept { return m_impl->draws_specular(); }
 shared::MaterialGpu Renderer::material() const noexcept { return m_impl->material; }
 std::size_t Renderer::triangle_count() const noexcept { return m_impl->triangles; }
+std::span<const LevelOfDetail> Renderer::levels_of_detail() const noexcept { return m_impl->mesh_buffers.levels; }
+std::size_t Renderer::accepted_levels_of_detail() const noexcept { return m_impl->accepted_levels; }
+
+namespace {
+/// Masked display PSNR of `b` against `a`: sRGB-encoded 8-bit codes over the pixels either covers.
+double display_psnr(const Frame& a, const Frame& b) {
+    const auto code = [](float v) { return std::round(255.0 * linear_to_srgb(std::clamp(v, 0.0f, 1.0f))); };
+    double sum = 0.0;
+    std::size_t n = 0;
+    const std::size_t pixels = a.mask.size();
+    for (std::size_t i = 0; i < pixels; ++i) {
+        if (a.mask[i] == 0 && b.mask[i] == 0) continue;
+        for (std::size_t c = 0; c < 3; ++c) {
+            const double d = (code(a.color.pixels[3 * i + c]) - code(b.color.pixels[3 * i + c])) / 255.0;
+            sum += d * d;
+        }
+        n += 3;
+    }
+    if (n == 0 || sum == 0.0) return std::numeric_limits<double>::infinity();
+    return 10.0 * std::log10(static_cast<double>(n) / sum);
+}
+} // namespace
+
+std::vector<double> Renderer::accept_levels_of_detail(std::span<const Camera> cameras, std::span<const PointLight> lights,
+                                                      const Settings& settings, double min_psnr_db) {
+    if (lights.size() != cameras.size())
+        throw Error("renderer: " + std::to_string(lights.size()) + " lights for " + std::to_string(cameras.size()) +
+                    " cameras (one each expected)");
+    Impl& m = *m_impl;
+    const std::size_t levels = m.mesh_buffers.levels.size();
+    std::vector<double> worst(levels, std::numeric_limits<double>::infinity());
+    struct Unforce {
+        Impl& m;
+        ~Unforce() { m.forced_level.reset(); }
+    } unforce{m};
+    for (std::size_t v = 0; v < cameras.size(); ++v) {
+        m.forced_level = 0;
+        const Frame full = render(cameras[v], lights[v], settings);
+        for (std::size_t k = 1; k < levels; ++k) {
+            m.forced_level = k;
+            worst[k] = std::min(worst[k], display_psnr(full, render(cameras[v], lights[v], settings)));
+        }
+    }
+    m.accepted_levels = 1;
+    while (m.accepted_levels < levels && worst[m.accepted_levels] >= min_psnr_db) ++m.accepted_levels;
+    return worst;
+}
 bool Renderer::culls_back_faces() const noexcept { return m_impl->cull; }
 VkFormat Renderer::albedo_format() const noexcept { return m_impl->albedo.format(); }
 bool Renderer::has_factorization() const noexcept { return !m_impl->cubes_g.empty(); }
@@ -586,17 +772,13 @@ void Renderer::set_factorization(const FactorizedSpecular& cubes) {
         g.push_back(upload_cube(*m.ctx, terms[k].g, ("G" + suffix).c_str()));
         h.push_back(upload_cube(*m.ctx, terms[k].h, ("H" + suffix).c_str()));
     }
-    // Nothing is in flight between frames (render() waits), so the sets can be rewritten.
+    // Nothing is in flight between frames (render() waits), so the sets can be rewritten. The
+    // pipelines follow the new term count and parametrization at the next frame (prepare).
     m.cubes_g = std::move(g);
     m.cubes_h = std::move(h);
     m.factor_param = param;
     m.factor_warp = param == FactorParam::Warped ? warp : glm::vec4(1.0f);
-    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set})
-        for (uint32_t k = 0; k < kMaxFactorTerms; ++k) {
-            const std::size_t t = k < m.cubes_g.size() ? k : 0;
-            set->write_image(kBindingCubeG + k, m.cubes_g[t], m.sampler.get());
-            set->write_image(kBindingCubeH + k, m.cubes_h[t], m.sampler.get());
-        }
+    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set}) m.write_cubes(*set);
 }
 
 FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,

@@ -120,6 +120,26 @@ struct Options {
     /// Side of the square shadow map in texels (2048: a texel is about 1/1000 of the
     /// bounding sphere's diameter, below a 256-1024 px capture's pixel on the object).
     uint32_t shadow_map_size = 2048;
+    /// Levels of detail (build_levels_of_detail): 0, the default, draws every triangle. A positive
+    /// value lets each frame draw the coarsest level whose geometric error, projected at the
+    /// nearest point of the mesh's bounding sphere, is at most this many pixels (choose_level_of_detail).
+    /// Every pass of the frame, the shadow map's included, draws that level. For a real-time view:
+    /// `specula render` and `evaluate` draw the mesh as it is.
+    double lod_max_error_px = 0.0;
+};
+
+/// The display PSNR under which specula-view and `specula evaluate --lod` leave a level of
+/// detail out (Renderer::accept_levels_of_detail): 42 dB, an RMS change of about 2 of 255 codes
+/// over the object. Such a change is not free against a capture: on knot_hd (test 34.3 dB, train
+/// 37.9 dB against its 256 px captures) the level kept at 46.8 dB costs 0.03 / 0.39 dB, and one
+/// at 40.0 dB would cost 0.22 / 1.0 dB (docs/pipeline.md section 7.4).
+inline constexpr double kDefaultLodMinPsnrDb = 42.0;
+
+/// One level of detail: a range of the index buffer over the same vertices.
+struct LevelOfDetail {
+    uint32_t first_index = 0;
+    uint32_t index_count = 0;
+    double error = 0.0; ///< geometric error, world units (meshoptimizer's estimate; 0 for level 0)
 };
 
 /// What a frame drew and what it cost.
@@ -137,7 +157,8 @@ struct FrameInfo {
     std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer
     double wall_ms = 0.0;             ///< render(): parameters, recording, submit, wait, readback, conversion
     std::size_t covered_pixels = 0;
-    std::size_t triangles = 0;
+    std::size_t triangles = 0;        ///< triangles drawn (the level of detail's)
+    std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
 };
 
 struct Frame {
@@ -204,6 +225,19 @@ public:
                      const Settings& settings = {}, gpu::PassClock* clock = nullptr);
 
     [[nodiscard]] std::size_t triangle_count() const noexcept;
+    /// The levels of detail built (one, the whole mesh, unless Options::lod_max_error_px > 0).
+    [[nodiscard]] std::span<const LevelOfDetail> levels_of_detail() const noexcept;
+    /// Keeps the levels of detail whose renders look like the whole mesh's: renders each view
+    /// (`cameras[i]` lit by `lights[i]`, `settings`) with every level, scores each level against level 0 by
+    /// masked display PSNR (sRGB, 8-bit codes, over the pixels either covers), and from then on
+    /// draws no level past the first whose worst view scores under `min_psnr_db`. The geometric
+    /// error alone does not bound what a coarser mesh changes: its triangles interpolate the
+    /// atlas coordinates and normals over larger spans, which moves texture edges and highlights
+    /// at any distance. Returns each level's worst PSNR (level 0: +infinity).
+    std::vector<double> accept_levels_of_detail(std::span<const Camera> cameras, std::span<const PointLight> lights,
+                                                const Settings& settings, double min_psnr_db);
+    /// The levels that frames may draw (accept_levels_of_detail; all that were built before it).
+    [[nodiscard]] std::size_t accepted_levels_of_detail() const noexcept;
     /// Whether back faces are culled (Options::culling, resolved for this mesh).
     [[nodiscard]] bool culls_back_faces() const noexcept;
     /// Format of the albedo texture on the GPU (RGBA32F where filterable, else RGBA16F).
@@ -230,5 +264,18 @@ struct IndexedVertices {
     std::vector<uint32_t> indices;
 };
 [[nodiscard]] IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv);
+
+/// Levels of detail of `mesh` (Options::lod_max_error_px): level 0 is the indices as they are;
+/// level k is meshoptimizer's simplification (meshopt_simplify, edge collapses under a quadric
+/// error, seams between atlas charts kept) of level 0 to about 1/2^k of its triangles, appended to
+/// `mesh.indices`. Stops after `max_levels` levels, below 1,000 triangles, or when a level keeps
+/// more than 3/4 of the one before (the simplifier stopped at the topology). The vertices are not
+/// changed, so every level reads the same vertex buffer and atlas coordinates.
+[[nodiscard]] std::vector<LevelOfDetail> build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels = 4);
+/// The coarsest of `levels` whose error, seen by `camera` at the nearest point of the sphere
+/// (`center`, `radius`) that bounds the mesh, is at most `max_error_px` pixels: error x focal /
+/// distance, the distance at least `radius` / 100. Level 0 when none is or max_error_px <= 0.
+[[nodiscard]] std::size_t choose_level_of_detail(std::span<const LevelOfDetail> levels, const Camera& camera,
+                                                 const glm::dvec3& center, double radius, double max_error_px);
 
 } // namespace specula::render

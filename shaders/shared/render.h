@@ -29,10 +29,9 @@ struct RenderParams {
     MaterialGpu material; // the specular model (shared/material.h; engine/material material_gpu): every
                           // family's f_s and k_d; the zero material without one
     uvec4 flags;          // x: 1 = pass 1 writes the diffuse term, 0 = depth and coverage only;
-                          // y: factorized terms K (1..4, render/terms.glsl);
-                          // z: 1 = the deferred shading pass adds the specular term;
-                          // w: the factorization's parametrization, kGshdPlain, kGshdMirrored or kGshdWarped
-                          // (shared/gshd.h)
+                          // y: unused (0); the factorized passes have the term count and the
+                          // parametrization as specialization constants (render/terms.glsl);
+                          // z: 1 = the deferred shading pass adds the specular term; w: unused (0)
     mat4 light_to_clip;   // the shadow map's projection * view (light at light_position)
     vec4 shadow;          // x: 1 = sample the shadow map, 0 = no shadows (V = 1);
                           // y: world size of one map texel per unit of distance from the light;

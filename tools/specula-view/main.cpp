@@ -59,6 +59,18 @@ int main(int argc, char** argv) {
                                          "them); the same image")
         ->check(CLI::IsMember({"deferred", "fused", "separate"}))
         ->capture_default_str();
+    app.add_option("--lod", c.lod_max_error_px,
+                   "Levels of detail: draw the coarsest simplified mesh (meshoptimizer, down to 1/8 of the triangles) whose "
+                   "geometric error is at most this many pixels on screen; 0 draws every triangle")
+        ->default_val(c.lod_max_error_px)
+        ->check(CLI::Range(0.0, 100.0));
+    app.add_option("--lod-psnr", c.lod_min_psnr_db,
+                   "Levels of detail are kept only where they look like the whole mesh: rendered at the start size on 4 poses,\n"
+                   "a level scoring under this display PSNR (dB) against the whole mesh's render is left out with every coarser one\n"
+                   "(coarser triangles interpolate the atlas coordinates and normals over larger spans: texture edges and\n"
+                   "highlights move at any distance)")
+        ->default_val(c.lod_min_psnr_db)
+        ->check(CLI::Range(0.0, 200.0));
     app.add_flag("--shadows,!--no-shadows", c.shadows,
                  "Start with cast shadows (a shadow map; off by default here: it costs a second pass over every triangle "
                  "whenever the light moves; key S toggles). --no-shadows: the thesis's unshadowed render (the default)");

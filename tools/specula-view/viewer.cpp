@@ -4,6 +4,7 @@
 
 #include "capture/capture.h"
 #include "core/error.h"
+#include "core/format.h"
 #include "core/log.h"
 #include "core/timer.h"
 #include "evaluate/bundle_render.h"
@@ -94,6 +95,8 @@ struct FrameStats {
     /// Per pass (gpu::PassClock labels, in first-seen order): its GPU milliseconds per frame.
     std::vector<std::pair<std::string, std::vector<double>>> passes;
 
+    std::vector<double> triangles; ///< per frame, the triangles drawn (its level of detail's)
+
     void add_passes(const std::vector<std::pair<std::string, double>>& marks) {
         for (const auto& [label, t] : marks) {
             auto it = std::find_if(passes.begin(), passes.end(), [&](const auto& p) { return p.first == label; });
@@ -112,6 +115,12 @@ struct FrameStats {
                       "bench: %s: %zu frames, median %.2f ms (%.1f fps), p95 %.2f ms, p99 %.2f ms, min %.2f ms, max %.2f ms",
                       what.c_str(), v.size(), median, 1e3 / median, quantile(v, 0.95), quantile(v, 0.99), v.front(), v.back());
         std::printf("%s\n", line);
+        if (!triangles.empty()) {
+            std::vector<double> t = triangles;
+            std::sort(t.begin(), t.end());
+            std::printf("bench: triangles drawn per frame: median %.0f, min %.0f, max %.0f\n", quantile(t, 0.5), t.front(),
+                        t.back());
+        }
         // Where a frame's time goes: each pass's median GPU time (timestamps), and the rest of the
         // median frame (blit and present, recording, submission, waiting).
         if (!passes.empty()) {
@@ -161,6 +170,39 @@ void require_no_validation_messages(gpu::Context& ctx) {
     if (n > 0) throw Error(std::to_string(n) + " validation message(s) (the first are printed above)");
 }
 
+/// The bundle's renderer with the viewer's levels of detail (--lod): built, then kept only where
+/// their renders of four poses of the bench's path look like the whole mesh's (--lod-psnr).
+evaluate::BundleRenderer view_renderer(gpu::Context& ctx, const Bundle& bundle, const ViewerConfig& c, const Start& start,
+                                       const render::Settings& settings) {
+    const Stopwatch sw;
+    evaluate::BundleRenderer renderer(ctx, bundle, c.bundle, {.lod_max_error_px = c.lod_max_error_px});
+    render::Renderer& r = renderer.renderer();
+    log::debug(std::string("back-face culling ") + (r.culls_back_faces() ? "on" : "off (open mesh)"));
+    if (r.levels_of_detail().size() < 2) return renderer;
+    OrbitView view(start.pose.camera, start.pose.light, mesh_bounds(bundle.mesh), start.pose.up);
+    std::vector<Camera> cameras;
+    std::vector<PointLight> lights;
+    constexpr int kPoses = 4;
+    for (int i = 0; i < kPoses; ++i) {
+        cameras.push_back(view.camera(start.pose.camera.intrinsics.w, start.pose.camera.intrinsics.h));
+        lights.push_back(view.light());
+        bench_step(view, kPoses);
+    }
+    const std::vector<double> psnr = r.accept_levels_of_detail(cameras, lights, settings, c.lod_min_psnr_db);
+    std::string text = "levels of detail (" + format_text("%.2f", sw.seconds()) + " s):";
+    for (std::size_t k = 0; k < psnr.size(); ++k) {
+        const render::LevelOfDetail& l = r.levels_of_detail()[k];
+        text += format_text(" %.0f triangles", double(l.index_count / 3));
+        if (k > 0)
+            text += format_text(" (%.1f dB", psnr[k]) + (k < r.accepted_levels_of_detail() ? ")" : ", left out)");
+        text += k + 1 < psnr.size() ? "," : "";
+    }
+    log::info(text + format_text("; the levels kept are drawn where their error is under %g px, those under %g dB display PSNR "
+                                 "against the whole mesh on 4 poses are left out",
+                                 c.lod_max_error_px, c.lod_min_psnr_db));
+    return renderer;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Offscreen: the same passes into an offscreen target; no window.
 
@@ -174,8 +216,7 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
         throw Error("neither a window (" + why + ") nor offscreen rendering works: " + e.what());
     }
     watch_validation(*ctx);
-    evaluate::BundleRenderer renderer(*ctx, bundle, c.bundle);
-    log::debug(std::string("back-face culling ") + (renderer.renderer().culls_back_faces() ? "on" : "off (open mesh)"));
+    evaluate::BundleRenderer renderer = view_renderer(*ctx, bundle, c, start, settings);
     OrbitView view(start.pose.camera, start.pose.light, mesh_bounds(bundle.mesh), start.pose.up);
     const Camera camera = view.camera(start.pose.camera.intrinsics.w, start.pose.camera.intrinsics.h);
     const int w = camera.intrinsics.w, h = camera.intrinsics.h;
@@ -188,13 +229,15 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
             const Stopwatch sw;
             const Camera cam = view.camera(w, h);
             seq.reset();
+            render::FrameInfo info;
             seq.record([&](VkCommandBuffer cmd) {
                 clock.start(cmd);
-                (void)renderer.renderer().record(cmd, target, cam, view.light(), settings, &clock);
+                info = renderer.renderer().record(cmd, target, cam, view.light(), settings, &clock);
             });
             seq.submit_and_wait();
             if (i >= kBenchWarmup) {
                 stats.ms.push_back(sw.seconds() * 1e3);
+                stats.triangles.push_back(static_cast<double>(info.triangles));
                 stats.add_passes(clock.read());
             }
             bench_step(view, c.bench_frames);
@@ -434,8 +477,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
                      "creating the window's Vulkan surface");
     gpu::Surface surface(ctx.instance(), raw_surface);
     {
-        evaluate::BundleRenderer renderer(ctx, bundle, c.bundle);
-        log::debug(std::string("back-face culling ") + (renderer.renderer().culls_back_faces() ? "on" : "off (open mesh)"));
+        evaluate::BundleRenderer renderer = view_renderer(ctx, bundle, c, start, settings);
         std::optional<gpu::Image> photo;
         if (start.photo) {
             const VkFormat f = gpu::choose_float_texture_format(ctx);
@@ -507,12 +549,13 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
             const gpu::Readback readback = !shot                           ? gpu::Readback::None
                                            : linear_shot && !show_photo ? gpu::Readback::Target
                                                                         : gpu::Readback::Shown;
+            render::FrameInfo info;
             const bool ok = show_photo ? presenter.present_image(*photo, pixel_rect(view.image_rect(fb_w, fb_h)), readback)
                                        : presenter.present_target(
                                              [&](VkCommandBuffer cmd, const gpu::RenderTarget& target) {
                                                  if (c.bench) clock.start(cmd);
-                                                 (void)renderer.renderer().record(cmd, target, camera, view.light(), settings,
-                                                                                  c.bench ? &clock : nullptr);
+                                                 info = renderer.renderer().record(cmd, target, camera, view.light(), settings,
+                                                                                   c.bench ? &clock : nullptr);
                                              },
                                              readback);
             if (!ok) {
@@ -544,6 +587,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
             if (c.bench) {
                 if (drawn > kBenchWarmup) {
                     stats.ms.push_back(ms);
+                    if (!show_photo) stats.triangles.push_back(static_cast<double>(info.triangles));
                     stats.add_passes(clock.read()); // present_target waited for the frame
                 }
                 bench_step(view, c.bench_frames);

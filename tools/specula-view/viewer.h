@@ -3,6 +3,7 @@
 // (Renderer::record into the window-sized target of a gpu::Presenter, which blits it to
 // the swapchain), or renders it offscreen when there is no display.
 #include "evaluate/pose.h"
+#include "render/renderer.h"
 
 #include <optional>
 #include <string>
@@ -21,6 +22,12 @@ struct ViewerConfig {
     /// redraws every triangle once more whenever the light moves, which halves the frame rate
     /// of large meshes on lavapipe; `specula render` and `evaluate` draw shadows by default.
     bool shadows = false;
+    /// Levels of detail (render::Options::lod_max_error_px): the coarsest simplified mesh whose
+    /// geometric error is at most this many pixels on screen; 0 draws every triangle.
+    double lod_max_error_px = 0.5;
+    /// Levels of detail whose renders score under this display PSNR against the whole mesh's
+    /// (render::Renderer::accept_levels_of_detail, 4 poses) are left out.
+    double lod_min_psnr_db = render::kDefaultLodMinPsnrDb;
     std::string device;                 ///< Vulkan device selector
     std::optional<int> frames;          ///< headless: render this many frames, then exit
     std::string screenshot;             ///< save the last frame (.png sRGB 8-bit, .exr linear)

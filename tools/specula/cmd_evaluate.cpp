@@ -38,6 +38,8 @@ struct EvaluateArgs {
     std::string mode = "both";
     std::string specular = "analytic";
     bool no_shadows = false;
+    double lod = 0.0;
+    double lod_psnr = render::kDefaultLodMinPsnrDb;
     unsigned factor_terms = 0;
     std::string metrics = "vulkan";
     bool no_hausdorff = false;
@@ -62,6 +64,8 @@ void run_evaluate(const EvaluateArgs& a) {
     o.render.mode = a.mode == "diffuse" ? render::Mode::Diffuse : a.mode == "specular" ? render::Mode::Specular : render::Mode::Both;
     o.render.specular = a.specular == "factorized" ? render::SpecularPath::Factorized : render::SpecularPath::Analytic;
     o.render.shadows = !a.no_shadows;
+    o.renderer.lod_max_error_px = a.lod;
+    o.lod_min_psnr_db = a.lod_psnr;
     o.metrics_backend = a.metrics == "cpu" ? Backend::Cpu : Backend::Vulkan;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
@@ -195,6 +199,14 @@ void add_evaluate_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--no-shadows", a->no_shadows,
                   "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped, like the captures)");
+    cmd->add_option("--lod", a->lod,
+                    "Draw levels of detail as specula-view does (its --lod): the coarsest simplified mesh whose geometric\n"
+                    "error is at most this many pixels, among the levels that score at least --lod-psnr against the whole\n"
+                    "mesh on 4 of the evaluated frames; 0, the default, draws every triangle")
+        ->check(CLI::Range(0.0, 100.0));
+    cmd->add_option("--lod-psnr", a->lod_psnr, "With --lod: the display PSNR (dB) under which a level is left out")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 200.0));
     cmd->add_option("--factor-terms", a->factor_terms,
                     "With --specular factorized: render the first K terms of the bundle's factorization (default: all)")
         ->check(CLI::Range(1, 4));
