@@ -8,6 +8,13 @@
 //   node tools/threejs-render.mjs --bundle R/object.glb --capture CAP --out DIR
 //        [--frames 0,5,9 | --max-per-split N] [--no-shadows] [--screenshot FILE.png]
 //        [--chromium PATH]
+//   node tools/threejs-render.mjs --report R --capture CAP
+//
+// With --report (a `specula reconstruct` output folder): renders the frame of the report's test
+// sheet (else its first sheet) from R/object.glb, writes the picture as three.js shows it to
+// R/viewer/threejs_<image stem>.png (sRGB 8-bit, the canvas), and puts it into R/report.html's
+// "What ordinary viewers show" beside that sheet's photograph and Specula's render (each file
+// written whole, then renamed into place).
 //
 // The light: three.js's PointLight (and a SpotLight inside its cone, used here for its shadow
 // map) with decay 2 gives L = BRDF * intensity * cos / d^2 and BRDF_Lambert = color / pi, the
@@ -24,16 +31,19 @@ import path from 'node:path';
 import { createRequire } from 'node:module';
 
 const kPinnedThree = '0.187.0';
+// report.html's placeholder for three.js's picture (engine/report/report_html.cpp viewer_section).
+const kPlaceholder = '<div id="threejs-picture">';
 
 function usage(message) {
     if (message) console.error(`threejs-render: ${message}`);
     console.error('usage: node tools/threejs-render.mjs --bundle FILE.glb --capture DIR --out DIR ' +
-                  '[--frames i,j,... | --max-per-split N] [--no-shadows] [--screenshot FILE.png] [--chromium PATH]');
+                  '[--frames i,j,... | --max-per-split N] [--no-shadows] [--screenshot FILE.png] [--chromium PATH]\n' +
+                  '       node tools/threejs-render.mjs --report RECONSTRUCT_OUT --capture DIR [--chromium PATH]');
     process.exit(2);
 }
 
 function parseArgs(argv) {
-    const a = { frames: null, maxPerSplit: 4, shadows: true, screenshot: null, chromium: null };
+    const a = { frames: null, maxPerSplit: 4, shadows: true, screenshot: null, chromium: null, report: null };
     for (let i = 0; i < argv.length; ++i) {
         const k = argv[i];
         const next = () => { if (i + 1 >= argv.length) usage(`${k} needs a value`); return argv[++i]; };
@@ -52,8 +62,16 @@ function parseArgs(argv) {
         else if (k === '--no-shadows') a.shadows = false;
         else if (k === '--screenshot') a.screenshot = next();
         else if (k === '--chromium') a.chromium = next();
+        else if (k === '--report') a.report = next();
         else if (k === '-h' || k === '--help') usage();
         else usage(`unknown argument '${k}'`);
+    }
+    if (a.report) {
+        if (a.bundle || a.out || a.frames || a.screenshot) usage('--report takes the bundle, the frame and the outputs from the report folder');
+        if (!a.capture) usage('--report needs --capture');
+        a.bundle = path.join(a.report, 'object.glb');
+        a.out = path.join(a.report, 'viewer');
+        return a;
     }
     if (!a.bundle || !a.capture || !a.out) usage('--bundle, --capture and --out are required');
     return a;
@@ -104,6 +122,23 @@ const capturePath = path.join(args.capture, 'capture.json');
 let capture;
 try { capture = JSON.parse(fs.readFileSync(capturePath, 'utf8')); } catch (e) { usage(`${capturePath}: ${e.message}`); }
 if (!Array.isArray(capture.frames) || capture.frames.length === 0) usage(`${capturePath}: frames: no frame`);
+// --report: the frame of the report's test sheet (else its first), from the sheet's file name
+// (evaluate's sheet_<frame>_<split>_view<v>.png).
+let reportSheet = null;
+if (args.report) {
+    const reportJson = path.join(args.report, 'report.json');
+    let report;
+    try { report = JSON.parse(fs.readFileSync(reportJson, 'utf8')); } catch (e) { usage(`${reportJson}: ${e.message}`); }
+    const sheets = (report.evaluation?.sheets ?? []).map(s => ({ file: s, m: /sheet_(\d+)_(train|test)_/.exec(path.basename(s)) }))
+        .filter(s => s.m);
+    if (sheets.length === 0) usage(`${reportJson}: evaluation.sheets: no sheet to put three.js's picture beside`);
+    reportSheet = sheets.find(s => s.m[2] === 'test') ?? sheets[0];
+    args.frames = [Number(reportSheet.m[1])];
+    const htmlPath = path.join(args.report, 'report.html');
+    if (!fs.existsSync(htmlPath)) usage(`${args.report}: no report.html (reconstruct without --no-html)`);
+    if (!fs.readFileSync(htmlPath, 'utf8').includes(kPlaceholder))
+        usage(`${htmlPath}: no ${kPlaceholder} placeholder (a report from an older Specula, or one that has the picture already)`);
+}
 const frames = args.frames ?? chooseFrames(capture.frames, args.maxPerSplit);
 for (const i of frames) if (i >= capture.frames.length) usage(`--frames: ${i} is past the last frame (${capture.frames.length - 1})`);
 if (!fs.existsSync(args.bundle)) usage(`${args.bundle}: no such file`);
@@ -197,6 +232,31 @@ window.renderFrame = (f) => {
 window.ready = true;
 </script></body></html>`;
 
+// Replaces report.html's placeholder (<div id="threejs-picture">...</div>, written by
+// `specula reconstruct`) with the sheet of `frame` (photograph | Specula's render | difference)
+// and three.js's picture of it, side by side; the page is written whole, then renamed into place.
+function putIntoReport(dir, sheet, picture, frame, split, revision) {
+    const htmlPath = path.join(dir, 'report.html');
+    const html = fs.readFileSync(htmlPath, 'utf8');
+    const start = html.indexOf(kPlaceholder);
+    const end = start < 0 ? -1 : html.indexOf('</div>', start);
+    if (end < 0) throw new Error(`${htmlPath}: no ${kPlaceholder} placeholder`);
+    const esc = s => s.replace(/&/g, '&amp;').replace(/</g, '&lt;').replace(/"/g, '&quot;');
+    const figure = `<div id="threejs-picture-shown"><p>Frame ${frame} (${split}) as three.js r${revision} shows the bundle (GLTFLoader, the material ` +
+        `it makes, the frame's camera and point light, shadows), beside the photograph and Specula's own render of that ` +
+        `frame (<code>node tools/threejs-render.mjs --report</code>):</p>` +
+        // One row, the images at one height: the sheet is three frames wide.
+        `<div style="display:flex;gap:4px;align-items:flex-start">` +
+        `<figure style="flex:3 1 0;margin:0"><img alt="sheet" style="width:100%" src="${esc(sheet.file)}">` +
+        `<figcaption>photograph | Specula | difference</figcaption></figure>` +
+        `<figure style="flex:1 1 0;margin:0"><img alt="three.js" style="width:100%" ` +
+        `src="${esc(picture.split(path.sep).join('/'))}"><figcaption>three.js</figcaption></figure>` +
+        `</div></div>`;
+    const out = html.slice(0, start) + figure + html.slice(end + '</div>'.length);
+    fs.writeFileSync(`${htmlPath}.partial`, out);
+    fs.renameSync(`${htmlPath}.partial`, htmlPath);
+}
+
 const files = { '/bundle.glb': path.resolve(args.bundle) };
 const types = { '.js': 'text/javascript', '.glb': 'model/gltf-binary' };
 const server = http.createServer((req, res) => {
@@ -261,6 +321,14 @@ try {
         fs.writeFileSync(`${file}.partial`, Buffer.concat([header, data]));
         fs.renameSync(`${file}.partial`, file);
         console.log(`threejs-render: frame ${i} (${f.split ?? 'train'}) -> ${file}`);
+        if (reportSheet) {
+            const picture = path.join(args.out, `threejs_${stem}.png`);
+            await page.screenshot({ path: `${picture}.partial.png`, clip: { x: 0, y: 0, width: capture.w, height: capture.h } });
+            fs.renameSync(`${picture}.partial.png`, picture);
+            fs.rmSync(file); // the float image is for `specula evaluate --renders`; the report needs the picture
+            putIntoReport(args.report, reportSheet, path.relative(args.report, picture), i, f.split ?? 'train', info.three);
+            console.log(`threejs-render: frame ${i} as three.js shows it -> ${picture}, in ${path.join(args.report, 'report.html')}`);
+        }
         if (args.screenshot && i === frames[frames.length - 1]) {
             await page.screenshot({ path: args.screenshot, clip: { x: 0, y: 0, width: capture.w, height: capture.h } });
             console.log(`threejs-render: screenshot of frame ${i} -> ${args.screenshot}`);

@@ -63,9 +63,13 @@ namespace {
 
 // An integer with thousands separators: 1,145,730 (counts printed with %g came out as 1.14573e+06).
 std::string grouped(std::int64_t v) {
-    std::string digits = std::to_string(v < 0 ? -static_cast<std::uint64_t>(v) : static_cast<std::uint64_t>(v));
-    for (int i = static_cast<int>(digits.size()) - 3; i > 0; i -= 3) digits.insert(static_cast<std::size_t>(i), ",");
-    return (v < 0 ? "-" : "") + digits;
+    const std::string digits = std::to_string(v < 0 ? -static_cast<std::uint64_t>(v) : static_cast<std::uint64_t>(v));
+    std::string out = v < 0 ? "-" : "";
+    for (std::size_t i = 0; i < digits.size(); ++i) { // a comma before each group of three from the right
+        if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+        out += digits[i];
+    }
+    return out;
 }
 
 // A JSON number (or null / missing) as text; JSON integers (counts) whole, grouped by thousands.
@@ -161,7 +165,12 @@ std::string viewer_section(const json& report) {
         out += row({split, num(s.value("frames", json())), num(s.value("psnr_display", json()), "%.2f"),
                     num(s.value("specula_psnr_display", json()), "%.2f")});
     }
-    return out + "</table>\n";
+    // tools/threejs-render.mjs --report replaces this placeholder with three.js's picture of the
+    // test sheet's frame (it needs Node.js, three and Chromium, which reconstruct does not).
+    out += "</table>\n<div id=\"threejs-picture\"><p>To see a frame as three.js draws this bundle, beside the photograph "
+           "and Specula's render: <code>node tools/threejs-render.mjs --report OUT --capture CAPTURE</code> (Node.js, three, "
+           "puppeteer-core and Chromium: <code>tools/install-deps.sh</code>).</p></div>\n";
+    return out;
 }
 
 std::string planner_section(const json& report) {
