@@ -21,6 +21,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -352,11 +353,16 @@ struct Renderer::Impl {
           deferred_analytic_set(c, deferred_analytic), deferred_factorized_set(c, deferred_factorized),
           sequence(c, 8) {
         gbuffer_set.write_buffer(kBindingParams, params);
-        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
-                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set})
-            write_lit_bindings(*set);
+        for (gpu::DescriptorSet* set : lit_sets()) write_lit_bindings(*set);
         shadow_set.write_buffer(kBindingParams, params);
     }
+
+    // Every lit pass's set, and the factorized passes' ones.
+    std::array<gpu::DescriptorSet*, 7> lit_sets() {
+        return {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set, &both_factorized_set, &deferred_analytic_set,
+                &deferred_factorized_set};
+    }
+    std::array<gpu::DescriptorSet*, 3> factorized_sets() { return {&factorized_set, &both_factorized_set, &deferred_factorized_set}; }
 
     // What every lit pass's set holds: the frame's parameters, the albedo atlas, the shadow map.
     void write_lit_bindings(gpu::DescriptorSet& set) const {
@@ -424,11 +430,9 @@ struct Renderer::Impl {
         both_factorized_set = gpu::DescriptorSet(*ctx, both_factorized);
         deferred_analytic_set = gpu::DescriptorSet(*ctx, deferred_analytic);
         deferred_factorized_set = gpu::DescriptorSet(*ctx, deferred_factorized);
-        for (gpu::DescriptorSet* set : {&diffuse_set, &analytic_set, &factorized_set, &both_analytic_set,
-                                        &both_factorized_set, &deferred_analytic_set, &deferred_factorized_set})
-            write_lit_bindings(*set);
+        for (gpu::DescriptorSet* set : lit_sets()) write_lit_bindings(*set);
         if (!cubes_g.empty())
-            for (gpu::DescriptorSet* set : {&factorized_set, &both_factorized_set, &deferred_factorized_set}) write_cubes(*set);
+            for (gpu::DescriptorSet* set : factorized_sets()) write_cubes(*set);
         gbuffer_bound = VK_NULL_HANDLE; // the deferred sets' G-buffer inputs are written when next drawn
     }
 
@@ -778,7 +782,7 @@ void Renderer::set_factorization(const FactorizedSpecular& cubes) {
     m.cubes_h = std::move(h);
     m.factor_param = param;
     m.factor_warp = param == FactorParam::Warped ? warp : glm::vec4(1.0f);
-    for (gpu::DescriptorSet* set : {&m.factorized_set, &m.both_factorized_set, &m.deferred_factorized_set}) m.write_cubes(*set);
+    for (gpu::DescriptorSet* set : m.factorized_sets()) m.write_cubes(*set);
 }
 
 FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target, const Camera& camera,

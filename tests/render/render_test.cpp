@@ -604,6 +604,15 @@ double masked_psnr(const Frame& a, const Frame& ref) {
     return n == 0 || se == 0.0 ? 999.0 : 10.0 * std::log10(peak * peak / (se / static_cast<double>(n)));
 }
 
+/// View `view` (0..4) of the factorized-against-analytic tests on the can: the camera turning
+/// around it at 128 px, the light beside the camera.
+std::pair<Camera, PointLight> can_view(int view) {
+    const double a = 0.4 + 1.2 * view;
+    const glm::dvec3 eye(2.4 * std::cos(a), 0.9 + 0.2 * view, 2.4 * std::sin(a));
+    const glm::dvec3 light_pos(2.0 * std::cos(a + 0.5 + 0.3 * view), 1.6, 2.0 * std::sin(a + 0.5 + 0.3 * view));
+    return {make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, eye, {0.0, 0.55, 0.0}), PointLight{light_pos, {6.0, 6.0, 6.0}}};
+}
+
 // Issue 5's criterion, "factorized within 1 dB of analytic" (masked PSNR against a captured
 // image), checked here directly on the factorized-vs-analytic PSNR of the same Renderer on
 // the can (its lobe, albedo and mesh), five views and lights. If the analytic render's error
@@ -642,11 +651,7 @@ TEST_F(RenderTest, FactorizedTracksAnalyticOnTheCanWithSeveralTerms) {
     double worst_one = 999.0, worst_all = 999.0, worst_mirrored = 999.0, worst_wrong = 999.0;
     double worst_warped = 999.0, worst_warped_wrong = 999.0;
     for (int view = 0; view < 5; ++view) {
-        const double a = 0.4 + 1.2 * view;
-        const glm::dvec3 eye(2.4 * std::cos(a), 0.9 + 0.2 * view, 2.4 * std::sin(a));
-        const glm::dvec3 light_pos(2.0 * std::cos(a + 0.5 + 0.3 * view), 1.6, 2.0 * std::sin(a + 0.5 + 0.3 * view));
-        const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, eye, {0.0, 0.55, 0.0});
-        const PointLight light{light_pos, {6.0, 6.0, 6.0}};
+        const auto [cam, light] = can_view(view);
         const Settings factorized{.mode = Mode::Both, .specular = SpecularPath::Factorized};
         const Frame analytic = r.render(cam, light, {.mode = Mode::Both, .specular = SpecularPath::Analytic});
         r.set_factorization(one);
@@ -701,11 +706,7 @@ TEST_F(RenderTest, SharedWarpTracksAnalytic) {
     Renderer r(ctx(), data.scene(lobe));
     double worst_shared = 999.0, worst_per = 999.0;
     for (int view = 0; view < 5; ++view) {
-        const double a = 0.4 + 1.2 * view;
-        const glm::dvec3 eye(2.4 * std::cos(a), 0.9 + 0.2 * view, 2.4 * std::sin(a));
-        const glm::dvec3 light_pos(2.0 * std::cos(a + 0.5 + 0.3 * view), 1.6, 2.0 * std::sin(a + 0.5 + 0.3 * view));
-        const Camera cam = make_camera(128, 128, 150.0, 150.0, 64.0, 64.0, eye, {0.0, 0.55, 0.0});
-        const PointLight light{light_pos, {6.0, 6.0, 6.0}};
+        const auto [cam, light] = can_view(view);
         const Settings factorized{.specular = SpecularPath::Factorized, .passes = Passes::Deferred};
         const Frame analytic = r.render(cam, light, {.passes = Passes::Deferred});
         r.set_factorization(shared.cubes);
