@@ -409,31 +409,55 @@ struct Renderer::Impl {
         return d;
     }
 
-    // Rebuilds every lit pass's pipeline and set for `wanted`, unless they are built for it already
-    // (nothing is in flight: render() waits, record()'s caller waits for the previous frame).
+    // Every lit pass's pipeline, in the order of lit_sets().
+    std::array<gpu::GraphicsPipeline*, 7> lit_pipelines() {
+        return {&diffuse, &specular_analytic, &specular_factorized, &both_analytic, &both_factorized, &deferred_analytic,
+                &deferred_factorized};
+    }
+    static constexpr std::array<LitPass, 7> kLitPasses{LitPass::Diffuse,         LitPass::SpecularAnalytic,
+                                                      LitPass::SpecularFactorized, LitPass::FusedAnalytic,
+                                                      LitPass::FusedFactorized,  LitPass::DeferredAnalytic,
+                                                      LitPass::DeferredFactorized};
+    // Lit pipelines and sets built for other constants, kept for when a frame needs them again
+    // (a viewer toggling shadows, an evaluation between the bundle's material and the core one).
+    struct Parked {
+        ShaderConstants constants;
+        std::vector<gpu::GraphicsPipeline> pipelines; // lit_pipelines() order
+        std::vector<gpu::DescriptorSet> sets;         // lit_sets() order
+    };
+    static constexpr std::size_t kMaxParked = 8;
+    std::vector<Parked> parked; // oldest first
+
+    // Makes the lit pipelines and sets those built for `wanted`: a parked variant, else built now
+    // (nothing is in flight: render() waits, record()'s caller waits for the previous frame). The
+    // variant in use is parked.
     void use_constants(const ShaderConstants& wanted) {
         if (wanted == built) return;
-        built = wanted;
-        const std::pair<gpu::GraphicsPipeline*, LitPass> passes[] = {
-            {&diffuse, LitPass::Diffuse},
-            {&specular_analytic, LitPass::SpecularAnalytic},
-            {&specular_factorized, LitPass::SpecularFactorized},
-            {&both_analytic, LitPass::FusedAnalytic},
-            {&both_factorized, LitPass::FusedFactorized},
-            {&deferred_analytic, LitPass::DeferredAnalytic},
-            {&deferred_factorized, LitPass::DeferredFactorized}};
-        for (const auto& [pipeline, pass] : passes) *pipeline = gpu::GraphicsPipeline(*ctx, lit_desc(pass));
-        diffuse_set = gpu::DescriptorSet(*ctx, diffuse);
-        analytic_set = gpu::DescriptorSet(*ctx, specular_analytic);
-        factorized_set = gpu::DescriptorSet(*ctx, specular_factorized);
-        both_analytic_set = gpu::DescriptorSet(*ctx, both_analytic);
-        both_factorized_set = gpu::DescriptorSet(*ctx, both_factorized);
-        deferred_analytic_set = gpu::DescriptorSet(*ctx, deferred_analytic);
-        deferred_factorized_set = gpu::DescriptorSet(*ctx, deferred_factorized);
-        for (gpu::DescriptorSet* set : lit_sets()) write_lit_bindings(*set);
+        Parked out{built, {}, {}};
+        for (gpu::GraphicsPipeline* p : lit_pipelines()) out.pipelines.push_back(std::move(*p));
+        for (gpu::DescriptorSet* set : lit_sets()) out.sets.push_back(std::move(*set));
+        built = wanted; // what lit_desc builds for
+        const auto it = std::find_if(parked.begin(), parked.end(), [&](const Parked& v) { return v.constants == wanted; });
+        if (it != parked.end()) {
+            for (std::size_t i = 0; i < kLitPasses.size(); ++i) {
+                *lit_pipelines()[i] = std::move(it->pipelines[i]);
+                *lit_sets()[i] = std::move(it->sets[i]);
+            }
+            parked.erase(it);
+        } else {
+            for (std::size_t i = 0; i < kLitPasses.size(); ++i) {
+                *lit_pipelines()[i] = gpu::GraphicsPipeline(*ctx, lit_desc(kLitPasses[i]));
+                *lit_sets()[i] = gpu::DescriptorSet(*ctx, *lit_pipelines()[i]);
+                write_lit_bindings(*lit_sets()[i]);
+            }
+        }
+        parked.push_back(std::move(out));
+        if (parked.size() > kMaxParked) parked.erase(parked.begin());
+        // The cube-maps may have changed since the sets were parked; the G-buffer inputs are
+        // written when the deferred pass next draws.
         if (!cubes_g.empty())
             for (gpu::DescriptorSet* set : factorized_sets()) write_cubes(*set);
-        gbuffer_bound = VK_NULL_HANDLE; // the deferred sets' G-buffer inputs are written when next drawn
+        gbuffer_bound = VK_NULL_HANDLE;
     }
 
     gpu::GraphicsPipelineDesc shadow_pass_desc() const {
