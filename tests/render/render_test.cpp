@@ -1163,8 +1163,9 @@ void expect_same_frame(const Frame& a, const Frame& b, const std::string& what) 
 }
 
 // A renderer whose frames change the constants (shadows off and on, another material family,
-// another term count) rebuilds its pipelines and draws exactly what a renderer made for that
-// state draws, in every pass arrangement.
+// another term count) builds its pipelines for them, or takes back the ones it parked (shadows
+// off again, the lobe again, one term again: their sets then get the current cube-maps), and draws
+// exactly what a renderer made for that state draws, in every pass arrangement.
 TEST_F(RenderTest, PipelinesFollowEachFramesConstants) {
     const synth::Preset preset = synth::make_preset("knot");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f, 0.4f, 0.3f));
