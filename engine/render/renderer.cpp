@@ -221,6 +221,48 @@ std::vector<LevelOfDetail> build_levels_of_detail(IndexedVertices& mesh, std::si
     return levels;
 }
 
+std::vector<std::vector<TriangleCluster>> cluster_levels(IndexedVertices& mesh, std::span<const LevelOfDetail> levels) {
+    constexpr std::size_t kMaxVertices = 64, kMaxTriangles = 124;
+    const auto* positions = reinterpret_cast<const float*>(mesh.vertices.data()); // position_u: xyz first
+    std::vector<std::vector<TriangleCluster>> out;
+    for (const LevelOfDetail& level : levels) {
+        const uint32_t* indices = mesh.indices.data() + level.first_index;
+        const std::size_t bound = meshopt_buildMeshletsBound(level.index_count, kMaxVertices, kMaxTriangles);
+        std::vector<meshopt_Meshlet> meshlets(bound);
+        std::vector<uint32_t> meshlet_vertices(bound * kMaxVertices);
+        std::vector<unsigned char> meshlet_triangles(bound * kMaxTriangles * 3);
+        meshlets.resize(meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(), meshlet_triangles.data(), indices,
+                                              level.index_count, positions, mesh.vertices.size(), sizeof(shared::RenderVertex),
+                                              kMaxVertices, kMaxTriangles, 0.5f));
+        std::vector<uint32_t> ordered;
+        ordered.reserve(level.index_count);
+        std::vector<TriangleCluster>& clusters = out.emplace_back();
+        for (const meshopt_Meshlet& m : meshlets) {
+            const meshopt_Bounds b =
+                meshopt_computeMeshletBounds(&meshlet_vertices[m.vertex_offset], &meshlet_triangles[m.triangle_offset],
+                                             m.triangle_count, positions, mesh.vertices.size(), sizeof(shared::RenderVertex));
+            clusters.push_back({.first_index = static_cast<uint32_t>(level.first_index + ordered.size()),
+                                .index_count = 3 * m.triangle_count,
+                                .apex = {b.cone_apex[0], b.cone_apex[1], b.cone_apex[2]},
+                                .axis = {b.cone_axis[0], b.cone_axis[1], b.cone_axis[2]},
+                                .cutoff = b.cone_cutoff});
+            for (std::size_t k = 0; k < 3 * std::size_t{m.triangle_count}; ++k)
+                ordered.push_back(meshlet_vertices[m.vertex_offset + meshlet_triangles[m.triangle_offset + k]]);
+        }
+        if (ordered.size() != level.index_count)
+            throw Error("renderer: the clusters hold " + std::to_string(ordered.size()) + " indices of a level's " +
+                        std::to_string(level.index_count));
+        std::copy(ordered.begin(), ordered.end(), mesh.indices.begin() + level.first_index);
+    }
+    return out;
+}
+
+bool faces_away(const TriangleCluster& c, const glm::vec3& eye) noexcept {
+    const glm::vec3 d = c.apex - eye;
+    const float len = glm::length(d);
+    return len > 0.0f && glm::dot(d / len, c.axis) >= c.cutoff;
+}
+
 std::size_t choose_level_of_detail(std::span<const LevelOfDetail> levels, const Camera& camera, const glm::dvec3& center,
                                    double radius, double max_error_px) {
     if (!(max_error_px > 0.0) || levels.empty()) return 0;
@@ -274,7 +316,11 @@ struct Renderer::Impl {
         gpu::Buffer vertices;
         gpu::Buffer indices;
         std::vector<LevelOfDetail> levels; // [0]: every triangle; more with Options::lod_max_error_px
+        std::vector<std::vector<TriangleCluster>> clusters; // per level, with Options::cluster_culling and culling
+        std::vector<uint32_t> cpu_indices;                  // with clusters: what `indices` holds
+        std::optional<gpu::Buffer> visible;                 // with clusters: the frame's clusters facing the camera
     } mesh_buffers;
+    uint32_t visible_count = 0; // indices in mesh_buffers.visible this frame (prepare)
     std::size_t drawn_level = 0; // the frame's level of detail (prepare), drawn by every pass
     std::optional<std::size_t> forced_level; // accept_levels_of_detail's renders: this level
     std::size_t accepted_levels = 1;         // levels a frame may draw (accept_levels_of_detail)
@@ -325,7 +371,8 @@ struct Renderer::Impl {
           specular(scene.material.specular), material(material_gpu(scene.material.specular)), bounds(mesh_bounds(*checked_mesh(scene))),
           triangles(scene.mesh->triangles.size()),
           params(gpu::Buffer::of<shared::RenderParams>(c, 1, "render parameters")),
-          mesh_buffers(upload_mesh(c, scene, opts.lod_max_error_px > 0.0)), accepted_levels(mesh_buffers.levels.size()),
+          mesh_buffers(upload_mesh(c, scene, opts.lod_max_error_px > 0.0, opts.cluster_culling && cull)),
+          accepted_levels(mesh_buffers.levels.size()),
           albedo(upload_albedo(c, scene)),
           factor_param(scene.material.factorized ? scene.material.factorized->param : FactorParam::Gshd),
           built{.factor_terms = scene.material.factorized ? static_cast<uint32_t>(std::max<std::size_t>(scene.material.factorized->terms.size(), 1)) : 1u,
@@ -514,22 +561,47 @@ struct Renderer::Impl {
     }
 
     /// The vertex and index buffers (index_vertices), with the levels of detail when `lod`.
-    static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene, bool lod) {
+    static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene, bool lod, bool clusters) {
         IndexedVertices data = index_vertices(*scene.mesh, scene.corner_uv);
         std::vector<LevelOfDetail> levels =
             lod ? build_levels_of_detail(data)
                 : std::vector<LevelOfDetail>{{.index_count = static_cast<uint32_t>(data.indices.size())}};
         MeshBuffers b{gpu::Buffer::of<shared::RenderVertex>(c, data.vertices.size(), "render vertices"),
                       gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices"), std::move(levels)};
+        if (clusters) {
+            b.clusters = cluster_levels(data, b.levels);
+            b.visible.emplace(gpu::Buffer::of<uint32_t>(c, b.levels[0].index_count, "render indices facing the camera"));
+        }
         b.vertices.upload(data.vertices);
         b.indices.upload(data.indices);
+        if (clusters) b.cpu_indices = std::move(data.indices);
         return b;
     }
 
-    /// Binds the mesh and draws the frame's level of detail (the pipeline and its set bound).
-    void draw_mesh(VkCommandBuffer cmd) const {
+    // The frame's clusters that do not face wholly away from the camera at `eye`, into `visible`.
+    void collect_visible_clusters(const glm::vec3& eye) {
+        std::vector<uint32_t>& staging = visible_scratch;
+        staging.clear();
+        for (const TriangleCluster& c : mesh_buffers.clusters[drawn_level])
+            if (!faces_away(c, eye))
+                staging.insert(staging.end(), mesh_buffers.cpu_indices.begin() + c.first_index,
+                               mesh_buffers.cpu_indices.begin() + c.first_index + c.index_count);
+        visible_count = static_cast<uint32_t>(staging.size());
+        if (visible_count > 0) mesh_buffers.visible->upload(staging);
+    }
+    std::vector<uint32_t> visible_scratch;
+
+    /// Binds the mesh and draws the frame's level of detail (the pipeline and its set bound): its
+    /// clusters facing the camera where there are clusters, unless `whole` (the shadow map).
+    void draw_mesh(VkCommandBuffer cmd, bool whole = false) const {
         const LevelOfDetail& lod = mesh_buffers.levels[drawn_level];
         gpu::bind_vertex_buffer(cmd, mesh_buffers.vertices);
+        if (!whole && mesh_buffers.visible) {
+            if (visible_count == 0) return;
+            vkCmdBindIndexBuffer(cmd, mesh_buffers.visible->handle(), 0, VK_INDEX_TYPE_UINT32);
+            vkCmdDrawIndexed(cmd, visible_count, 1, 0, 0, 0);
+            return;
+        }
         vkCmdBindIndexBuffer(cmd, mesh_buffers.indices.handle(), 0, VK_INDEX_TYPE_UINT32);
         vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
     }
@@ -584,6 +656,10 @@ struct Renderer::Impl {
                                    bounds.radius(), options.lod_max_error_px));
         info.lod_level = drawn_level;
         info.triangles = mesh_buffers.levels[drawn_level].index_count / 3;
+        if (mesh_buffers.visible) {
+            collect_visible_clusters(glm::vec3(camera.center()));
+            info.triangles = visible_count / 3;
+        }
         const bool want_diffuse = settings.mode != Mode::Specular;
         const bool want_specular = settings.mode != Mode::Diffuse;
         info.diffuse_pass = want_diffuse;
@@ -646,7 +722,7 @@ struct Renderer::Impl {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.pipeline());
         const VkDescriptorSet s = shadow_set.get();
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shadow_pass.layout(), 0, 1, &s, 0, nullptr);
-        draw_mesh(cmd);
+        draw_mesh(cmd, /*whole=*/true); // seen from the light: no camera culling
         shadow_map.end(cmd);
     }
 

@@ -126,6 +126,12 @@ struct Options {
     /// Every pass of the frame, the shadow map's included, draws that level. For a real-time view:
     /// `specula render` and `evaluate` draw the mesh as it is.
     double lod_max_error_px = 0.0;
+    /// With back faces culled (a closed mesh): each level is ordered in clusters of up to 124
+    /// triangles (meshoptimizer's meshlets) and a frame's lit passes draw only the clusters whose
+    /// normal cone does not face wholly away from the camera (collected on the CPU into an index
+    /// buffer; the shadow map draws the whole level). The same pixels, with fewer back faces set
+    /// up only to be culled. For a real-time view.
+    bool cluster_culling = false;
 };
 
 /// The display PSNR under which specula-view and `specula evaluate --lod` leave a level of
@@ -142,6 +148,18 @@ struct LevelOfDetail {
     double error = 0.0; ///< geometric error, world units (meshoptimizer's estimate; 0 for level 0)
 };
 
+/// A run of triangles whose normals lie in a cone (Options::cluster_culling): seen from a point
+/// p with dot(normalize(apex - p), axis) >= cutoff, every one of them faces away.
+struct TriangleCluster {
+    uint32_t first_index = 0;
+    uint32_t index_count = 0;
+    glm::vec3 apex{0.0f};
+    glm::vec3 axis{0.0f};
+    float cutoff = 1.0f;
+};
+/// Whether every triangle of `c` faces away from a camera at `eye` (meshoptimizer's cone test).
+[[nodiscard]] bool faces_away(const TriangleCluster& c, const glm::vec3& eye) noexcept;
+
 /// What a frame drew and what it cost.
 struct FrameInfo {
     bool diffuse_pass = false;        ///< pass 1 wrote the diffuse term (it always writes depth and coverage)
@@ -157,7 +175,7 @@ struct FrameInfo {
     std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer
     double wall_ms = 0.0;             ///< render(): parameters, recording, submit, wait, readback, conversion
     std::size_t covered_pixels = 0;
-    std::size_t triangles = 0;        ///< triangles drawn (the level of detail's)
+    std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
     std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
 };
 
@@ -264,6 +282,11 @@ struct IndexedVertices {
     std::vector<uint32_t> indices;
 };
 [[nodiscard]] IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv);
+
+/// Reorders each level's range of `mesh.indices` into clusters (meshopt_buildMeshlets, at most 64
+/// vertices and 124 triangles each, the same triangles) and returns each level's clusters.
+[[nodiscard]] std::vector<std::vector<TriangleCluster>> cluster_levels(IndexedVertices& mesh,
+                                                                       std::span<const LevelOfDetail> levels);
 
 /// Levels of detail of `mesh` (Options::lod_max_error_px): level 0 is the indices as they are;
 /// level k is meshoptimizer's simplification (meshopt_simplify, edge collapses under a quadric

@@ -1314,5 +1314,70 @@ TEST_F(RenderTest, LevelsOfDetailAreDrawnWhereTheyLookTheSame) {
     EXPECT_THROW((void)r.accept_levels_of_detail(cams, {}, s, 0.0), Error);
 }
 
+// Cluster culling (Options::cluster_culling) draws the same pixels, bit for bit, in every pass
+// arrangement, with and without shadows, from a fraction of the triangles; the clusters hold every
+// triangle of each level once, and a cluster facing away from the camera holds only back faces.
+TEST_F(RenderTest, ClusterCullingDrawsTheSamePixelsFromFewerTriangles) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f, 0.4f, 0.3f));
+    Renderer whole(ctx(), data.scene(preset.material.lobe));
+    Renderer clustered(ctx(), data.scene(preset.material.lobe), {.lod_max_error_px = 0.5, .cluster_culling = true});
+    ASSERT_TRUE(clustered.culls_back_faces());
+    const PointLight light{{2.2, 3.0, 2.0}, {30.0, 30.0, 30.0}};
+    for (const glm::dvec3& eye : {glm::dvec3(0.5, 1.0, 4.5), glm::dvec3(-3.0, -2.0, 2.5)}) {
+        const Camera cam = make_camera(96, 96, 100.0, 100.0, 48.0, 48.0, eye, {0, 0, 0});
+        (void)clustered.accept_levels_of_detail(std::vector<Camera>{cam}, std::vector<PointLight>{light}, {}, 1e9); // level 0 only
+        for (const Passes passes : {Passes::Separate, Passes::Fused, Passes::Deferred})
+            for (const bool shadows : {false, true}) {
+                const Settings s{.passes = passes, .shadows = shadows};
+                const Frame c = clustered.render(cam, light, s);
+                const Frame w = whole.render(cam, light, s);
+                EXPECT_LT(c.info.triangles, 3 * w.info.triangles / 4);
+                EXPECT_EQ(w.info.triangles, preset.mesh.triangles.size());
+                expect_same_frame(c, w, std::string(passes_name(passes)) + (shadows ? ", shadows" : ""));
+            }
+    }
+
+    IndexedVertices mesh = index_vertices(data.mesh, data.corner_uv);
+    const std::vector<LevelOfDetail> levels = build_levels_of_detail(mesh);
+    const std::vector<uint32_t> before = mesh.indices;
+    const std::vector<std::vector<TriangleCluster>> clusters = cluster_levels(mesh, levels);
+    ASSERT_EQ(clusters.size(), levels.size());
+    for (std::size_t k = 0; k < levels.size(); ++k) {
+        // The same triangles (as sorted corner triples), each once, in clusters covering the range.
+        const auto triangles = [&](const std::vector<uint32_t>& idx) {
+            std::vector<std::array<uint32_t, 3>> t;
+            for (uint32_t i = levels[k].first_index; i < levels[k].first_index + levels[k].index_count; i += 3) {
+                std::array<uint32_t, 3> tri{idx[i], idx[i + 1], idx[i + 2]};
+                std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end()); // keeps the winding
+                t.push_back(tri);
+            }
+            std::sort(t.begin(), t.end());
+            return t;
+        };
+        EXPECT_EQ(triangles(mesh.indices), triangles(before)) << "level " << k;
+        uint32_t next = levels[k].first_index;
+        for (const TriangleCluster& c : clusters[k]) {
+            EXPECT_EQ(c.first_index, next);
+            next += c.index_count;
+            EXPECT_LE(c.index_count, 3u * 124u);
+        }
+        EXPECT_EQ(next, levels[k].first_index + levels[k].index_count);
+    }
+    // A cluster that faces away from an eye holds only triangles facing away from it.
+    const glm::vec3 eye(0.5f, 1.0f, 4.5f);
+    std::size_t away = 0;
+    for (const TriangleCluster& c : clusters[0]) {
+        if (!faces_away(c, eye)) continue;
+        ++away;
+        for (uint32_t i = c.first_index; i < c.first_index + c.index_count; i += 3) {
+            const glm::vec3 a(mesh.vertices[mesh.indices[i]].position_u), b(mesh.vertices[mesh.indices[i + 1]].position_u),
+                d(mesh.vertices[mesh.indices[i + 2]].position_u);
+            EXPECT_LE(glm::dot(glm::cross(b - a, d - a), eye - a), 1e-9f) << "cluster at index " << c.first_index;
+        }
+    }
+    EXPECT_GT(away, clusters[0].size() / 5);
+}
+
 } // namespace
 } // namespace specula::render

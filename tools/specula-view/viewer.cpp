@@ -175,7 +175,7 @@ void require_no_validation_messages(gpu::Context& ctx) {
 evaluate::BundleRenderer view_renderer(gpu::Context& ctx, const Bundle& bundle, const ViewerConfig& c, const Start& start,
                                        const render::Settings& settings) {
     const Stopwatch sw;
-    evaluate::BundleRenderer renderer(ctx, bundle, c.bundle, {.lod_max_error_px = c.lod_max_error_px});
+    evaluate::BundleRenderer renderer(ctx, bundle, c.bundle, {.lod_max_error_px = c.lod_max_error_px, .cluster_culling = true});
     render::Renderer& r = renderer.renderer();
     log::debug(std::string("back-face culling ") + (r.culls_back_faces() ? "on" : "off (open mesh)"));
     if (r.levels_of_detail().size() < 2) return renderer;
