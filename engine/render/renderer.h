@@ -124,7 +124,7 @@ struct Options {
     /// value lets each frame draw the coarsest level whose geometric error, projected at the
     /// nearest point of the mesh's bounding sphere, is at most this many pixels (choose_level_of_detail).
     /// Every pass of the frame, the shadow map's included, draws that level. For a real-time view:
-    /// `specula render` and `evaluate` draw the mesh as it is.
+    /// `specula render` draws the mesh as it is, `specula evaluate --lod` measures what the levels cost.
     double lod_max_error_px = 0.0;
     /// With back faces culled (a closed mesh): each level is ordered in clusters of up to 124
     /// triangles (meshoptimizer's meshlets) and a frame's lit passes draw only the clusters whose
