@@ -236,6 +236,11 @@ struct SceneData {
     }
 };
 
+/// A cube-map of `res` x `res` faces holding `v` in every texel.
+CubeMap constant_cube(uint32_t res, const glm::vec3& v) {
+    return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
+}
+
 /// A mesh with a constant 1x1 "atlas" (every corner samples the one texel).
 SceneData constant_albedo(Mesh mesh, const glm::vec3& rho) {
     SceneData s;
@@ -515,9 +520,6 @@ TEST_F(RenderTest, FactorizedModeLooksUpBothCubeMaps) {
     // the diffuse term of an albedo rho = pi a b. Tolerance 1e-5 relative (float rounding).
     const synth::Preset preset = synth::make_preset("sphere");
     const glm::vec3 a(0.3f, 0.5f, 0.7f), b(0.9f, 0.4f, 0.2f);
-    const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
-        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
-    };
     const SceneData spec_data = constant_albedo(preset.mesh, glm::vec3(0.0f));
     const SceneData diff_data = constant_albedo(preset.mesh, glm::pi<float>() * a * b);
     const Camera cam = make_camera(64, 64, 80.0, 80.0, 30.0, 33.0, {0.3, 0.4, 2.0}, {0, 0, 0});
@@ -544,9 +546,6 @@ TEST_F(RenderTest, FactorizedModeSumsTheTermsAndClampsAtZero) {
     // term of rho = pi max(0, sum_k a_k b_k). Term 3 makes the blue channel's sum negative
     // (0 after the clamp). Tolerance 1e-5 relative (float rounding).
     const synth::Preset preset = synth::make_preset("sphere");
-    const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
-        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
-    };
     const std::vector<FactorTerm> terms = {
         {constant_cube(8, {0.3f, 0.5f, 0.7f}), constant_cube(16, {0.9f, 0.4f, 0.2f})},
         {constant_cube(8, {0.2f, -0.1f, 0.1f}), constant_cube(8, {0.5f, 0.5f, 0.5f})},
@@ -938,9 +937,6 @@ TEST_F(RenderTest, CoatedAnalyticMatchesDirectEvaluation) {
     const Camera& cam = plane.camera;
     const PointLight& light = plane.light;
     const glm::vec3 a(0.3f, 0.5f, 0.7f), bb(0.9f, 0.4f, 0.2f);
-    const auto constant_cube = [](uint32_t res, const glm::vec3& v) {
-        return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)};
-    };
     for (const CoatedParams& model : {coated(0.12f), coated(0.4f, 2.0f, {0.9f, 0.7f, 0.5f})}) {
         Renderer r(ctx(), data.scene(model));
         EXPECT_TRUE(r.has_specular());
@@ -1194,9 +1190,8 @@ TEST_F(RenderTest, PipelinesFollowEachFramesConstants) {
     EXPECT_NE(0, std::memcmp(core_frame.color.pixels.data(), lobe_frame.color.pixels.data(),
                              core_frame.color.pixels.size() * sizeof(float)));
 
-    const auto cube = [](uint32_t res, const glm::vec3& v) { return CubeMap{res, std::vector<glm::vec3>(std::size_t{6} * res * res, v)}; };
-    const FactorTerm t1{cube(8, {0.3f, 0.5f, 0.7f}), cube(8, {0.9f, 0.4f, 0.2f})};
-    const FactorTerm t2{cube(8, {0.2f, 0.1f, 0.1f}), cube(8, {0.5f, 0.5f, 0.5f})};
+    const FactorTerm t1{constant_cube(8, {0.3f, 0.5f, 0.7f}), constant_cube(8, {0.9f, 0.4f, 0.2f})};
+    const FactorTerm t2{constant_cube(8, {0.2f, 0.1f, 0.1f}), constant_cube(8, {0.5f, 0.5f, 0.5f})};
     const Settings factorized{.specular = SpecularPath::Factorized, .passes = Passes::Deferred};
     r.set_factorization(FactorizedSpecular{.terms = {t1, t2}});
     const Frame two = r.render(cam, light, factorized);
