@@ -99,20 +99,28 @@ void bench_lobe(std::uint32_t rows, std::uint32_t frames, int reps, unsigned thr
             }
         return largest > 0.0 ? worst / largest : 0.0;
     };
+    const bool simd = detail::lobe_simd();
     for (const LobeMaterial& lm : materials) {
         ref = zero;
         add_directed_lobe_cpu(t, lm.m, in.row_normal, in.light_geometry, in.intensity, frames, ref, threads);
-        // Each run adds to `out`: reset it outside the timing (a copy of rows x frames values).
-        double tc = 1e30;
-        for (int r = 0; r < reps; ++r) {
-            out = zero;
-            const Stopwatch sw;
-            add_directed_lobe_float(t, lm.m, in.row_normal, in.light_geometry, in.intensity, frames, out, threads);
-            tc = std::min(tc, sw.seconds());
+        // The float path both ways where the processor has the 8-wide one (lobe.h; the lafortune family).
+        for (const bool eight : {true, false}) {
+            if (eight && (!simd || lm.m.family.x != shared::kMaterialLafortune)) continue;
+            detail::set_lobe_simd(eight);
+            // Each run adds to `out`: reset it outside the timing (a copy of rows x frames values).
+            double tc = 1e30;
+            for (int r = 0; r < reps; ++r) {
+                out = zero;
+                const Stopwatch sw;
+                add_directed_lobe_float(t, lm.m, in.row_normal, in.light_geometry, in.intensity, frames, out, threads);
+                tc = std::min(tc, sw.seconds());
+            }
+            std::printf("%8u rows %6.1f entries/row %3u frames  lobe %-9s cpu%s %9.2f ms  %7.1f M terms/s  worst difference "
+                        "to the reference %.2g of its largest value\n",
+                        rows, double(t.entry_count()) / rows, frames, lm.name, eight ? " x8" : "   ", tc * 1e3, terms / tc * 1e-6,
+                        worst_difference());
         }
-        std::printf("%8u rows %6.1f entries/row %3u frames  lobe %-9s cpu    %9.2f ms  %7.1f M terms/s  worst difference "
-                    "to the reference %.2g of its largest value\n",
-                    rows, double(t.entry_count()) / rows, frames, lm.name, tc * 1e3, terms / tc * 1e-6, worst_difference());
+        detail::set_lobe_simd(simd);
         if (vk == nullptr) continue;
         out = zero;
         vk->run(t, lm.m, in.row_normal, in.light_geometry, in.intensity, frames, out); // warm-up

@@ -47,7 +47,10 @@ void add_directed_lobe_cpu(const IndirectTransfer& transfer, const shared::Mater
                            unsigned threads = 2);
 
 /// The same term as the pipeline runs it on the CPU: in float, each row's terms of a frame summed
-/// in entry order from 0, then added to out (the Vulkan kernel's arithmetic).
+/// in entry order from 0, then added to out (the Vulkan kernel's arithmetic). The lafortune
+/// family takes 8 frames at a time where the processor has AVX2 and FMA (x86-64 with glibc's
+/// vector math library, libmvec), the power as exp(N log base) there, as GLSL's pow is
+/// exp2(N log2 base) (detail::lobe_simd).
 void add_directed_lobe_float(const IndirectTransfer& transfer, const shared::MaterialGpu& material,
                              std::span<const glm::vec3> row_normal, std::span<const glm::vec4> light_geometry,
                              std::span<const glm::vec3> intensity, std::uint32_t frames, std::span<glm::vec4> out,
@@ -60,6 +63,11 @@ void add_directed_lobe_float_unchecked(const IndirectTransfer& transfer, const s
                                        std::span<const glm::vec3> row_normal, std::span<const glm::vec4> light_geometry,
                                        std::span<const glm::vec3> intensity, std::uint32_t frames, std::span<glm::vec4> out,
                                        unsigned threads);
+/// Whether add_directed_lobe_float takes the lafortune family 8 frames at a time (AVX2, FMA and
+/// libmvec here, and not turned off); set_lobe_simd(false) makes it take one frame at a time, so
+/// that tests check both ways on a machine that has both. Not for use while a term is computed.
+[[nodiscard]] bool lobe_simd();
+void set_lobe_simd(bool on);
 } // namespace detail
 
 /// How the last IndirectLobeVk::run split its work.

@@ -220,23 +220,46 @@ Path vulkan_path(IndirectLobeVk& kernel, const Inputs& in, const shared::Materia
 const test::RandomTransferOptions kTransfer{.rows = 3000, .rays = 64, .hit_fraction = 0.5, .max_hits = 64,
                                             .empty_rows = 0.05, .hub = 17, .hub_fraction = 0.1, .seed = 3};
 
-// The reference and both float paths, without Vulkan: runs wherever the tests build.
+// The C++ float path's two ways for the lafortune family: 8 frames at a time where the
+// processor allows it (detail::lobe_simd), and one at a time. Restores the setting.
+struct SimdWays {
+    const bool had = detail::lobe_simd();
+    ~SimdWays() { detail::set_lobe_simd(had); }
+    // Each way this machine has, by name, turned on in turn.
+    std::vector<std::pair<bool, std::string>> ways() const {
+        std::vector<std::pair<bool, std::string>> w{{false, "one frame at a time"}};
+        detail::set_lobe_simd(true);
+        if (detail::lobe_simd()) w.emplace_back(true, "8 frames at a time");
+        return w;
+    }
+};
+
+// The reference and both float paths, without Vulkan: runs wherever the tests build. Frame
+// counts below, at and above 8 (the padded lanes of the 8-wide way).
 TEST(IndirectLobeCpu, FloatPathWithinTheBoundOfTheReference) {
-    for (const std::uint32_t frames : {1u, 5u}) {
-        const Inputs in = make_inputs(kTransfer, frames, 100 + frames);
-        for (const NamedMaterial& nm : kMaterials)
-            EXPECT_EQ(check(in, nm.m, float_path(in, nm.m), std::string("cpu float, ") + nm.name).failures, 0u);
+    const SimdWays simd;
+    for (const auto& [on, way] : simd.ways()) {
+        detail::set_lobe_simd(on);
+        for (const std::uint32_t frames : {1u, 5u, 8u, 11u}) {
+            const Inputs in = make_inputs(kTransfer, frames, 100 + frames);
+            for (const NamedMaterial& nm : kMaterials)
+                EXPECT_EQ(check(in, nm.m, float_path(in, nm.m), std::string("cpu float, ") + nm.name + ", " + way).failures, 0u);
+        }
     }
 }
 
 TEST(IndirectLobeCpu, TheBoundSeesAWrongLobe) {
+    const SimdWays simd;
     const Inputs in = make_inputs(kTransfer, 3, 7);
-    for (const NamedMaterial& nm : {kMaterials[0], kMaterials[2]}) {
-        shared::MaterialGpu wrong = nm.m;
-        if (wrong.family.x == shared::kMaterialCoated) wrong.a.y *= 1.0001f; // alpha
-        else wrong.c *= 1.0001f;                                            // N
-        const Checked c = check(in, nm.m, float_path(in, wrong), std::string("a wrong lobe, ") + nm.name);
-        EXPECT_GT(c.failures, in.t.rows * in.frames / 4) << nm.name;
+    for (const auto& [on, way] : simd.ways()) {
+        detail::set_lobe_simd(on);
+        for (const NamedMaterial& nm : {kMaterials[0], kMaterials[2]}) {
+            shared::MaterialGpu wrong = nm.m;
+            if (wrong.family.x == shared::kMaterialCoated) wrong.a.y *= 1.0001f; // alpha
+            else wrong.c *= 1.0001f;                                            // N
+            const Checked c = check(in, nm.m, float_path(in, wrong), std::string("a wrong lobe, ") + nm.name + ", " + way);
+            EXPECT_GT(c.failures, in.t.rows * in.frames / 4) << nm.name << ", " << way;
+        }
     }
 }
 
