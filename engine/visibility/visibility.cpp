@@ -407,10 +407,19 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
 
 void complete_lit(Visibility& vis, std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
                   std::span<const VisibilityView> views, std::span<const PointLight> lights,
-                  std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads) {
+                  std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads,
+                  std::span<const std::uint32_t> stand_in) {
     if (particles.size() != vis.particle_count || lights.size() != vis.frame_count || frame_view.size() != lights.size() ||
         views.size() != vis.view_count || vis.lit_complete.size() != lights.size())
         throw Error("complete_lit: the particles, lights, views and frame_view are not the ones the visibility was computed for");
+    if (!stand_in.empty() && stand_in.size() != particles.size())
+        throw Error("complete_lit: " + std::to_string(stand_in.size()) + " stand-ins for " + std::to_string(particles.size()) +
+                    " particles");
+    for (std::size_t p = 0; p < stand_in.size(); ++p)
+        if (stand_in[p] >= particles.size() || stand_in[stand_in[p]] != stand_in[p])
+            throw Error("complete_lit: particle " + std::to_string(p) + "'s stand-in " + std::to_string(stand_in[p]) +
+                        " is not a particle that stands for itself");
+    const auto own = [&](std::size_t p) { return stand_in.empty() || stand_in[p] == p; };
     for (const std::uint32_t v : frame_view)
         if (v >= views.size()) throw Error("complete_lit: a frame names view " + std::to_string(v) + " of " + std::to_string(views.size()));
     std::vector<std::uint32_t> todo;
@@ -427,6 +436,7 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
     std::vector<std::vector<std::uint8_t>> occluded(workers);
     parallel_for_chunks(particles.size(), std::max(1u, threads), kChunk, [&](unsigned worker, std::size_t begin, std::size_t end) {
         for (std::size_t p = begin; p < end; ++p) {
+            if (!own(p)) continue;
             const Particle& particle = particles[p];
             const glm::vec3 pos = particle.p(), n = particle.n(), face = face_normal[particle.triangle];
             std::uint32_t* lit = &vis.lit[p * vis.frame_words];
@@ -447,6 +457,20 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
                 if (!occluded[worker][i]) lit[targets[worker][i] / 32] |= 1u << (targets[worker][i] % 32);
         }
     });
+    // The particles a stand-in answers for, once every stand-in's bits are in.
+    if (!stand_in.empty())
+        parallel_for_chunks(particles.size(), std::max(1u, threads), kChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+            for (std::size_t p = begin; p < end; ++p) {
+                if (own(p)) continue;
+                const Particle& particle = particles[p];
+                const glm::vec3 pos = particle.p(), n = particle.n(), face = face_normal[particle.triangle];
+                std::uint32_t* lit = &vis.lit[p * vis.frame_words];
+                const std::size_t other = stand_in[p];
+                for (const std::uint32_t f : todo)
+                    if (!vis.sees(p, frame_view[f]) && faces(n, face, pos, glm::vec3(lights[f].position)) && vis.lights(other, f))
+                        lit[f / 32] |= 1u << (f % 32);
+            }
+        });
     for (const std::uint32_t f : todo) vis.lit_complete[f] = 1;
     for (const ThreadCounts& c : counts) vis.stats.rays_completed += c.rays_cast;
 }

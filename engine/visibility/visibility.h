@@ -155,9 +155,15 @@ struct Visibility {
 /// compute_visibility would have given them (the same facing tests and rays; the shadow-edge
 /// test applies to seen pairs only, which were done). `views`, `lights` and `frame_view` as given
 /// to compute_visibility. Marks the frames complete.
+/// With `stand_in` (one per particle): a particle whose stand-in is another particle casts no
+/// ray; where it faces a frame's light that its view does not see, it takes the stand-in's bit
+/// (cast here, or known from the visibility where the stand-in's view sees it). The indirect
+/// light's blocks (indirect.h) send their particles' mean light: one ray a block and frame
+/// answers for the block's unseen particles. Empty: every particle its own.
 void complete_lit(Visibility& vis, std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
                   std::span<const VisibilityView> views, std::span<const PointLight> lights,
-                  std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads);
+                  std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads,
+                  std::span<const std::uint32_t> stand_in = {});
 
 /// The views (in capture.views order, each with the OR of its frames' pixel
 /// flags when images are loaded) and the lights of all frames (in

@@ -341,6 +341,67 @@ TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
     EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, outside, 1), Error);
 }
 
+// complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
+// another casts no ray and takes that one's bit where its own view does not see it.
+TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
+    const std::vector<Camera> cams = cameras_around(5, 3.0);
+    const Scene s(test::torus(1.0f, 0.35f, 24, 12), cams);
+    const std::vector<PointLight> lights = lights_around(35, 3.0);
+    std::vector<std::uint32_t> frame_view(lights.size());
+    for (std::size_t f = 0; f < lights.size(); ++f) frame_view[f] = static_cast<std::uint32_t>(f % cams.size());
+    const std::size_t n = s.particles.particles.size();
+    std::vector<std::size_t> all(lights.size());
+    for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
+    VisibilityOptions deferred;
+    deferred.frame_view = frame_view;
+    deferred.lit_seen_only = true;
+    const Visibility a = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights,
+                                            VisibilityOptions{.frame_view = frame_view});
+    const auto completed = [&](std::span<const std::uint32_t> stand_in, unsigned threads) {
+        Visibility v = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, deferred);
+        complete_lit(v, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, all, threads, stand_in);
+        return v;
+    };
+    // Every particle its own stand-in: the full pass's bits and rays.
+    std::vector<std::uint32_t> own(n);
+    for (std::size_t p = 0; p < n; ++p) own[p] = static_cast<std::uint32_t>(p);
+    const Visibility same = completed(own, 2);
+    EXPECT_EQ(same.lit, a.lit);
+    EXPECT_EQ(same.stats.rays_cast + same.stats.rays_completed, a.stats.rays_cast);
+    // Groups of 4 neighbouring particles (consecutive on a triangle), the first standing in.
+    std::vector<std::uint32_t> groups(n);
+    for (std::size_t p = 0; p < n; ++p) groups[p] = static_cast<std::uint32_t>(p - p % 4);
+    const Visibility g = completed(groups, 3);
+    EXPECT_EQ(g.lit, completed(groups, 1).lit); // any thread count
+    EXPECT_LT(g.stats.rays_completed * 3, same.stats.rays_completed); // about a quarter of the rays
+    std::size_t unseen = 0, agree = 0;
+    for (std::size_t p = 0; p < n; ++p)
+        for (std::size_t f = 0; f < lights.size(); ++f) {
+            if (g.sees(p, frame_view[f]) || groups[p] == p) {
+                ASSERT_EQ(g.lights(p, f), a.lights(p, f)) << p << " " << f; // seen pairs and stand-ins: exact
+                continue;
+            }
+            if (g.lights(p, f)) ASSERT_TRUE(g.lights(groups[p], f)) << p << " " << f; // lit only where its stand-in is
+            ++unseen;
+            agree += g.lights(p, f) == a.lights(p, f) ? 1u : 0u;
+        }
+    ASSERT_GT(unseen, 1000u);
+    EXPECT_GT(static_cast<double>(agree), 0.95 * static_cast<double>(unseen)); // neighbours mostly share their light
+    // Stand-ins of the wrong count, out of range, or standing in through another are refused.
+    Visibility b = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, deferred);
+    const auto refused = [&](std::vector<std::uint32_t> stand_in) {
+        EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, all, 1, stand_in),
+                     Error);
+    };
+    refused(std::vector<std::uint32_t>(n - 1, 0));
+    std::vector<std::uint32_t> bad = own;
+    bad[5] = static_cast<std::uint32_t>(n);
+    refused(bad);
+    bad = own;
+    bad[4] = 5, bad[5] = 6; // 4 -> 5, which is not its own stand-in
+    refused(bad);
+}
+
 TEST(Visibility, BestViewIsTheSeeingViewClosestToTheNormal) {
     const std::vector<Camera> cams = cameras_around(4, 3.0);
     const Scene s(test::sphere(1.0f, 12, 16), cams);
