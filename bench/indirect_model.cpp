@@ -49,7 +49,7 @@ int main(int argc, char** argv) try {
     // The truth's material, any family (ground_truth.material, as synth writes it).
     const SpecularModel material = synth::material_from_json(bounced.desc.ground_truth.at("material"));
     std::vector<ViewAtlasMap> maps;
-    for (const View& v : bounced.views) maps.push_back(build_view_atlas_map(v.camera, bounced.mesh, *visibility.scene, geometry.atlas));
+    for (const View& v : bounced.views) maps.push_back(build_view_atlas_map(v.camera, bounced.mesh, *visibility.scene, geometry.atlas, geometry.particles.particles));
     for (const std::uint32_t block : {1u, 2u}) {
         const IndirectTransfer transfer = build_transfer(particles, bounced.mesh, *visibility.scene, geometry.atlas, {.block = block});
         const IndirectScene scene{.particles = particles, .visibility = &visibility.visibility, .lights = visibility.inputs.lights,

@@ -5,6 +5,7 @@
 #include "geometry/chart_atlas.h"
 
 #include <algorithm>
+#include <numeric>
 #include <string>
 #include <utility>
 
@@ -25,12 +26,25 @@ bool indirect_removed_from_albedo(const Bundle& bundle) {
     return it != info->end() && it->is_boolean() && it->get<bool>();
 }
 
-std::uint32_t indirect_bounces_of(const Bundle& bundle) {
+namespace {
+// `object`'s whole number `key` clamped to [lo, hi], else `fallback`.
+std::uint32_t setting(const nlohmann::json* object, const char* key, std::uint32_t fallback, std::int64_t lo, std::int64_t hi) {
+    if (object == nullptr || !object->is_object()) return fallback;
+    const auto it = object->find(key);
+    if (it == object->end() || !it->is_number_integer()) return fallback;
+    const std::int64_t v = it->is_number_unsigned() ? static_cast<std::int64_t>(std::min<std::uint64_t>(it->get<std::uint64_t>(), 1u << 30))
+                                                    : it->get<std::int64_t>();
+    return static_cast<std::uint32_t>(std::clamp(v, lo, hi));
+}
+} // namespace
+
+std::uint32_t indirect_bounces_of(const Bundle& bundle) { return setting(indirect_info(bundle), "bounces", 2, 1, 8); }
+
+BundleTransfer indirect_transfer_of(const Bundle& bundle) {
     const nlohmann::json* info = indirect_info(bundle);
-    if (info == nullptr) return 2;
-    const auto it = info->find("bounces");
-    if (it == info->end() || !it->is_number_unsigned()) return 2;
-    return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(it->get<std::uint64_t>(), 1, 8));
+    const auto it = info != nullptr ? info->find("transfer") : nlohmann::json::const_iterator();
+    const nlohmann::json* transfer = info != nullptr && it != info->end() ? &*it : nullptr;
+    return {.rays = setting(transfer, "rays", kTransferRays, 1, 4096), .block = setting(transfer, "block", kTransferBlock, 1, 64)};
 }
 
 std::vector<glm::vec3> particle_albedo(std::span<const Particle> particles, const Image& texture) {
@@ -109,12 +123,6 @@ BundleIndirectLight::BundleIndirectLight(const Bundle& bundle, std::span<const V
 
     clock.restart();
     m_scene.emplace(m_mesh);
-    // Only the lit bits count here: no surface maps, no footprint test against captured pixels.
-    m_visibility = compute_visibility(m_particles.particles, m_mesh, *m_scene, views, m_lights,
-                                      VisibilityOptions{.threads = threads, .frame_view = m_frame_view, .surface_maps = false});
-    m_stats.visibility_s = clock.seconds();
-
-    clock.restart();
     m_transfer = build_transfer(m_particles.particles, m_mesh, *m_scene, m_atlas,
                                 TransferOptions{.rays = options.rays, .block = options.block, .threads = threads});
     m_stats.rows = m_transfer.rows;
@@ -122,9 +130,22 @@ BundleIndirectLight::BundleIndirectLight(const Bundle& bundle, std::span<const V
     m_stats.transfer_s = clock.seconds();
 
     clock.restart();
+    // Only the lit bits count here: no surface maps, no footprint test against captured pixels.
+    // As the reconstruction has them: exact where a frame's view sees the particle, else one ray
+    // a row of the transfer (complete_lit's stand-ins).
+    m_visibility = compute_visibility(m_particles.particles, m_mesh, *m_scene, views, m_lights,
+                                      VisibilityOptions{.threads = threads, .frame_view = m_frame_view, .surface_maps = false,
+                                                        .lit_seen_only = true});
+    std::vector<std::size_t> all(m_lights.size());
+    std::iota(all.begin(), all.end(), std::size_t{0});
+    complete_lit(m_visibility, m_particles.particles, m_mesh, *m_scene, views, m_lights, m_frame_view, all, threads,
+                 row_stand_ins(m_transfer));
+    m_stats.visibility_s = clock.seconds();
+
+    clock.restart();
     m_view_maps.reserve(views.size());
     for (const VisibilityView& view : views)
-        m_view_maps.push_back(build_view_atlas_map(view.camera, m_mesh, *m_scene, m_atlas, threads));
+        m_view_maps.push_back(build_view_atlas_map(view.camera, m_mesh, *m_scene, m_atlas, m_particles.particles, threads));
     m_stats.view_maps_s = clock.seconds();
 
     const IndirectScene scene{.particles = m_particles.particles,

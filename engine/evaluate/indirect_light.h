@@ -43,6 +43,14 @@ namespace specula::evaluate {
 [[nodiscard]] bool indirect_removed_from_albedo(const Bundle& bundle);
 /// The bounces the bundle's reconstruction modelled (info.indirect_light.bounces, 1 to 8), else 2.
 [[nodiscard]] std::uint32_t indirect_bounces_of(const Bundle& bundle);
+/// The transfer the bundle's reconstruction built (info.indirect_light.transfer: rays a row, 1 to
+/// 4096, and block texels, 1 to 64), else what it built before the bundle recorded it (kTransferRays
+/// and kTransferBlock), so the renders see the light the albedo had removed.
+struct BundleTransfer {
+    std::uint32_t rays = kTransferRays;
+    std::uint32_t block = kTransferBlock;
+};
+[[nodiscard]] BundleTransfer indirect_transfer_of(const Bundle& bundle);
 
 /// Each particle's albedo as a texture holds it: the texel of the particle (RGB; a grey texture
 /// gives grey). The pipeline's inpainted albedo texture, or a bundle's.

@@ -90,6 +90,20 @@ private:
     glm::vec3 m_table[kSteps]{};
 };
 
+// The bilinear taps of an atlas point (texel coordinates): texel (i, j) centred at (i + 0.5,
+// j + 0.5), clamped at the atlas's edges.
+struct Taps {
+    int x0, y0, x1, y1;
+    float ax, ay;
+};
+Taps taps_of(const Atlas& atlas, glm::vec2 q) {
+    const float fx = std::clamp(q.x - 0.5f, 0.0f, static_cast<float>(atlas.width - 1));
+    const float fy = std::clamp(q.y - 0.5f, 0.0f, static_cast<float>(atlas.height - 1));
+    const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+    return {x0, y0, std::min(x0 + 1, static_cast<int>(atlas.width) - 1), std::min(y0 + 1, static_cast<int>(atlas.height) - 1),
+            fx - static_cast<float>(x0), fy - static_cast<float>(y0)};
+}
+
 glm::vec3 face_normal(const Mesh& mesh, std::uint32_t triangle) {
     const glm::uvec3 t = mesh.triangles[triangle];
     return glm::normalize(glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]));
@@ -157,6 +171,21 @@ std::vector<std::uint32_t> block_rows(std::span<const Particle> particles, const
 }
 
 } // namespace
+
+std::uint32_t transfer_block_for(std::size_t particles) {
+    const double side = std::round(std::sqrt(static_cast<double>(particles) / kTransferBlockRows));
+    return static_cast<std::uint32_t>(std::clamp(side, static_cast<double>(kTransferBlock), 64.0));
+}
+
+std::vector<std::uint32_t> row_stand_ins(const IndirectTransfer& t) {
+    std::vector<std::uint32_t> first(t.rows, Atlas::kEmpty), out(t.row_of.size());
+    for (std::size_t p = 0; p < t.row_of.size(); ++p) {
+        std::uint32_t& f = first[t.row_of[p]];
+        if (f == Atlas::kEmpty) f = static_cast<std::uint32_t>(p);
+        out[p] = f;
+    }
+    return out;
+}
 
 IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh& mesh, const RayScene& scene,
                                 const Atlas& atlas, const TransferOptions& options, TransferStats* stats) {
@@ -288,7 +317,7 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
 }
 
 ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene, const Atlas& atlas,
-                                  unsigned threads) {
+                                  std::span<const Particle> particles, unsigned threads) {
     ViewAtlasMap map;
     map.width = camera.intrinsics.w;
     map.height = camera.intrinsics.h;
@@ -307,6 +336,16 @@ ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const 
             map.cos_view[k] = std::max(0.0f, -glm::dot(sp.normal, glm::normalize(dir)));
         }
     });
+    std::vector<std::uint8_t> read(static_cast<std::size_t>(atlas.width) * atlas.height, 0);
+    const auto mark = [&](int x, int y) { read[static_cast<std::size_t>(y) * atlas.width + static_cast<std::size_t>(x)] = 1; };
+    for (const glm::vec2 q : map.texel) {
+        if (q.x < 0.0f) continue;
+        const Taps t = taps_of(atlas, q);
+        mark(t.x0, t.y0), mark(t.x1, t.y0), mark(t.x0, t.y1), mark(t.x1, t.y1);
+    }
+    for (std::size_t i = 0; i < particles.size(); ++i)
+        if (read[static_cast<std::size_t>(particles[i].texel_y()) * atlas.width + particles[i].texel_x()] != 0)
+            map.reads.push_back(static_cast<std::uint32_t>(i));
     return map;
 }
 
@@ -385,10 +424,11 @@ struct Bouncer {
         const glm::vec3 lobe_bounce = lobe(kMeanCosine);
         // Bounce 1's sources: the frame's direct light on each particle, reflected diffusely (and
         // by the lobe, spread diffusely unless `directional`), the mean over each row's particles.
+        // A row's particles stay in cache over the batch's frames.
         parallel_for_chunks(n, std::max(o.threads, 1u), 256, [&](unsigned, std::size_t begin, std::size_t end) {
-            for (std::size_t k = 0; k < frames.size(); ++k) {
-                const PointLight& light = s.lights[frames[k]];
-                for (std::size_t r = begin; r < end; ++r) {
+            for (std::size_t r = begin; r < end; ++r) {
+                for (std::size_t k = 0; k < frames.size(); ++k) {
+                    const PointLight& light = s.lights[frames[k]];
                     glm::vec3 sum(0.0f);
                     double geometry = 0.0;
                     for (std::uint32_t q = rows.begin[r]; q < rows.begin[r + 1]; ++q) {
@@ -425,10 +465,13 @@ struct Bouncer {
                                                         o.threads);
             }
             if (bounce == 1 && directional) add_directional_lobe(frames);
-            for (std::size_t k = 0; k < values; ++k) {
-                total[k] += e[k];
-                radiosity[k] = glm::vec4(row_albedo[k % n] * kd_bounce + lobe_bounce, 0.0f) * e[k];
-            }
+            const bool more = bounce < o.bounces;
+            parallel_for_chunks(values, std::max(o.threads, 1u), 16384, [&](unsigned, std::size_t begin, std::size_t end) {
+                for (std::size_t k = begin; k < end; ++k) {
+                    total[k] += e[k];
+                    if (more) radiosity[k] = glm::vec4(row_albedo[k % n] * kd_bounce + lobe_bounce, 0.0f) * e[k];
+                }
+            });
         }
         if (!ratio) return;
         parallel_for_chunks(s.particles.size(), std::max(o.threads, 1u), 4096, [&](unsigned, std::size_t begin, std::size_t end) {
@@ -480,6 +523,7 @@ struct IndirectImages::Impl {
     Bouncer bouncer;
     /// Per texel: rho E / pi (the diffuse term) and, with a lobe, E / pi (what the lobe reflects).
     Image radiance, irradiance;
+    Image out; ///< the frame's image handed to the sink
     Impl(const IndirectScene& scene, std::span<const glm::vec3> a, const std::optional<SpecularModel>& material,
          const IndirectOptions& o)
         : s(scene), albedo(a), bouncer(s, albedo, material, o),
@@ -519,10 +563,15 @@ void IndirectImages::render(std::span<const std::size_t> frames, const std::func
         const std::span<const std::size_t> part = frames.subspan(first, std::min(batch, frames.size() - first));
         bouncer.run(part);
         for (std::size_t k = 0; k < part.size(); ++k) {
-            // The particles' radiance in their texels (the rest stays 0, as the albedo atlas's empty
-            // texels; the particles own distinct texels).
-            parallel_for_chunks(n, threads, 16384, [&](unsigned, std::size_t begin, std::size_t end) {
-                for (std::size_t i = begin; i < end; ++i) {
+            // The particles' radiance in their texels, those the view reads (ViewAtlasMap::reads;
+            // the others keep an earlier frame's values, which no pixel of this view reads; the
+            // texels of no particle stay 0, as the albedo atlas's empty texels; the particles own
+            // distinct texels).
+            const ViewAtlasMap& map = s.view_maps[s.frame_view[part[k]]];
+            const std::vector<std::uint32_t>& read = map.reads;
+            parallel_for_chunks(read.size(), threads, 16384, [&](unsigned, std::size_t begin, std::size_t end) {
+                for (std::size_t r = begin; r < end; ++r) {
+                    const std::size_t i = read[r];
                     const glm::vec3 l = glm::one_over_pi<float>() * glm::vec3(bouncer.total[k * rows + bouncer.row(i)]);
                     const int x = static_cast<int>(s.particles[i].texel_x()), y = static_cast<int>(s.particles[i].texel_y());
                     for (int c = 0; c < 3; ++c) {
@@ -531,19 +580,18 @@ void IndirectImages::render(std::span<const std::size_t> frames, const std::func
                     }
                 }
             });
-            const ViewAtlasMap& map = s.view_maps[s.frame_view[part[k]]];
-            Image out(map.width, map.height, 3, 0.0f);
+            // One image for every frame of the call (no fresh pages a frame), each pixel written.
+            Image& out = im.out;
+            if (out.width != map.width || out.height != map.height) out = Image(map.width, map.height, 3, 0.0f);
             parallel_for(static_cast<std::size_t>(map.height), threads, [&](std::size_t y) {
                 for (int x = 0; x < map.width; ++x) {
                     const std::size_t p = y * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(x);
                     const glm::vec2 q = map.texel[p];
-                    if (q.x < 0.0f) continue;
-                    // Bilinear, texel (i, j) centred at (i + 0.5, j + 0.5), clamped at the atlas's edges.
-                    const float fx = std::clamp(q.x - 0.5f, 0.0f, static_cast<float>(atlas.width - 1));
-                    const float fy = std::clamp(q.y - 0.5f, 0.0f, static_cast<float>(atlas.height - 1));
-                    const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
-                    const int x1 = std::min(x0 + 1, static_cast<int>(atlas.width) - 1), y1 = std::min(y0 + 1, static_cast<int>(atlas.height) - 1);
-                    const float ax = fx - static_cast<float>(x0), ay = fy - static_cast<float>(y0);
+                    if (q.x < 0.0f) {
+                        for (int c = 0; c < 3; ++c) out.at(x, static_cast<int>(y), c) = 0.0f;
+                        continue;
+                    }
+                    const auto [x0, y0, x1, y1, ax, ay] = taps_of(atlas, q);
                     const float kd = shared::material_diffuse_factor(m, kMeanCosine, map.cos_view[p]);
                     const auto bilinear = [&](const Image& im, int c) {
                         const float top = (1.0f - ax) * im.at(x0, y0, c) + ax * im.at(x1, y0, c);

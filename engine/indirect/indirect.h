@@ -53,8 +53,21 @@ namespace specula {
 inline constexpr std::uint32_t kTransferRays = 144;
 /// Texels a side of a transfer's blocks by default (TransferOptions::block): against single
 /// particles the knot's predicted light changes by under 0.2% (bench/indirect_model), for a
-/// quarter of the rows, rays and gathers.
+/// quarter of the rows, rays and gathers. The pipeline's floor (transfer_block_for).
 inline constexpr std::uint32_t kTransferBlock = 2;
+/// The rows transfer_block_for aims at. The light a surface sends itself varies over the
+/// object's own features, while the atlas's texels shrink as the captures' pixels do, so a
+/// denser atlas takes wider blocks for the same light. Measured (knot and can path-traced with
+/// 2 bounces; albedo RMSE in the hollows, test PSNR): the knot at 256 px (190k particles)
+/// 2.51% with blocks of 2 (47k rows), 2.54% with 3; at 512 px (748k) 2.00% with 2 (187k rows),
+/// 1.92% with 3 (89k rows), 2.06% with 4, and 35.65 / 35.62 / 35.58 dB; the can at 256 px 1.42% with 2,
+/// 1.81% with 3. Blocks of 3 take the knot's reconstruction at 512 px from 47.7 s to 38.5 s.
+inline constexpr double kTransferBlockRows = 100000.0;
+
+/// The block for `particles` when none is asked for: the nearest whole number to
+/// sqrt(particles / kTransferBlockRows), at least kTransferBlock (2 up to 250k particles, 3 up
+/// to 1.2 M: the captures at 512 px).
+[[nodiscard]] std::uint32_t transfer_block_for(std::size_t particles);
 
 struct TransferOptions {
     /// Rays per row (a particle, or a block), stratified on a g x g grid of the cosine-weighted
@@ -85,16 +98,24 @@ struct TransferStats {
                                               const Atlas& atlas, const TransferOptions& options,
                                               TransferStats* stats = nullptr);
 
+/// Per particle, the first particle (in particle order) of its row: whose light rays answer for
+/// the row's particles that no view of a frame sees (complete_lit's stand_in: the row sends their
+/// mean light). Empty for a transfer of single particles.
+[[nodiscard]] std::vector<std::uint32_t> row_stand_ins(const IndirectTransfer& transfer);
+
 /// One view's pixels on the atlas: per pixel (row-major), the atlas point (texel coordinates)
 /// that the ray through its centre hits first, and the cosine N.v there; x = -1 where it misses.
+/// `reads`: the particles whose texels the pixels' bilinear taps read, in particle order (a
+/// frame's light fills those texels only).
 struct ViewAtlasMap {
     int width = 0;
     int height = 0;
     std::vector<glm::vec2> texel;
     std::vector<float> cos_view;
+    std::vector<std::uint32_t> reads;
 };
 [[nodiscard]] ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene,
-                                                const Atlas& atlas, unsigned threads = 2);
+                                                const Atlas& atlas, std::span<const Particle> particles, unsigned threads = 2);
 
 struct IndirectOptions {
     std::uint32_t bounces = 2;
@@ -148,7 +169,8 @@ private:
 };
 
 /// Per frame of `frames`, in order: the indirect radiance image (linear RGB, the size of the
-/// frame's view, 0 where no surface is seen), handed to `sink` (called from one thread).
+/// frame's view, 0 where no surface is seen), handed to `sink` (called from one thread; the image
+/// holds until the call returns).
 /// With `ratio`: per particle, its indirect irradiance over its direct irradiance (r + g + b),
 /// each summed over the frames of `frames` that light it and whose view sees it (0 where none
 /// does): the R of a solve on frames less this light (pipeline: the damped rounds).

@@ -181,6 +181,12 @@ struct IndirectMeasure {
 [[nodiscard]] PlanDecision decide_indirect(const ConvexityReport& convexity, Toggle toggle,
                                           const std::optional<IndirectMeasure>& measure, double estimated_seconds);
 [[nodiscard]] bool decided_indirect(const PlanDecision& d);
+/// The transfer's blocks (texels a side): auto, transfer_block_for the particles (about
+/// kTransferBlockRows rows); forced, `forced` (--indirect-block). Made where the stage builds a
+/// transfer (the measure's included).
+[[nodiscard]] PlanDecision decide_indirect_block(std::size_t particles, std::uint32_t forced);
+/// The block a decision chose.
+[[nodiscard]] std::uint32_t decided_indirect_block(const PlanDecision& d);
 
 // ---- atlas ------------------------------------------------------------------------------
 

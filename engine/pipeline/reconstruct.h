@@ -97,7 +97,9 @@ struct ReconstructConfig {
     Toggle indirect = Toggle::Auto;
     std::uint32_t indirect_bounces = 2;   ///< bounces of the indirect light (1: one bounce)
     std::uint32_t indirect_rays = kTransferRays; ///< rays per row of the transfer (rounded up to a square)
-    std::uint32_t indirect_block = kTransferBlock; ///< the transfer's rows: blocks of this many texels a side (1: every particle)
+    /// The transfer's rows: blocks of this many texels a side (1: every particle); 0: the planner's
+    /// (transfer_block_for the particles, plan decision indirect_block).
+    std::uint32_t indirect_block = 0;
     bool indirect_lobe_directions = true; ///< the lobe's first bounce directed (IndirectOptions::lobe_directions), else spread
     std::uint32_t indirect_rounds = kIndirectRounds; ///< at most this many rounds of solve and indirect light
     unsigned threads = 2;           ///< CPU threads (image decoding, visibility)

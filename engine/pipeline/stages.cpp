@@ -4,6 +4,7 @@
 #include "core/file_util.h"
 #include "core/format.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "evaluate/indirect_light.h"
 #include "gpu/context.h"
@@ -250,10 +251,12 @@ std::vector<std::size_t> indirect_frames(const Capture& capture, bool measure) {
 }
 
 // The light rays of `frames` that the visibility stage left out (lit_seen_only), cast into its bits.
+// The light rays toward the particles the frames' views do not see: one a row of `transfer` and
+// frame (the rows send their particles' mean light).
 void complete_visibility(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, VisibilityStage& v,
-                         std::span<const std::size_t> frames) {
+                         std::span<const std::size_t> frames, const IndirectTransfer& transfer) {
     complete_lit(v.visibility, geometry.particles.particles, capture.mesh, *v.scene, v.inputs.views, v.inputs.lights,
-                 v.inputs.frame_view, frames, run.config.threads);
+                 v.inputs.frame_view, frames, run.config.threads, row_stand_ins(transfer));
 }
 
 // The train frames less the indirect light that `albedo` sends (the other frames stay empty:
@@ -297,7 +300,8 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
         out.file_info = captured.file_info;
         out.color = captured.color;
         const std::size_t n = static_cast<std::size_t>(light.width) * static_cast<std::size_t>(light.height);
-        for (std::size_t p = 0; p < n; ++p) {
+        // Pixel p less its light; true where it is left out of the solves.
+        const auto step = [&](std::size_t p) {
             const float* add = &light.pixels[3 * p];
             float* v = &out.color.pixels[3 * p];
             // The object's pixels: the mask where there is one, else where the surface is seen.
@@ -321,13 +325,23 @@ std::size_t remove_indirect_light(const IndirectStage& s, const IndirectScene& s
             // error of the predicted light, and the rounds, which alternate about their fixed point
             // by that ratio, would not settle there: the sample is not used.
             const float added = add[0] + add[1] + add[2], seen = v[0] + v[1] + v[2];
-            if (object && added > kIndirectMaxShare * seen) {
-                if (out.flags.empty()) out.flags.assign(n, 0);
-                out.flags[p] |= kMissing;
-                ++dropped;
-            }
             for (int c = 0; c < 3; ++c) v[c] -= add[c];
+            return object && added > kIndirectMaxShare * seen;
+        };
+        std::vector<std::uint8_t> left_out(n, 0);
+        if (measure != nullptr) {
+            for (std::size_t p = 0; p < n; ++p) left_out[p] = step(p) ? 1 : 0;
+        } else { // side by side: the pixels are independent
+            parallel_for_chunks(n, std::max(s.options.threads, 1u), 16384, [&](unsigned, std::size_t begin, std::size_t end) {
+                for (std::size_t p = begin; p < end; ++p) left_out[p] = step(p) ? 1 : 0;
+            });
         }
+        const std::size_t count = static_cast<std::size_t>(std::count(left_out.begin(), left_out.end(), std::uint8_t{1}));
+        if (count == 0) return;
+        if (out.flags.empty()) out.flags.assign(n, 0);
+        for (std::size_t p = 0; p < n; ++p)
+            if (left_out[p] != 0) out.flags[p] |= kMissing;
+        dropped += count;
     }, ratio);
     if (measure == nullptr) {
         log::info(format_text("indirect light: %.0f object pixels of the train frames left out (the light added is over %.0f%% of "
@@ -382,8 +396,9 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     const VisibilityStats& vs = visibility.visibility.stats;
     const double rays_done = static_cast<double>(vs.rays_cast + vs.depth_rays + vs.shadow_map_rays);
     const double ray_seconds = rays_done > 0.0 ? vs.seconds / rays_done : 0.0;
-    const double blocks = static_cast<double>(geometry.particles.particles.size()) /
-                          (static_cast<double>(config.indirect_block) * config.indirect_block);
+    PlanDecision block_decision = decide_indirect_block(geometry.particles.particles.size(), config.indirect_block);
+    const std::uint32_t block = decided_indirect_block(block_decision);
+    const double blocks = static_cast<double>(geometry.particles.particles.size()) / (static_cast<double>(block) * block);
     const double estimate = ray_seconds * blocks * config.indirect_rays +
                             config.indirect_rounds * run.seconds("diffuse solve");
     if (config.indirect == Toggle::Off || (config.indirect == Toggle::Auto && convexity.convex)) {
@@ -419,22 +434,24 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     // the stage is forced on; the rounds get one of --indirect-rays.
     const std::uint32_t measure_rays =
         config.indirect == Toggle::On ? config.indirect_rays : std::min(config.indirect_rays, kIndirectMeasureRays);
+    (void)run.plan().add(std::move(block_decision));
     const auto build = [&](std::uint32_t rays) {
         s.transfer = build_transfer(geometry.particles.particles, capture.mesh, *visibility.scene, geometry.atlas,
-                                    TransferOptions{.rays = rays, .block = config.indirect_block, .threads = config.threads},
+                                    TransferOptions{.rays = rays, .block = block, .threads = config.threads},
                                     &s.transfer_stats);
         log::info(format_text("indirect transfer: %.0f rows (blocks of %.0f x %.0f texels), %.0f rays each, %.0f entries "
                               "(%.1f a row), %.1f%% of the rays reached the object",
-                              double(s.transfer->rows), double(config.indirect_block), double(config.indirect_block),
+                              double(s.transfer->rows), double(block), double(block),
                               double(s.transfer->rays_per_row), double(s.transfer->entry_count()),
                               double(s.transfer->entry_count()) / std::max<double>(1.0, s.transfer->rows),
                               100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     };
     run.stage(measure_rays != config.indirect_rays ? "indirect transfer (measure)" : "indirect transfer", [&] {
-        complete_visibility(run, capture, geometry, visibility, indirect_frames(capture, true));
         build(measure_rays);
+        complete_visibility(run, capture, geometry, visibility, indirect_frames(capture, true), *s.transfer);
         for (const View& view : capture.views)
-            s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas, config.threads));
+            s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas,
+                                                         geometry.particles.particles, config.threads));
     });
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     std::size_t left_out = 0;  // by the last pass: the next solve's
@@ -458,7 +475,7 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         // Every frame: the rounds read the train frames, the evaluation adds the light to the test frames too.
         std::vector<std::size_t> all(capture.desc.frames.size());
         for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
-        complete_visibility(run, capture, geometry, visibility, all);
+        complete_visibility(run, capture, geometry, visibility, all, *s.transfer);
         if (measure_rays != config.indirect_rays) build(config.indirect_rays);
     });
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
@@ -1036,6 +1053,8 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
                                         {"method", "inverse global illumination (Yu et al. 1999), diffuse transfer between "
                                                    "surface particles"},
                                         {"bounces", indirect.options.bounces},
+                                        {"transfer", {{"rays", indirect.transfer->rays_per_row},
+                                                      {"block", indirect.transfer_stats.block}}},
                                         {"baked", false}};
         // The float albedo beside the bundle by default: albedo.exr, which the albedo texture
         // stage wrote already with the same texels (write_bundle writes it again, exactly).

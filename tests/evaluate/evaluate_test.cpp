@@ -10,6 +10,7 @@
 #include "core/image.h"
 #include "evaluate/bundle_render.h"
 #include "evaluate/evaluate.h"
+#include "evaluate/indirect_light.h"
 #include "export/bundle.h"
 #include "factorization/factorization.h"
 #include "synth/presets.h"
@@ -439,6 +440,31 @@ TEST_F(EvaluateTest, CliEvaluateWritesJsonAndSheets) {
     EXPECT_NE(table.find("display values: srgb"), std::string::npos) << table;
 }
 #endif
+
+// What a bundle says of the light its albedo had removed, read back for the renders: the
+// transfer's rays and blocks where recorded, else the defaults of bundles made before.
+TEST(BundleIndirectInfo, TransferIsTheRecordedOneElseTheOldDefaults) {
+    Bundle b;
+    EXPECT_FALSE(evaluate::indirect_removed_from_albedo(b));
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).block, kTransferBlock);
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).rays, kTransferRays);
+    b.info = {{"indirect_light", {{"removed_from_albedo", true}, {"bounces", 3}, {"transfer", {{"rays", 100}, {"block", 3}}}}}};
+    EXPECT_TRUE(evaluate::indirect_removed_from_albedo(b));
+    EXPECT_EQ(evaluate::indirect_bounces_of(b), 3u);
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).block, 3u);
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).rays, 100u);
+    // Malformed or out-of-range values: the defaults, or the nearest allowed.
+    b.info["indirect_light"]["transfer"] = {{"rays", "many"}, {"block", 1000}};
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).rays, kTransferRays);
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).block, 64u);
+    b.info["indirect_light"]["transfer"] = {{"rays", -5}, {"block", 0}};
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).rays, 1u);
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).block, 1u);
+    b.info["indirect_light"]["transfer"] = nlohmann::json::array({1, 2});
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).block, kTransferBlock);
+    b.info["indirect_light"] = "yes";
+    EXPECT_EQ(evaluate::indirect_transfer_of(b).rays, kTransferRays);
+}
 
 } // namespace
 } // namespace specula::evaluate

@@ -121,6 +121,11 @@ TEST(IndirectTransfer, ABlockGathersTheMeanOfItsParticles) {
         EXPECT_EQ(a.texel_y() / 2, b.texel_y() / 2) << "particle " << i;
     }
     for (std::uint32_t r = 0; r < blocks.rows; ++r) EXPECT_LE(members[r], 4u) << "row " << r;
+    // The rows' stand-ins for the light rays (complete_lit): each particle's row's first particle.
+    const std::vector<std::uint32_t> stand_in = row_stand_ins(blocks);
+    ASSERT_EQ(stand_in.size(), n);
+    for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(stand_in[i], first[blocks.row_of[i]]) << "particle " << i;
+    EXPECT_TRUE(row_stand_ins(fine).empty());
     // The plate shines: per particle on the fine transfer, per block on the other.
     std::vector<glm::vec4> b_fine(n, glm::vec4(0.0f)), b_block(blocks.rows, glm::vec4(0.0f));
     for (std::size_t j = 0; j < n; ++j)
@@ -302,7 +307,7 @@ TEST(IndirectLight, ImagesShowTheLightOfTheSurfaceEachPixelSees) {
     const std::vector<std::uint32_t> frame_view = {0};
     const Camera camera(Intrinsics{64, 64, 60.0, 60.0, 32.0, 32.0},
                         look_at_camera_to_world({1.2, 0.3, 0.35}, {0.0, 0.0, 0.0}, {0, 0, 1}));
-    const std::vector<ViewAtlasMap> maps = {build_view_atlas_map(camera, s.mesh, s.rays, s.atlas)};
+    const std::vector<ViewAtlasMap> maps = {build_view_atlas_map(camera, s.mesh, s.rays, s.atlas, s.particles.particles)};
     const IndirectScene scene{.particles = s.particles.particles, .visibility = &vis, .lights = lights, .frame_view = frame_view,
                               .atlas = &s.atlas, .transfer = &t, .view_maps = maps};
     const float rho = 0.5f;

@@ -130,8 +130,17 @@ TEST(IndirectPipeline, KnotWithBouncesIsSolvedWithItAndWithoutBouncesWithout) {
         const Bundle bundle = read_bundle(dir / "on" / "object.glb");
         ASSERT_TRUE(evaluate::indirect_removed_from_albedo(bundle));
         EXPECT_EQ(evaluate::indirect_bounces_of(bundle), 2u);
+        // The transfer the reconstruction built, which the renders rebuild: the planner's blocks
+        // for the 96 px knot's particles (2: well under 100k rows) and the default rays.
+        const nlohmann::json& block = decision(on.report, "indirect_block");
+        EXPECT_EQ(block["mode"], "auto");
+        const evaluate::BundleTransfer transfer = evaluate::indirect_transfer_of(bundle);
+        EXPECT_EQ(transfer.block, block["detail"]["block"].get<std::uint32_t>());
+        EXPECT_EQ(transfer.block, 2u);
+        EXPECT_EQ(transfer.rays, kTransferRays);
         const VisibilityInputs in = visibility_inputs(capture);
-        evaluate::BundleIndirectLight light(bundle, in.views, in.lights, in.frame_view, {});
+        evaluate::BundleIndirectLight light(bundle, in.views, in.lights, in.frame_view,
+                                            {.rays = transfer.rays, .block = transfer.block});
         evaluate::EvaluateOptions eo;
         eo.metrics_backend = Backend::Cpu;
         eo.progress = false;

@@ -1,5 +1,6 @@
 // The planner's decision functions, the sweep's Pareto front and the HTML report, on
 // plain data (no capture, no device).
+#include "indirect/indirect.h"
 #include "pipeline/planner.h"
 #include "pipeline/sweep.h"
 #include "report/report_html.h"
@@ -254,6 +255,27 @@ TEST(ReportHtml, QualityShowsDisplayAndLinearFiguresDisplayFirstForSrgbCaptures)
         EXPECT_EQ(html.find("<td>91.25</td>") < html.find("<td>93.50</td>"), display_first) << encoding;
         EXPECT_NE(html.find(std::string("<code>") + encoding + "</code>"), std::string::npos) << encoding;
     }
+}
+
+// The transfer's blocks grow with the atlas's density: about kTransferBlockRows rows, at least 2.
+TEST(Planner, IndirectBlockAimsAtAboutAHundredThousandRows) {
+    EXPECT_EQ(transfer_block_for(0), 2u);
+    EXPECT_EQ(transfer_block_for(190000), 2u);  // the knot at 256 px
+    EXPECT_EQ(transfer_block_for(432000), 2u);  // at 384 px: sqrt(4.32) = 2.08
+    EXPECT_EQ(transfer_block_for(748451), 3u);  // at 512 px: sqrt(7.48) = 2.74
+    EXPECT_EQ(transfer_block_for(4000000), 6u); // sqrt(40) = 6.32
+    const PlanDecision a = decide_indirect_block(748451, 0);
+    EXPECT_EQ(a.name, "indirect_block");
+    EXPECT_FALSE(a.forced);
+    EXPECT_EQ(a.value, "3 x 3 texels");
+    EXPECT_EQ(decided_indirect_block(a), 3u);
+    EXPECT_EQ(a.detail["rows_about"].get<long>(), 83161);
+    EXPECT_NE(a.reason.find("about 83161 rows"), std::string::npos) << a.reason;
+    const PlanDecision f = decide_indirect_block(748451, 1);
+    EXPECT_TRUE(f.forced);
+    EXPECT_EQ(decided_indirect_block(f), 1u);
+    EXPECT_EQ(f.detail["auto_block"].get<std::uint32_t>(), 3u);
+    EXPECT_NE(f.reason.find("--indirect-block 1"), std::string::npos) << f.reason;
 }
 
 TEST(SvgPlot, MarksTheDefaultAndDrawsTheFront) {

@@ -116,8 +116,9 @@ void run_evaluate(const EvaluateArgs& a) {
     if (a.renders.empty() && a.specular != "core" && a.indirect.wanted(bundle)) {
         io = a.indirect.options(bundle, static_cast<unsigned>(a.threads));
         const VisibilityInputs in = visibility_inputs(capture);
-        log::info(format_text("indirect light: %.0f bounces, %.0f rays a row, from the bundle's texture coordinates", double(io.bounces),
-                              double(io.rays)) +
+        log::info(format_text("indirect light: %.0f bounces, %.0f rays a row, blocks of %.0f x %.0f texels, from the bundle's "
+                              "texture coordinates",
+                              double(io.bounces), double(io.rays), double(io.block), double(io.block)) +
                   (a.indirect.mode == "auto" ? std::string(" (the bundle's albedo had it removed; --indirect off leaves it out)")
                                         : std::string()));
         indirect.emplace(bundle, in.views, in.lights, in.frame_view, io);
@@ -152,6 +153,7 @@ void run_evaluate(const EvaluateArgs& a) {
                              {"method", "transfer between the particles of the bundle's own atlas (indirect/indirect.h)"},
                              {"bounces", io.bounces},
                              {"rays_per_row", io.rays},
+                             {"block_texels", io.block},
                              {"particles", st.particles},
                              {"rows", st.rows},
                              {"entries", st.entries},

@@ -33,6 +33,7 @@ struct ReconstructArgs {
     bool coated_tint = false;
     std::string factor_param = "auto";
     std::string factor_warp = "auto";
+    std::string indirect_block = "auto";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -62,6 +63,7 @@ void run_reconstruct(ReconstructArgs& args) {
     }
     c.factor_param = factor_param_from_string(args.factor_param); // "auto": nullopt
     if (args.factor_warp != "auto") c.shared_warp = args.factor_warp == "shared";
+    c.indirect_block = args.indirect_block == "auto" ? 0u : static_cast<std::uint32_t>(std::stoul(args.indirect_block));
     c.lambert.choice = args.views == "robust" ? ViewChoice::Robust : ViewChoice::BestView;
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.material = material_family_from_string(args.material); // "auto": nullopt (CLI11 checked the name)
@@ -197,11 +199,11 @@ void add_reconstruct_command(CLI::App& app) {
                     "less noise from few rays, the wrong place for a glossy lobe's light)")
         ->check(CLI::IsMember({"directed", "spread"}))
         ->capture_default_str();
-    cmd->add_option("--indirect-block", args->config.indirect_block,
+    cmd->add_option("--indirect-block", args->indirect_block,
                     "The transfer's rows: blocks of N x N texels of one chart that receive and send the indirect light\n"
                     "as one (it varies slowly over the surface); 1: every particle its own row (N^2 times the rows, the\n"
-                    "rays and the gathers' time)")
-        ->check(CLI::Range(1u, 8u))
+                    "rays and the gathers' time); auto: about 100k rows, at least 2 (2 at 256 px, 3 at 512 px)")
+        ->check(CLI::IsMember({"auto", "1", "2", "3", "4", "5", "6", "7", "8"}))
         ->capture_default_str();
     cmd->add_option("--indirect-rounds", args->config.indirect_rounds,
                     "At most this many rounds of (indirect light from the albedo, solve on the captures less it);\n"
@@ -236,7 +238,7 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--factor-warp", args->factor_warp,
                     "The warped parametrization's warp: per-channel (each channel's own: exact, 6 cube-map lookups a pixel\n"
                     "and term), shared (one for the three channels: 2 lookups, at some error where the channels' lobes\n"
-                    "differ), or auto (shared where its error against the lobe stays within 1%)")
+                    "differ), or auto (shared where its error against the lobe stays within 3%, the terms' own target)")
         ->check(CLI::IsMember({"auto", "per-channel", "shared"}))
         ->capture_default_str();
     cmd->add_flag("--no-html{false}", args->config.write_html, "Do not write report.html");

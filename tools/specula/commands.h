@@ -15,13 +15,17 @@ namespace specula::cli {
 struct IndirectArgs {
     std::string mode = "auto";           ///< --indirect auto|on|off
     std::uint32_t bounces = 0;           ///< --indirect-bounces; 0: the bundle's, else 2
-    std::uint32_t rays = kTransferRays;  ///< --indirect-rays
+    std::uint32_t rays = 0;              ///< --indirect-rays; 0: the bundle's, else kTransferRays
     /// on, or auto and the bundle's albedo had that light removed.
     [[nodiscard]] bool wanted(const Bundle& bundle) const {
         return mode == "on" || (mode == "auto" && evaluate::indirect_removed_from_albedo(bundle));
     }
     [[nodiscard]] evaluate::BundleIndirectOptions options(const Bundle& bundle, unsigned threads) const {
-        return {.bounces = bounces != 0 ? bounces : evaluate::indirect_bounces_of(bundle), .rays = rays, .threads = threads};
+        const evaluate::BundleTransfer transfer = evaluate::indirect_transfer_of(bundle);
+        return {.bounces = bounces != 0 ? bounces : evaluate::indirect_bounces_of(bundle),
+                .rays = rays != 0 ? rays : transfer.rays,
+                .block = transfer.block,
+                .threads = threads};
     }
 };
 
@@ -35,7 +39,10 @@ inline void add_indirect_options(CLI::App* cmd, IndirectArgs& a, const std::stri
         ->capture_default_str();
     cmd->add_option("--indirect-bounces", a.bounces, "Bounces of the indirect light (default: the bundle's, else 2)")
         ->check(CLI::Range(1, 8));
-    cmd->add_option("--indirect-rays", a.rays, "Rays per row of the indirect transfer")->check(CLI::Range(1, 4096))->capture_default_str();
+    cmd->add_option("--indirect-rays", a.rays,
+                    "Rays per row of the indirect transfer (default: the bundle's reconstruction's, else " +
+                        std::to_string(kTransferRays) + "; its blocks are always the bundle's)")
+        ->check(CLI::Range(1, 4096));
 }
 
 void add_validate_command(CLI::App& app); // cmd_validate.cpp
