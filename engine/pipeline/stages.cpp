@@ -250,9 +250,9 @@ std::vector<std::size_t> indirect_frames(const Capture& capture, bool measure) {
     return frames;
 }
 
-// The light rays of `frames` that the visibility stage left out (lit_seen_only), cast into its bits.
-// The light rays toward the particles the frames' views do not see: one a row of `transfer` and
-// frame (the rows send their particles' mean light).
+// The light rays of `frames` that the visibility stage left out (lit_seen_only: toward the
+// particles the frames' views do not see), cast into its bits: one a row of `transfer` and frame
+// (a row sends its particles' mean light).
 void complete_visibility(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, VisibilityStage& v,
                          std::span<const std::size_t> frames, const IndirectTransfer& transfer) {
     complete_lit(v.visibility, geometry.particles.particles, capture.mesh, *v.scene, v.inputs.views, v.inputs.lights,

@@ -293,13 +293,21 @@ TEST(Visibility, ResultsDoNotDependOnTheThreadCount) {
     EXPECT_EQ(b.stats.threads, 3u);
 }
 
+// A torus (it hides and shadows itself), 5 views with 7 lights each: frame f is view f % 5's.
+struct TorusFrames {
+    std::vector<Camera> cams = cameras_around(5, 3.0);
+    Scene s{test::torus(1.0f, 0.35f, 24, 12), cams};
+    std::vector<PointLight> lights = lights_around(35, 3.0);
+    std::vector<std::uint32_t> frame_view = [this] {
+        std::vector<std::uint32_t> v(lights.size());
+        for (std::size_t f = 0; f < lights.size(); ++f) v[f] = static_cast<std::uint32_t>(f % cams.size());
+        return v;
+    }();
+};
+
 TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
-    // A torus (it hides and shadows itself), 5 views with 7 lights each: frame f is view f % 5's.
-    const std::vector<Camera> cams = cameras_around(5, 3.0);
-    const Scene s(test::torus(1.0f, 0.35f, 24, 12), cams);
-    const std::vector<PointLight> lights = lights_around(35, 3.0);
-    std::vector<std::uint32_t> frame_view(lights.size());
-    for (std::size_t f = 0; f < lights.size(); ++f) frame_view[f] = static_cast<std::uint32_t>(f % cams.size());
+    const TorusFrames t;
+    const auto& [cams, s, lights, frame_view] = t;
     VisibilityOptions full;
     full.frame_view = frame_view;
     full.threads = 2;
@@ -344,11 +352,8 @@ TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
 // complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
 // another casts no ray and takes that one's bit where its own view does not see it.
 TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
-    const std::vector<Camera> cams = cameras_around(5, 3.0);
-    const Scene s(test::torus(1.0f, 0.35f, 24, 12), cams);
-    const std::vector<PointLight> lights = lights_around(35, 3.0);
-    std::vector<std::uint32_t> frame_view(lights.size());
-    for (std::size_t f = 0; f < lights.size(); ++f) frame_view[f] = static_cast<std::uint32_t>(f % cams.size());
+    const TorusFrames t;
+    const auto& [cams, s, lights, frame_view] = t;
     const std::size_t n = s.particles.particles.size();
     std::vector<std::size_t> all(lights.size());
     for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
@@ -381,7 +386,9 @@ TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
                 ASSERT_EQ(g.lights(p, f), a.lights(p, f)) << p << " " << f; // seen pairs and stand-ins: exact
                 continue;
             }
-            if (g.lights(p, f)) ASSERT_TRUE(g.lights(groups[p], f)) << p << " " << f; // lit only where its stand-in is
+            if (g.lights(p, f)) {
+                ASSERT_TRUE(g.lights(groups[p], f)) << p << " " << f; // lit only where its stand-in is
+            }
             ++unseen;
             agree += g.lights(p, f) == a.lights(p, f) ? 1u : 0u;
         }
