@@ -385,6 +385,7 @@ struct Bouncer {
     /// The lobe's first bounce sent where it goes (the transfer's entry directions), not spread.
     bool directional = false;
     std::vector<glm::vec4> radiosity, e, total;
+    std::vector<glm::vec4> by_source; ///< the gather's scratch (detail::gather_indirect_float_unchecked)
     /// With `directional`, per row and frame (row-major: r * frames + k, 16 bytes: the lobe's
     /// gather reads one or two cache lines per entry): the direction toward the light (xyz) and
     /// the mean of I max(0, N.u) / d^2 / I over the row's particles (w; the direct irradiance is
@@ -462,7 +463,7 @@ struct Bouncer {
                 o.kernel->run(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e);
             } else {
                 detail::gather_indirect_float_unchecked(*s.transfer, radiosity, static_cast<std::uint32_t>(frames.size()), e,
-                                                        o.threads);
+                                                        o.threads, &by_source);
             }
             if (bounce == 1 && directional) add_directional_lobe(frames);
             const bool more = bounce < o.bounces;

@@ -53,6 +53,9 @@ void add_lobe(const IndirectTransfer& t, const shared::MaterialGpu& m, std::span
         for (std::size_t i = begin; i < end; ++i) {
             std::fill(sum.begin(), sum.end(), Vec(0));
             for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
+                if (k + detail::kPrefetchAhead < t.entries.size())
+                    detail::prefetch(&light_geometry[std::size_t{t.entries[k + detail::kPrefetchAhead].source} * frames],
+                                     frames * sizeof(glm::vec4));
                 const glm::vec4 v = t.entry_direction[k];
                 if (!(v.w > 0.0f)) continue; // leaves the source from under its surface
                 const std::size_t j = t.entries[k].source;
@@ -126,6 +129,9 @@ __attribute__((target("avx2,fma"))) void lafortune_row_simd(const LafortuneSimd&
     const __m256 n[3] = {_mm256_set1_ps(m.c.x), _mm256_set1_ps(m.c.y), _mm256_set1_ps(m.c.z)};
     const std::size_t lanes = std::size_t{d.groups} * 8;
     for (std::uint32_t k = t.row_begin[row]; k < t.row_begin[row + 1]; ++k) {
+        if (k + detail::kPrefetchAhead < t.entries.size())
+            detail::prefetch(&d.light[std::size_t{t.entries[k + detail::kPrefetchAhead].source} * d.groups],
+                             d.groups * sizeof(LafortuneSimd::Group));
         const glm::vec4 v = t.entry_direction[k];
         if (!(v.w > 0.0f)) continue; // leaves the source from under its surface
         const std::uint32_t j = t.entries[k].source;

@@ -97,23 +97,25 @@ namespace {
 // The sources' values particle by particle, the frames of one particle side by side: an entry
 // then reads one or two cache lines for all the frames, not one line per frame (frame-major,
 // the sources are scattered over `frames` arrays of rows x 16 bytes). Empty for one frame.
-std::vector<glm::vec4> by_source(std::span<const glm::vec4> radiosity, std::size_t rows, std::uint32_t frames, unsigned threads) {
-    std::vector<glm::vec4> out;
-    if (frames <= 1) return out;
+// `out` keeps its storage from call to call (a caller's scratch: no fresh pages a batch).
+void by_source(std::span<const glm::vec4> radiosity, std::size_t rows, std::uint32_t frames, unsigned threads,
+               std::vector<glm::vec4>& out) {
+    if (frames <= 1) return;
     out.resize(rows * frames);
     parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
         for (std::size_t j = first; j < last; ++j)
             for (std::size_t f = 0; f < frames; ++f) out[j * frames + f] = radiosity[f * rows + j];
     });
-    return out;
 }
 
 // Both gathers: Sum (a glm vector of doubles or floats) accumulates each row's terms in entry order.
 template <typename Sum>
 void gather(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std::uint32_t frames, std::span<glm::vec4> out,
-            unsigned threads) {
+            unsigned threads, std::vector<glm::vec4>* scratch = nullptr) {
     const std::size_t rows = t.rows;
-    const std::vector<glm::vec4> transposed = by_source(radiosity, rows, frames, threads);
+    std::vector<glm::vec4> own;
+    std::vector<glm::vec4>& transposed = scratch != nullptr ? *scratch : own;
+    by_source(radiosity, rows, frames, threads, transposed);
     const glm::vec4* source = frames > 1 ? transposed.data() : radiosity.data();
     parallel_for_chunks(rows, threads, kRowsPerChunk, [&](unsigned, std::size_t first, std::size_t last) {
         std::vector<Sum> sum(frames);
@@ -122,6 +124,9 @@ void gather(const IndirectTransfer& t, std::span<const glm::vec4> radiosity, std
             for (std::uint32_t k = t.row_begin[i]; k < t.row_begin[i + 1]; ++k) {
                 const TransferEntry e = t.entries[k];
                 const glm::vec4* b = source + static_cast<std::size_t>(e.source) * frames;
+                if (k + detail::kPrefetchAhead < t.entries.size())
+                    detail::prefetch(source + std::size_t{t.entries[k + detail::kPrefetchAhead].source} * frames,
+                                     frames * sizeof(glm::vec4));
                 for (std::size_t f = 0; f < frames; ++f) sum[f] += static_cast<typename Sum::value_type>(e.weight) * Sum(b[f]);
             }
             // w: 0 whatever the radiosity's w held (transfer.h).
@@ -145,8 +150,9 @@ void gather_indirect_float(const IndirectTransfer& t, std::span<const glm::vec4>
 }
 
 void detail::gather_indirect_float_unchecked(const IndirectTransfer& t, std::span<const glm::vec4> radiosity,
-                                             std::uint32_t frames, std::span<glm::vec4> out, unsigned threads) {
-    gather<glm::vec4>(t, radiosity, frames, out, threads);
+                                             std::uint32_t frames, std::span<glm::vec4> out, unsigned threads,
+                                             std::vector<glm::vec4>* scratch) {
+    gather<glm::vec4>(t, radiosity, frames, out, threads, scratch);
 }
 
 std::vector<detail::TransferRowChunk> detail::transfer_row_chunks(const IndirectTransfer& t, std::uint64_t max_entries) {
