@@ -65,8 +65,8 @@ inline constexpr std::uint32_t kTransferBlock = 2;
 inline constexpr double kTransferBlockRows = 100000.0;
 
 /// The block for `particles` when none is asked for: the nearest whole number to
-/// sqrt(particles / kTransferBlockRows), at least kTransferBlock (2 up to 250k particles, 3 up
-/// to 1.2 M: the captures at 512 px).
+/// sqrt(particles / kTransferBlockRows), at least kTransferBlock (2 below 625k particles, 3 from
+/// there to 1.225 M: the captures at 512 px, 730k to 750k).
 [[nodiscard]] std::uint32_t transfer_block_for(std::size_t particles);
 
 struct TransferOptions {

@@ -263,6 +263,10 @@ TEST(Planner, IndirectBlockAimsAtAboutAHundredThousandRows) {
     EXPECT_EQ(transfer_block_for(190000), 2u);  // the knot at 256 px
     EXPECT_EQ(transfer_block_for(432000), 2u);  // at 384 px: sqrt(4.32) = 2.08
     EXPECT_EQ(transfer_block_for(748451), 3u);  // at 512 px: sqrt(7.48) = 2.74
+    EXPECT_EQ(transfer_block_for(624999), 2u);  // the steps: sqrt(6.25) = 2.5 ...
+    EXPECT_EQ(transfer_block_for(625000), 3u);
+    EXPECT_EQ(transfer_block_for(1224999), 3u); // ... and sqrt(12.25) = 3.5
+    EXPECT_EQ(transfer_block_for(1225000), 4u);
     EXPECT_EQ(transfer_block_for(4000000), 6u); // sqrt(40) = 6.32
     const PlanDecision a = decide_indirect_block(748451, 0);
     EXPECT_EQ(a.name, "indirect_block");
