@@ -95,13 +95,14 @@ struct LafortuneSimd {
     struct alignas(64) Group {
         float ux[8], uy[8], uz[8], g[8];
     };
-    std::uint32_t frames = 0, groups = 0; // groups: frames / 8, rounded up
-    std::vector<Group> light;              // row r's groups at r * groups
-    std::vector<float> intensity[3];       // per channel, groups * 8 frames
+    std::uint32_t groups = 0;        // frames / 8, rounded up
+    std::vector<Group> light;        // row r's groups at r * groups
+    std::vector<float> intensity[3]; // per channel, lanes() frames
+    [[nodiscard]] std::size_t lanes() const { return std::size_t{groups} * 8; }
 
     LafortuneSimd(std::size_t rows, std::span<const glm::vec4> light_geometry, std::span<const glm::vec3> intensities,
-                  std::uint32_t frame_count)
-        : frames(frame_count), groups((frame_count + 7u) / 8u), light(rows * groups, Group{}) {
+                  std::uint32_t frames)
+        : groups((frames + 7u) / 8u), light(rows * groups, Group{}) {
         for (std::size_t r = 0; r < rows; ++r)
             for (std::size_t f = 0; f < frames; ++f) {
                 const glm::vec4 l = light_geometry[r * frames + f];
@@ -112,13 +113,13 @@ struct LafortuneSimd {
                 q.g[lane] = finite && l.w > 0.0f ? l.w : 0.0f; // the scalar path's skip of unlit sources
             }
         for (int c = 0; c < 3; ++c) {
-            intensity[c].assign(std::size_t{groups} * 8, 0.0f);
+            intensity[c].assign(lanes(), 0.0f);
             for (std::size_t f = 0; f < frames; ++f) intensity[c][f] = intensities[f][c];
         }
     }
 };
 
-// One row's sums, `sum` holding 3 x groups x 8 floats (r, g, b), zeroed by the caller.
+// One row's sums, `sum` holding 3 x lanes() floats (r, g, b), zeroed by the caller.
 __attribute__((target("avx2,fma"))) void lafortune_row_simd(const LafortuneSimd& d, const IndirectTransfer& t,
                                                              const shared::MaterialGpu& m, std::span<const glm::vec3> row_normal,
                                                              std::size_t row, float* sum) {
@@ -127,7 +128,7 @@ __attribute__((target("avx2,fma"))) void lafortune_row_simd(const LafortuneSimd&
     const __m256 cx[3] = {_mm256_set1_ps(m.a.x), _mm256_set1_ps(m.a.y), _mm256_set1_ps(m.a.z)};
     const __m256 cz[3] = {_mm256_set1_ps(m.b.x), _mm256_set1_ps(m.b.y), _mm256_set1_ps(m.b.z)};
     const __m256 n[3] = {_mm256_set1_ps(m.c.x), _mm256_set1_ps(m.c.y), _mm256_set1_ps(m.c.z)};
-    const std::size_t lanes = std::size_t{d.groups} * 8;
+    const std::size_t lanes = d.lanes();
     for (std::uint32_t k = t.row_begin[row]; k < t.row_begin[row + 1]; ++k) {
         if (k + detail::kPrefetchAhead < t.entries.size())
             detail::prefetch(&d.light[std::size_t{t.entries[k + detail::kPrefetchAhead].source} * d.groups],
@@ -175,7 +176,7 @@ void add_lafortune_simd(const IndirectTransfer& t, const shared::MaterialGpu& m,
                         std::span<glm::vec4> out, unsigned threads) {
     const std::size_t n = t.rows;
     const LafortuneSimd d(n, light_geometry, intensity, frames);
-    const std::size_t lanes = std::size_t{d.groups} * 8;
+    const std::size_t lanes = d.lanes();
     parallel_for_chunks(n, std::max(threads, 1u), kRowsPerChunk, [&](unsigned, std::size_t begin, std::size_t end) {
         std::vector<float> sum(3 * lanes);
         for (std::size_t i = begin; i < end; ++i) {
