@@ -708,7 +708,10 @@ std::vector<RefusalCase> refusal_cases() {
          "frames[1].file_path", true},
         {"SymlinkLeavesTheFolder",
          [](CaptureFixture& fx) {
-             const fs::path outside = fx.dir.path().parent_path() / (fx.dir.path().filename().string() + "-outside.png");
+             // a folder of its own, removed when the test program ends (a file put beside the
+             // capture's folder stayed in the temp area after every run)
+             static const test::TempDir elsewhere{"capture-outside"};
+             const fs::path outside = elsewhere / (fx.dir.path().filename().string() + "-outside.png");
              write_image(outside, solid(kW, kH, 3, 0.25f), ColorSpace::Srgb);
              fs::remove(fx.dir / CaptureFixture::image_name(0, 1));
              fs::create_symlink(outside, fx.dir / CaptureFixture::image_name(0, 1));
