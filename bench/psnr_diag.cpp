@@ -25,6 +25,9 @@
 //                      residual (albedo image - A as rendered), step --ibp-step (default 1): the
 //                      simulation behind refine/albedo_refine.h
 // --shadow-map N renders with an N x N shadow map (default 2048, the renderer's).
+// --coated: the preset in the coated family (its eta and alpha) for --truth, --truth-lobe and --oracle.
+// --write-bundle PATH: write the bundle rendered (e.g. the oracle's) for `specula evaluate`, which
+// scores display values too.
 #include "capture/capture.h"
 #include "core/image.h"
 #include "export/bundle.h"
@@ -59,6 +62,8 @@ int main(int argc, char** argv) {
     float ibp_step = 1.0f;
     double ibp_weight_power = 1.0;
     bool ibp_best = false;
+    bool coated = false;
+    std::string write_to;
     std::string sim; // with --oracle: estimate the albedo from simulated albedo images of the train views
                      // ("bilinear": best view, bilinear; "nearest": the pixel of any view whose centre ray
                      // hits closest to the particle)
@@ -75,18 +80,21 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--all")) all = true;
         else if (!std::strcmp(argv[i], "--shadow-map") && i + 1 < argc) shadow_map = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--no-shadows")) shadows = false;
+        else if (!std::strcmp(argv[i], "--coated")) coated = true;
+        else if (!std::strcmp(argv[i], "--write-bundle") && i + 1 < argc) write_to = argv[++i];
     }
+    const MaterialFamily family = coated ? MaterialFamily::Coated : MaterialFamily::Lafortune;
     const Capture cap = load_capture(argv[1]);
     Bundle b;
     if (!truth.empty()) {
-        const synth::Preset p = synth::make_preset(truth);
+        const synth::Preset p = synth::make_preset(truth, false, family);
         b.mesh = p.mesh;
         b.albedo = p.material.albedo_texture;
-        b.material.specular = p.material.lobe;
+        b.material.specular = p.material.specular();
     } else if (!oracle.empty()) {
         // The atlas reconstruct builds (train cameras), every particle given the TRUE albedo
         // at its surface point: what the atlas itself can hold, with no estimation error.
-        const synth::Preset p = synth::make_preset(oracle);
+        const synth::Preset p = synth::make_preset(oracle, false, family);
         std::vector<Camera> cams;
         for (const View& v : cap.views)
             for (const std::size_t f : v.frames)
@@ -252,11 +260,12 @@ int main(int argc, char** argv) {
         }
         std::printf("oracle atlas %ux%u at %.2f texels per pixel, %zu particles\n", atlas.width, atlas.height, oracle_tpp,
                     ps.particles.size());
-        b = make_bundle(cap.mesh, atlas.corner_uv, img, Material{.specular = p.material.lobe});
+        b = make_bundle(cap.mesh, atlas.corner_uv, img, Material{.specular = p.material.specular()});
     } else {
         b = read_bundle(argv[2]);
-        if (!truth_lobe.empty()) b.material.specular = synth::make_preset(truth_lobe).material.lobe;
+        if (!truth_lobe.empty()) b.material.specular = synth::make_preset(truth_lobe, false, family).material.specular();
     }
+    if (!write_to.empty()) write_bundle(write_to, b);
     gpu::Context ctx;
     const std::vector<glm::vec2> corner_uv = corner_uvs(b.mesh);
     render::Renderer r(ctx, render::Scene{.mesh = &b.mesh, .corner_uv = corner_uv, .albedo = &b.albedo,

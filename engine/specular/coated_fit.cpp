@@ -1,6 +1,7 @@
 // The coated family's fit: see coated_fit.h for the model, the parameters and the method.
 #include "specular/coated_fit.h"
 
+#include "core/format.h"
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "shared/material.h"
@@ -75,42 +76,98 @@ Acc chunked_sum(const std::vector<Prepared>& s, unsigned threads, F&& add) {
     return total;
 }
 
-struct TintSums {
-    glm::dvec3 num{0.0};
-    double den = 0.0;
-    TintSums& operator+=(const TintSums& o) {
-        num += o.num;
-        den += o.den;
+/// The parameters that enter linearly: the tint, and the scale of the diffuse term the samples'
+/// rho / pi is read with (coated_fit.h).
+struct Linear {
+    double scale = 1.0;
+    glm::dvec3 tint{1.0};
+};
+
+/// The model at one sample for given linear parameters.
+glm::dvec3 model(const Parts& q, const Linear& l) { return l.scale * q.diffuse + l.tint * q.specular; }
+
+/// The weighted sums of the linear least-squares problem in (scale, tint): D the diffuse part,
+/// S the untinted specular, b the observation.
+struct LinearSums {
+    double dd = 0.0, ss = 0.0, db = 0.0;
+    glm::dvec3 ds{0.0}, sb{0.0};
+    LinearSums& operator+=(const LinearSums& o) {
+        dd += o.dd;
+        ss += o.ss;
+        db += o.db;
+        ds += o.ds;
+        sb += o.sb;
         return *this;
     }
 };
 
-/// The tint for fixed (alpha, eta): 1, or per channel the weighted least-squares scale of the
-/// specular to what the diffuse leaves (clamped at 0: a negative tint is no reflection).
-glm::dvec3 solve_tint(const std::vector<Prepared>& s, const Point& p, bool fit_tint, unsigned threads = 1) {
-    if (!fit_tint) return glm::dvec3(1.0);
-    const TintSums t = chunked_sum<TintSums>(s, threads, [&](TintSums& acc, const Prepared& x) {
+/// The linear parameters for fixed (alpha, eta), each either fixed (scale 1, tint 1) or the
+/// weighted least-squares value given the others: the scale clamped to [kMinDiffuseScale,
+/// kMaxDiffuseScale], the tint at 0 (a negative tint is no reflection). With both free, the
+/// tint's channels and the scale are solved jointly (4 x 4 normal equations); a clamped value
+/// is then held and the others solved again given it.
+constexpr double kMinDiffuseScale = 0.5, kMaxDiffuseScale = 2.0;
+Linear solve_linear(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o, unsigned threads = 1) {
+    Linear l;
+    if (!o.fit_tint && !o.fit_diffuse_scale) return l;
+    const LinearSums t = chunked_sum<LinearSums>(s, threads, [&](LinearSums& acc, const Prepared& x) {
         const Parts q = parts(x, p);
-        acc.num += x.w * q.specular * (x.b - q.diffuse);
-        acc.den += x.w * q.specular * q.specular;
+        acc.dd += x.w * glm::dot(q.diffuse, q.diffuse);
+        acc.ss += x.w * q.specular * q.specular;
+        acc.db += x.w * glm::dot(q.diffuse, x.b);
+        acc.ds += x.w * q.specular * q.diffuse;
+        acc.sb += x.w * q.specular * x.b;
     });
-    return t.den > 0.0 ? glm::max(t.num / t.den, glm::dvec3(0.0)) : glm::dvec3(0.0);
+    const auto scale_given = [&](const glm::dvec3& tint) {
+        if (!(t.dd > 0.0)) return 1.0;
+        return std::clamp((t.db - glm::dot(tint, t.ds)) / t.dd, kMinDiffuseScale, kMaxDiffuseScale);
+    };
+    const auto tint_given = [&](double scale) {
+        return t.ss > 0.0 ? glm::max((t.sb - scale * t.ds) / t.ss, glm::dvec3(0.0)) : glm::dvec3(0.0);
+    };
+    if (!o.fit_tint) {
+        l.scale = scale_given(l.tint);
+        return l;
+    }
+    if (!o.fit_diffuse_scale) {
+        l.tint = tint_given(1.0);
+        return l;
+    }
+    Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d rhs;
+    a(0, 0) = t.dd;
+    rhs(0) = t.db;
+    for (int c = 0; c < 3; ++c) {
+        a(0, c + 1) = a(c + 1, 0) = t.ds[c];
+        a(c + 1, c + 1) = t.ss;
+        rhs(c + 1) = t.sb[c];
+    }
+    const Eigen::Vector4d x = a.ldlt().solve(rhs);
+    const glm::dvec3 tint(x(1), x(2), x(3));
+    if (x.allFinite() && x(0) >= kMinDiffuseScale && x(0) <= kMaxDiffuseScale && glm::all(glm::greaterThanEqual(tint, glm::dvec3(0.0)))) {
+        l.scale = x(0);
+        l.tint = tint;
+        return l;
+    }
+    // A bound is active: the tint at 0 where it went negative, the scale given it, the tint again.
+    l.scale = scale_given(x.allFinite() ? glm::max(tint, glm::dvec3(0.0)) : glm::dvec3(0.0));
+    l.tint = tint_given(l.scale);
+    return l;
 }
 
-double cost_at(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint, unsigned threads = 1) {
+double cost_at(const std::vector<Prepared>& s, const Point& p, const Linear& l, unsigned threads = 1) {
     return chunked_sum<double>(s, threads, [&](double& acc, const Prepared& x) {
-        const Parts q = parts(x, p);
-        const glm::dvec3 r = q.diffuse + tint * q.specular - x.b;
+        const glm::dvec3 r = model(parts(x, p), l) - x.b;
         acc += x.w * glm::dot(r, r);
     });
 }
 
-/// Cost with the tint projected out (variable projection).
-double projected_cost(const std::vector<Prepared>& s, const Point& p, bool fit_tint) {
-    return cost_at(s, p, solve_tint(s, p, fit_tint));
+/// Cost with the linear parameters projected out (variable projection).
+double projected_cost(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o) {
+    return cost_at(s, p, solve_linear(s, p, o));
 }
 
-/// The Jacobian of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed tint, by
+/// The Jacobian of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed linear parameters, by
 /// central differences (the model's derivatives through Fresnel and Smith are long and the
 /// two columns are cheap), accumulated as J^T J and J^T r.
 struct Normal {
@@ -124,15 +181,15 @@ struct Normal {
         return *this;
     }
 };
-Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const glm::dvec3& tint, unsigned threads = 1) {
+Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const Linear& l, unsigned threads = 1) {
     constexpr double h = 1e-5;
     Normal n = chunked_sum<Normal>(s, threads, [&](Normal& acc, const Prepared& x) {
         const Parts q0 = parts(x, p);
         const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
         const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
-        const glm::dvec3 r = q0.diffuse + tint * q0.specular - x.b;
-        const glm::dvec3 ja = (qa.diffuse - qb.diffuse + tint * (qa.specular - qb.specular)) / (2.0 * h);
-        const glm::dvec3 je = (qe.diffuse - qf.diffuse + tint * (qe.specular - qf.specular)) / (2.0 * h);
+        const glm::dvec3 r = model(q0, l) - x.b;
+        const glm::dvec3 ja = (model(qa, l) - model(qb, l)) / (2.0 * h);
+        const glm::dvec3 je = (model(qe, l) - model(qf, l)) / (2.0 * h);
         acc.jtj(0, 0) += x.w * glm::dot(ja, ja);
         acc.jtj(0, 1) += x.w * glm::dot(ja, je);
         acc.jtj(1, 1) += x.w * glm::dot(je, je);
@@ -146,35 +203,37 @@ Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const gl
 
 struct LmResult {
     Point p;
-    glm::dvec3 tint;
+    Linear linear;
     double cost;
     std::uint32_t iterations;
     bool converged;
 };
 
-/// Levenberg-Marquardt in (ln alpha, eta), the tint re-solved after each accepted step; its sums
-/// on up to `threads` workers.
+/// Levenberg-Marquardt in (ln alpha, eta), the linear parameters re-solved after each accepted
+/// step; its sums on up to `threads` workers.
 LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o, unsigned threads) {
-    glm::dvec3 tint = solve_tint(s, p, o.fit_tint, threads);
-    double cost = cost_at(s, p, tint, threads);
+    Linear lin = solve_linear(s, p, o, threads);
+    double cost = cost_at(s, p, lin, threads);
     double lambda = 1e-3;
-    LmResult r{p, tint, cost, 0, false};
+    LmResult r{p, lin, cost, 0, false};
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
         ++r.iterations;
-        const Normal n = normal_equations(s, p, tint, threads);
+        const Normal n = normal_equations(s, p, lin, threads);
         bool accepted = false;
         for (int tries = 0; tries < 12 && !accepted; ++tries) {
             Eigen::Matrix2d a = n.jtj;
             a.diagonal() += lambda * n.jtj.diagonal().cwiseMax(1e-30);
-            const Eigen::Vector2d step = a.ldlt().solve(-n.jtr);
+            Eigen::Vector2d step;
+            if (o.fixed_eta) step = {-n.jtr(0) / a(0, 0), 0.0}; // eta held: ln alpha alone
+            else step = a.ldlt().solve(-n.jtr);
             if (!step.allFinite()) break;
             const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
-            const glm::dvec3 t = solve_tint(s, q, o.fit_tint, threads);
+            const Linear t = solve_linear(s, q, o, threads);
             const double c = cost_at(s, q, t, threads);
             if (std::isfinite(c) && c < cost) {
                 const double decrease = (cost - c) / std::max(cost, 1e-300);
                 p = q;
-                tint = t;
+                lin = t;
                 cost = c;
                 lambda = std::max(lambda / 10.0, 1e-12);
                 accepted = true;
@@ -185,7 +244,7 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
         }
         if (!accepted) r.converged = std::isfinite(cost); // no step lowers the cost: a minimum (or a bound)
         r.p = p;
-        r.tint = tint;
+        r.linear = lin;
         r.cost = cost;
         if (r.converged) break;
     }
@@ -193,11 +252,10 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
 }
 
 /// Huber weights (k = 1.345 robust sigmas) from the residuals at p, folded into the weights.
-void reweight(std::vector<Prepared>& s, const std::vector<double>& base_w, const Point& p, const glm::dvec3& tint) {
+void reweight(std::vector<Prepared>& s, const std::vector<double>& base_w, const Point& p, const Linear& l) {
     std::vector<double> abs_r(s.size());
     for (std::size_t i = 0; i < s.size(); ++i) {
-        const Parts q = parts(s[i], p);
-        const glm::dvec3 r = q.diffuse + tint * q.specular - s[i].b;
+        const glm::dvec3 r = model(parts(s[i], p), l) - s[i].b;
         abs_r[i] = std::sqrt(base_w[i] * glm::dot(r, r) / 3.0);
     }
     std::vector<double> sorted = abs_r;
@@ -232,12 +290,14 @@ const char* to_string(CoatedFitStatus s) noexcept {
     return "?";
 }
 
-CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOptions& o) {
+namespace {
+
+CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptions& o) {
     const Stopwatch watch;
     CoatedFit fit;
     std::vector<Prepared> all = prepare(samples, 1);
     fit.samples = static_cast<std::uint32_t>(all.size());
-    const std::size_t params = o.fit_tint ? 5 : 2;
+    const std::size_t params = (o.fixed_eta ? 1 : 2) + (o.fit_tint ? 3 : 0) + (o.fit_diffuse_scale ? 1 : 0);
     if (all.size() <= params * 3) {
         fit.reason = std::to_string(all.size()) + " usable samples for " + std::to_string(params) + " parameters";
         fit.seconds = watch.seconds();
@@ -252,20 +312,21 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
         double cost;
     };
     std::vector<Cell> cells;
-    constexpr int kAlphaSteps = 24, kEtaSteps = 15;
+    constexpr int kAlphaSteps = 24;
+    const int eta_steps = o.fixed_eta ? 1 : 15;
     for (int i = 0; i < kAlphaSteps; ++i)
-        for (int j = 0; j < kEtaSteps; ++j) {
+        for (int j = 0; j < eta_steps; ++j) {
             const double la = std::log(0.005) + (std::log(1.0) - std::log(0.005)) * i / (kAlphaSteps - 1);
-            cells.push_back({{la, 1.1 + 0.1 * j}, 0.0});
+            cells.push_back({{la, o.fixed_eta ? clamp_eta(*o.fixed_eta) : 1.1 + 0.1 * j}, 0.0});
         }
     const unsigned threads = o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-    parallel_for(cells.size(), threads, [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o.fit_tint); });
+    parallel_for(cells.size(), threads, [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o); });
     std::sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.cost < b.cost; });
 
     // LM from the best cells (distinct starts), robustly reweighted on all samples.
     std::vector<double> base_w(all.size());
     for (std::size_t i = 0; i < all.size(); ++i) base_w[i] = all[i].w;
-    LmResult best{{0.0, 0.0}, glm::dvec3(1.0), std::numeric_limits<double>::infinity(), 0, false};
+    LmResult best{{0.0, 0.0}, Linear{}, std::numeric_limits<double>::infinity(), 0, false};
     const std::size_t starts = std::min<std::size_t>(cells.size(), std::max<std::uint32_t>(1, o.restarts));
     // The starts' LM runs are independent: side by side, then taken in order (the same best for any thread count).
     std::vector<std::optional<LmResult>> runs(starts);
@@ -284,14 +345,14 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
         return fit;
     }
     for (std::uint32_t pass = 0; pass <= o.robust_passes; ++pass) {
-        if (pass > 0) reweight(all, base_w, best.p, best.tint);
+        if (pass > 0) reweight(all, base_w, best.p, best.linear);
         const LmResult r = levenberg_marquardt(all, best.p, o, threads);
         fit.iterations += r.iterations;
         best = r;
     }
 
     // Uncertainty at the minimum (the robust weights kept).
-    const Normal n = normal_equations(all, best.p, best.tint, threads);
+    const Normal n = normal_equations(all, best.p, best.linear, threads);
     const double m = 3.0 * double(all.size());
     const double s2 = n.cost / std::max(1.0, m - double(params));
     const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
@@ -300,7 +361,12 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
     const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().maxCoeff();
     fit.condition = lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity();
     const double alpha = std::exp(best.p.log_alpha);
-    if (lo > 0.0) {
+    if (o.fixed_eta) {
+        // eta given: ln alpha's variance alone, and no error on eta.
+        fit.condition = 1.0;
+        fit.std_error_alpha = n.jtj(0, 0) > 0.0 ? alpha * std::sqrt(s2 / n.jtj(0, 0)) : std::numeric_limits<double>::infinity();
+        fit.std_error_eta = 0.0;
+    } else if (lo > 0.0) {
         const Eigen::Matrix2d cov = s2 * n.jtj.inverse();
         fit.std_error_alpha = alpha * std::sqrt(std::max(0.0, cov(0, 0))); // d alpha = alpha d ln alpha
         fit.std_error_eta = std::sqrt(std::max(0.0, cov(1, 1)));
@@ -313,12 +379,12 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
         for (const Prepared& x : all) den += x.w * std::pow(parts(x, best.p).specular, 2);
         fit.std_error_tint = glm::dvec3(den > 0.0 ? std::sqrt(s2 / den) : std::numeric_limits<double>::infinity());
     }
-    fit.params = CoatedParams{.eta = float(best.p.eta), .alpha = float(alpha), .tint = glm::vec3(best.tint)};
+    fit.params = CoatedParams{.eta = float(best.p.eta), .alpha = float(alpha), .tint = glm::vec3(best.linear.tint)};
+    fit.diffuse_scale = best.linear.scale;
     fit.cost = best.cost;
     double sq = 0.0, wsum = 0.0;
     for (std::size_t i = 0; i < all.size(); ++i) {
-        const Parts q = parts(all[i], best.p);
-        const glm::dvec3 r = q.diffuse + best.tint * q.specular - all[i].b;
+        const glm::dvec3 r = model(parts(all[i], best.p), best.linear) - all[i].b;
         sq += base_w[i] * glm::dot(r, r) / 3.0;
         wsum += base_w[i];
     }
@@ -344,6 +410,31 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
     }
     fit.seconds = watch.seconds();
     return fit;
+}
+
+} // namespace
+
+CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOptions& o) {
+    CoatedFit fit = fit_once(samples, o);
+    // eta ran to a bound (converged there or not): the samples hold no Fresnel rise to fix it
+    // (the cologne's first solve on the thesis rig at 512 px, the highlight's views rejected as
+    // outliers, went to eta 3, alpha 0.016 against the truth's 1.52, 0.05). Fitted again with
+    // eta held at a common coating's index (alpha 0.047 there), and said.
+    const float eta = fit.params.eta;
+    const bool at_bound = eta >= 0.99f * shared::kCoatedMaxEta || eta <= 1.01f * shared::kCoatedMinEta;
+    if (o.fixed_eta || !o.eta_at_bound || fit.status == CoatedFitStatus::TooFewSamples || !at_bound) return fit;
+    CoatedFitOptions held = o;
+    held.fixed_eta = *o.eta_at_bound;
+    CoatedFit h = fit_once(samples, held);
+    if (!h.usable()) return fit;
+    h.status = CoatedFitStatus::Underdetermined;
+    h.eta_determined = false;
+    h.reason = format_text("eta ran to its bound (%.3g): the samples hold no Fresnel rise to fix it, so it is held at %.3g "
+                           "and alpha alone is fitted",
+                           double(eta), *o.eta_at_bound);
+    h.iterations += fit.iterations;
+    h.seconds += fit.seconds;
+    return h;
 }
 
 double material_mean_square_error(const SpecularModel& model, std::span<const MaterialSample> samples) {

@@ -10,6 +10,12 @@
 // column scale-free from a near-mirror 0.01 to a rough 1. The tint enters linearly: it is 1
 // (a clear dielectric, the default), or solved per channel in closed form at every step
 // (variable projection, Golub and Pereyra 1973), so LM only sees the two nonlinear parameters.
+// So does a scale s of the diffuse term, b = s (rho / pi) k_d + ...: rho comes from a diffuse
+// solve made with another material (the first one's is Lambertian, k_d = 1), which spreads the
+// coating's fall-off over the albedo and leaves it low by the mean of k_d over the views it
+// read (5 to 15%); without s that deficit shows everywhere as a broad reflection, and on the
+// vase at 512 px the fit ran to alpha = 1 (docs/pipeline.md 5.7). The albedo is solved again
+// with the fitted material, so s only keeps that offset out of (alpha, eta).
 //
 // Starts: a grid over (ln alpha, eta) on a stride subsample; LM from the best cells, on all the
 // samples. Robust: iteratively reweighted (Huber weights, k = 1.345 robust sigmas, sigma from
@@ -28,6 +34,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -59,6 +66,14 @@ enum class CoatedFitStatus {
 
 struct CoatedFitOptions {
     bool fit_tint = false;          ///< solve the tint per channel (else 1, 1, 1)
+    bool fit_diffuse_scale = true;  ///< solve the diffuse term's scale s (else 1)
+    /// Set: eta is held at this value (the coating's index when known: 1.45 to 1.6 for most
+    /// plastics, varnishes and glazes) and alpha alone is fitted; its standard error is then 0.
+    std::optional<double> fixed_eta;
+    /// Set (and eta not held): where eta runs to a bound of its range, the fit is made again with
+    /// eta held at this value, status underdetermined with the reason. 1.5: most plastics,
+    /// varnishes and glazes.
+    std::optional<double> eta_at_bound = 1.5;
     std::uint32_t coarse_samples = 20000; ///< grid search on a stride subsample of at most this many
     std::uint32_t restarts = 3;     ///< LM from this many of the best grid cells
     std::uint32_t max_iterations = 100;
@@ -74,6 +89,7 @@ struct CoatedFit {
     CoatedParams params;
     double std_error_alpha = 0.0, std_error_eta = 0.0;
     glm::dvec3 std_error_tint{0.0};
+    double diffuse_scale = 1.0; ///< s: what the samples' rho / pi was off by, in the fit's eyes
     bool alpha_determined = false, eta_determined = false;
     double cost = 0.0;      ///< robust-weighted sum of squared residuals (image units^2)
     double rms = 0.0;       ///< sqrt(unweighted-by-robustness mean square residual per channel)
@@ -88,8 +104,9 @@ struct CoatedFit {
     }
 };
 
-/// Fits (alpha, eta) and optionally the tint to the samples. Never returns NaN: a non-finite
-/// value ends the fit with an honest status.
+/// Fits (alpha, eta) and optionally the tint to the samples (eta held where the options say
+/// so, or where it runs to a bound: CoatedFitOptions::eta_at_bound). Never returns NaN: a
+/// non-finite value ends the fit with an honest status.
 [[nodiscard]] CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOptions& options = {});
 
 /// The weighted mean square (image units^2, channel mean) of model - b over the samples, for any

@@ -4,9 +4,11 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "pipeline/reconstruct.h"
+#include "shared/coated.h"
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +33,7 @@ struct ReconstructArgs {
     std::string specular = "auto";
     std::string material = "auto";
     bool coated_tint = false;
+    std::optional<double> coated_eta;
     std::string factor_param = "auto";
     std::string factor_warp = "auto";
     std::string indirect_block = "auto";
@@ -68,6 +71,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.specular = args.specular == "on" ? SpecularMode::On : args.specular == "off" ? SpecularMode::Off : SpecularMode::Auto;
     c.material = material_family_from_string(args.material); // "auto": nullopt (CLI11 checked the name)
     c.coated.fit_tint = args.coated_tint;
+    c.coated.fixed_eta = args.coated_eta;
     c.atlas.max_width = args.texture_size;
     c.atlas.max_height = args.texture_size;
     c.atlas.mode = atlas_mode_from_string(args.atlas).value_or(AtlasMode::Charts); // CLI11 checked the name
@@ -158,6 +162,11 @@ void add_reconstruct_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--coated-tint", args->coated_tint,
                   "coated: fit a specular tint per channel (default: 1, a clear dielectric coating)");
+    cmd->add_option("--coated-eta", args->coated_eta,
+                    "coated: hold the coating's index of refraction at this value and fit alpha alone (when it is\n"
+                    "known: about 1.5 for most plastics, varnishes and glazes); default: fitted, and held at 1.5 only\n"
+                    "where the fit runs to a bound of its range (the report says so)")
+        ->check(CLI::Range(double(shared::kCoatedMinEta), double(shared::kCoatedMaxEta)));
     cmd->add_option("--joint-rounds", args->config.joint_rounds,
                     "After a fit: rounds of (diffuse solve minus the lobe's light, residuals, refit) until the "
                     "lobe settles; 0 = the thesis's single pass")
