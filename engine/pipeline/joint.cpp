@@ -48,6 +48,23 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         const std::optional<SpecularModel> next = fit.model();
         JointRound r{round, next ? max_relative_change(*next, *previous) : 1.0, residuals.counts.used, std::nullopt, false};
         if (steps.validate && next) r.validation_mse = steps.validate(solve, *next, tag);
+        // The round's albedo was solved with the material before its fit: a large move can raise
+        // the validation error through that mismatch alone (coated can, thesis rig, 512 px: round 2
+        // undone, the estimate stuck at eta 2.45, alpha 0.72 for the truth's 1.5, 0.12). Before a
+        // rise undoes the round, the new material is scored once more with its own albedo, and
+        // kept, with that albedo, where that does not rise.
+        if (r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse) {
+            LambertOptions own = lo;
+            own.material = *next;
+            LambertOutputs own_solve = steps.solve(own, tag + " (its own albedo)");
+            const double own_mse = steps.validate(own_solve, *next, tag + " (its own albedo)");
+            if (own_mse <= *state.validation_mse) {
+                r.validation_mse = own_mse;
+                r.own_albedo = true;
+                lo = std::move(own);
+                solve = std::move(own_solve);
+            }
+        }
         // A round is rejected when its fit is unusable or the validation error rose.
         const bool worse = !next || (r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse);
         if (worse) {

@@ -9,7 +9,9 @@
 // Monotone: when a validation step is given (frames held out of the solve and the fit), every
 // round's result (albedo, material) is scored on them, and a round whose validation error is
 // higher than the previous one's is rejected: the state goes back to the previous round and the
-// loop stops, saying so. Without it the rounds run as before (the final fit of the winner on
+// loop stops, saying so. Before that, the round's material is scored once more with an albedo
+// solved with it (the round's own was solved with the material before): where that does not
+// rise, the round is kept with that albedo (JointRound::own_albedo). Without it the rounds run as before (the final fit of the winner on
 // all train frames runs as many rounds as its validated estimate accepted).
 //
 // The loop is separate from the stages that run its steps (pipeline/stages.cpp gives them the
@@ -60,6 +62,9 @@ struct JointRound {
     std::size_t residual_samples = 0;       ///< samples the round's residual pass kept
     std::optional<double> validation_mse;   ///< with a validation step
     bool rejected = false;                  ///< the validation error rose: the round was undone
+    /// The error rose with the round's albedo (solved with the material before the fit) but not
+    /// with one solved with the fitted material: the round was kept with that albedo.
+    bool own_albedo = false;
 };
 
 struct JointResult {

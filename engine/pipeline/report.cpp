@@ -107,6 +107,7 @@ json coated_json(const CoatedFit& c) {
             {"status", to_string(c.status)},
             {"reason", c.reason},
             {"standard_errors", {{"eta", c.std_error_eta}, {"alpha", c.std_error_alpha}}},
+            {"diffuse_scale", c.diffuse_scale},
             {"determined", {{"eta", c.eta_determined}, {"alpha", c.alpha_determined}}},
             {"condition", std::isfinite(c.condition) ? json(c.condition) : json(nullptr)},
             {"cost", c.cost},
@@ -122,6 +123,7 @@ json joint_json(const JointResult& joint) {
         json round = {{"round", r.round}, {"max_relative_change", r.max_relative_change}, {"residual_samples", r.residual_samples}};
         if (r.validation_mse) round["validation_mse"] = *r.validation_mse;
         if (r.rejected) round["rejected"] = true;
+        if (r.own_albedo) round["own_albedo"] = true;
         rounds.push_back(std::move(round));
     }
     json j = {{"rounds", rounds}, {"accepted", joint.accepted}, {"stop", joint.stop}};
@@ -224,6 +226,8 @@ json specular_json(const SpecularStage& s, double joint_tolerance) {
     j["joint"]["settled"] = !s.joint.unsettled_change.has_value();
     if (s.joint.unsettled_change) j["joint"]["unsettled_change"] = *s.joint.unsettled_change;
     if (s.joint.unsettled_remaining) j["joint"]["unsettled_remaining"] = *s.joint.unsettled_remaining;
+    // The albedo solved once more with the final material (the rounds ended with it still moving).
+    j["joint"]["final_solve"] = s.final_solve;
     j["joint"]["seconds"] = s.seconds; // the candidates, the final fit and its joint rounds
     return j;
 }

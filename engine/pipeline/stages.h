@@ -124,6 +124,7 @@ struct SpecularStage {
     double fit_seconds = 0.0;             ///< the fits alone (all candidates and the final fit)
     std::size_t fit_samples = 0;          ///< samples of the last fit (stride subsample)
     JointResult joint;                    ///< the final estimate's rounds
+    bool final_solve = false;             ///< the albedo was solved once more with the final material (it still moved)
     double seconds = 0.0;                 ///< the candidates, the final fit and its joint rounds
     Backend backend = Backend::Cpu;       ///< where the per-particle passes ran
     /// glTF's core material for ordinary viewers, fitted to the final estimate's samples

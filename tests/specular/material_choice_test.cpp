@@ -76,6 +76,10 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
         ASSERT_TRUE(cand["validation_mse"].is_number());
         EXPECT_DOUBLE_EQ(cand["validation_mse"].get<double>(), last) << cand["family"];
     }
+    // The bundle's albedo goes with its material: solved once more with the final material
+    // wherever the rounds ended with it still moving, or ran none (the first solve's is Lambertian).
+    const nlohmann::json& joint = r.report["specular"]["joint"];
+    EXPECT_EQ(joint["final_solve"].get<bool>(), !joint["settled"].get<bool>() || joint["accepted"].get<int>() == 0) << joint.dump();
     if (cc.truth == MaterialFamily::Coated) {
         const nlohmann::json& fit = r.report["specular"]["coated"];
         const nlohmann::json truth = nlohmann::json::parse(std::ifstream(dir.path() / "can" / "capture.json"))["ground_truth"]["material"];
