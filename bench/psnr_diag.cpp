@@ -25,6 +25,7 @@
 //                      residual (albedo image - A as rendered), step --ibp-step (default 1): the
 //                      simulation behind refine/albedo_refine.h
 // --shadow-map N renders with an N x N shadow map (default 2048, the renderer's).
+// --display: the errors on display values (sRGB-encoded, clipped, 8-bit codes) instead of linear ones.
 // --coated: the preset in the coated family (its eta and alpha) for --truth, --truth-lobe and --oracle.
 // --write-bundle PATH: write the bundle rendered (e.g. the oracle's) for `specula evaluate`, which
 // scores display values too.
@@ -63,6 +64,7 @@ int main(int argc, char** argv) {
     double ibp_weight_power = 1.0;
     bool ibp_best = false;
     bool coated = false;
+    bool display = false;
     std::string write_to;
     std::string sim; // with --oracle: estimate the albedo from simulated albedo images of the train views
                      // ("bilinear": best view, bilinear; "nearest": the pixel of any view whose centre ray
@@ -81,6 +83,7 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--shadow-map") && i + 1 < argc) shadow_map = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--no-shadows")) shadows = false;
         else if (!std::strcmp(argv[i], "--coated")) coated = true;
+        else if (!std::strcmp(argv[i], "--display")) display = true;
         else if (!std::strcmp(argv[i], "--write-bundle") && i + 1 < argc) write_to = argv[++i];
     }
     const MaterialFamily family = coated ? MaterialFamily::Coated : MaterialFamily::Lafortune;
@@ -297,7 +300,13 @@ int main(int argc, char** argv) {
                 if (!in_mask(x, y)) continue;
                 double e = 0.0;
                 for (int k = 0; k < 3; ++k) {
-                    const double d = double(std::min(both.color.at(x, y, k), ci.saturation)) - c.at(x, y, k);
+                    const double rendered = std::min(both.color.at(x, y, k), ci.saturation);
+                    // --display: both values sRGB-encoded, clipped and quantized to 8 bits, as
+                    // `specula evaluate`'s display figures for an 8-bit sRGB capture
+                    const auto shown = [&](double v) {
+                        return display ? std::round(255.0 * linear_to_srgb(float(std::clamp(v, 0.0, 1.0)))) / 255.0 : v;
+                    };
+                    const double d = shown(rendered) - shown(c.at(x, y, k));
                     e += d * d;
                     err.at(x, y, k) = float(std::min(1.0, 16.0 * std::abs(d)));
                 }
