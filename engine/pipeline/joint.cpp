@@ -48,12 +48,13 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         const std::optional<SpecularModel> next = fit.model();
         JointRound r{round, next ? max_relative_change(*next, *previous) : 1.0, residuals.counts.used, std::nullopt, false};
         if (steps.validate && next) r.validation_mse = steps.validate(solve, *next, tag);
+        const auto rose = [&] { return r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse; };
         // The round's albedo was solved with the material before its fit: a large move can raise
         // the validation error through that mismatch alone (coated can, thesis rig, 512 px: round 2
         // undone, the estimate stuck at eta 2.45, alpha 0.72 for the truth's 1.5, 0.12). Before a
         // rise undoes the round, the new material is scored once more with its own albedo, and
         // kept, with that albedo, where that does not rise.
-        if (r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse) {
+        if (rose()) {
             LambertOptions own = lo;
             own.material = *next;
             LambertOutputs own_solve = steps.solve(own, tag + " (its own albedo)");
@@ -66,7 +67,7 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
             }
         }
         // A round is rejected when its fit is unusable or the validation error rose.
-        const bool worse = !next || (r.validation_mse && state.validation_mse && *r.validation_mse > *state.validation_mse);
+        const bool worse = !next || rose();
         if (worse) {
             r.rejected = true;
             out.rounds.push_back(r);

@@ -11,8 +11,9 @@
 // higher than the previous one's is rejected: the state goes back to the previous round and the
 // loop stops, saying so. Before that, the round's material is scored once more with an albedo
 // solved with it (the round's own was solved with the material before): where that does not
-// rise, the round is kept with that albedo (JointRound::own_albedo). Without it the rounds run as before (the final fit of the winner on
-// all train frames runs as many rounds as its validated estimate accepted).
+// rise, the round is kept with that albedo (JointRound::own_albedo). Without a validation step
+// the rounds run as before (the final fit of the winner on all train frames runs as many rounds
+// as its validated estimate accepted).
 //
 // The loop is separate from the stages that run its steps (pipeline/stages.cpp gives them the
 // pipeline's backend, timing and report), so it can be tested with any steps.
