@@ -25,6 +25,9 @@
 //                      residual (albedo image - A as rendered), step --ibp-step (default 1): the
 //                      simulation behind refine/albedo_refine.h
 // --shadow-map N renders with an N x N shadow map (default 2048, the renderer's).
+// --ray-shadows: render unshadowed and black out the pixels the ground-truth ray caster finds
+// unlit (the captures' own shadows, exactly): what the reconstruction scores without the
+// shadow map's edges.
 // --display: the errors on display values (sRGB-encoded, clipped, 8-bit codes) instead of linear ones.
 // --coated: the preset in the coated family (its eta and alpha) for --truth, --truth-lobe and --oracle.
 // --write-bundle PATH: write the bundle rendered (e.g. the oracle's) for `specula evaluate`, which
@@ -65,6 +68,7 @@ int main(int argc, char** argv) {
     bool ibp_best = false;
     bool coated = false;
     bool display = false;
+    bool ray_shadows = false;
     std::string write_to;
     std::string sim; // with --oracle: estimate the albedo from simulated albedo images of the train views
                      // ("bilinear": best view, bilinear; "nearest": the pixel of any view whose centre ray
@@ -84,6 +88,7 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--no-shadows")) shadows = false;
         else if (!std::strcmp(argv[i], "--coated")) coated = true;
         else if (!std::strcmp(argv[i], "--display")) display = true;
+        else if (!std::strcmp(argv[i], "--ray-shadows")) ray_shadows = true;
         else if (!std::strcmp(argv[i], "--write-bundle") && i + 1 < argc) write_to = argv[++i];
     }
     const MaterialFamily family = coated ? MaterialFamily::Coated : MaterialFamily::Lafortune;
@@ -285,7 +290,18 @@ int main(int argc, char** argv) {
         if (!all && fd.split != Split::Test) continue;
         const FrameImage& ci = cap.images[fi];
         const Image& c = ci.color;
-        const render::Frame both = r.render(fd.camera(), fd.light, {.mode = render::Mode::Both, .shadows = shadows});
+        render::Frame both = r.render(fd.camera(), fd.light, {.mode = render::Mode::Both, .shadows = shadows && !ray_shadows});
+        if (ray_shadows) {
+            // The light's visibility as the captures have it: the ground-truth ray caster's lit
+            // pixels (a white Lambertian render is > 0 exactly where a pixel's point is lit).
+            synth::Material white;
+            white.albedo_value = glm::vec3(1.0f);
+            const synth::RenderedFrame lit = synth::render_frame(cap.mesh, white, fd.camera(), fd.light);
+            for (int y = 0; y < both.color.height; ++y)
+                for (int x = 0; x < both.color.width; ++x)
+                    if (!(lit.color.at(x, y, 0) > 0.0f))
+                        for (int k = 0; k < 3; ++k) both.color.at(x, y, k) = 0.0f;
+        }
         const render::Frame spec = r.render(fd.camera(), fd.light, {.mode = render::Mode::Specular, .shadows = shadows});
         const int w = c.width, h = c.height;
         auto in_mask = [&](int x, int y) {
