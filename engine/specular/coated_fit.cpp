@@ -60,16 +60,16 @@ Parts parts(const Prepared& s, const Point& p) {
     return {s.rho_pi * f64::coated_diffuse_factor(s.ci, s.co, p.eta), f64::coated_specular(s.ci, s.co, s.cuv, alpha, p.eta)};
 }
 
-/// The sum over the samples of add(acc, x), in fixed chunks of kSumChunk samples on up to
-/// `threads` workers, the chunks' partial sums then added in order: the same total for any
+/// The sum over the samples i < n of add(acc, i), in fixed chunks of kSumChunk samples on up
+/// to `threads` workers, the chunks' partial sums then added in order: the same total for any
 /// thread count (Acc has +=).
 constexpr std::size_t kSumChunk = 8192;
 template <class Acc, class F>
-Acc chunked_sum(const std::vector<Prepared>& s, unsigned threads, F&& add) {
-    std::vector<Acc> part((s.size() + kSumChunk - 1) / kSumChunk);
-    parallel_for_chunks(s.size(), std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+Acc chunked_sum(std::size_t n, unsigned threads, F&& add) {
+    std::vector<Acc> part((n + kSumChunk - 1) / kSumChunk);
+    parallel_for_chunks(n, std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
         Acc& acc = part[begin / kSumChunk];
-        for (std::size_t i = begin; i < end; ++i) add(acc, s[i]);
+        for (std::size_t i = begin; i < end; ++i) add(acc, i);
     });
     Acc total{};
     for (const Acc& a : part) total += a;
@@ -107,11 +107,12 @@ struct LinearSums {
 /// tint's channels and the scale are solved jointly (4 x 4 normal equations); a clamped value
 /// is then held and the others solved again given it.
 constexpr double kMinDiffuseScale = 0.5, kMaxDiffuseScale = 2.0;
-Linear solve_linear(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o, unsigned threads = 1) {
+Linear solve_linear(const std::vector<Prepared>& s, const std::vector<Parts>& at, const CoatedFitOptions& o, unsigned threads) {
     Linear l;
     if (!o.fit_tint && !o.fit_diffuse_scale) return l;
-    const LinearSums t = chunked_sum<LinearSums>(s, threads, [&](LinearSums& acc, const Prepared& x) {
-        const Parts q = parts(x, p);
+    const LinearSums t = chunked_sum<LinearSums>(s.size(), threads, [&](LinearSums& acc, std::size_t i) {
+        const Prepared& x = s[i];
+        const Parts& q = at[i];
         acc.dd += x.w * glm::dot(q.diffuse, q.diffuse);
         acc.ss += x.w * q.specular * q.specular;
         acc.db += x.w * glm::dot(q.diffuse, x.b);
@@ -155,16 +156,27 @@ Linear solve_linear(const std::vector<Prepared>& s, const Point& p, const Coated
     return l;
 }
 
-double cost_at(const std::vector<Prepared>& s, const Point& p, const Linear& l, unsigned threads = 1) {
-    return chunked_sum<double>(s, threads, [&](double& acc, const Prepared& x) {
-        const glm::dvec3 r = model(parts(x, p), l) - x.b;
-        acc += x.w * glm::dot(r, r);
+double cost_at(const std::vector<Prepared>& s, const std::vector<Parts>& at, const Linear& l, unsigned threads) {
+    return chunked_sum<double>(s.size(), threads, [&](double& acc, std::size_t i) {
+        const glm::dvec3 r = model(at[i], l) - s[i].b;
+        acc += s[i].w * glm::dot(r, r);
     });
 }
 
-/// Cost with the linear parameters projected out (variable projection).
-double projected_cost(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o) {
-    return cost_at(s, p, solve_linear(s, p, o));
+/// The linear parameters projected out at p (variable projection) and the cost there. The model's
+/// parts are evaluated once per sample into `scratch` (the linear solve and the cost both read them).
+struct Projected {
+    Linear linear;
+    double cost;
+};
+Projected project(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o, unsigned threads,
+                  std::vector<Parts>& scratch) {
+    scratch.resize(s.size());
+    parallel_for_chunks(s.size(), std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) scratch[i] = parts(s[i], p);
+    });
+    const Linear l = solve_linear(s, scratch, o, threads);
+    return {l, cost_at(s, scratch, l, threads)};
 }
 
 /// The Jacobian of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed linear parameters, by
@@ -183,7 +195,8 @@ struct Normal {
 };
 Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const Linear& l, unsigned threads = 1) {
     constexpr double h = 1e-5;
-    Normal n = chunked_sum<Normal>(s, threads, [&](Normal& acc, const Prepared& x) {
+    Normal n = chunked_sum<Normal>(s.size(), threads, [&](Normal& acc, std::size_t i) {
+        const Prepared& x = s[i];
         const Parts q0 = parts(x, p);
         const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
         const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
@@ -212,8 +225,10 @@ struct LmResult {
 /// Levenberg-Marquardt in (ln alpha, eta), the linear parameters re-solved after each accepted
 /// step; its sums on up to `threads` workers.
 LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o, unsigned threads) {
-    Linear lin = solve_linear(s, p, o, threads);
-    double cost = cost_at(s, p, lin, threads);
+    std::vector<Parts> scratch;
+    const Projected start = project(s, p, o, threads, scratch);
+    Linear lin = start.linear;
+    double cost = start.cost;
     double lambda = 1e-3;
     LmResult r{p, lin, cost, 0, false};
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
@@ -228,8 +243,9 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
             else step = a.ldlt().solve(-n.jtr);
             if (!step.allFinite()) break;
             const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
-            const Linear t = solve_linear(s, q, o, threads);
-            const double c = cost_at(s, q, t, threads);
+            const Projected trial = project(s, q, o, threads, scratch);
+            const Linear& t = trial.linear;
+            const double c = trial.cost;
             if (std::isfinite(c) && c < cost) {
                 const double decrease = (cost - c) / std::max(cost, 1e-300);
                 p = q;
@@ -320,7 +336,10 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
             cells.push_back({{la, o.fixed_eta ? clamp_eta(*o.fixed_eta) : 1.1 + 0.1 * j}, 0.0});
         }
     const unsigned threads = o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-    parallel_for(cells.size(), threads, [&](std::size_t c) { cells[c].cost = projected_cost(coarse, cells[c].p, o); });
+    parallel_for(cells.size(), threads, [&](std::size_t c) {
+        std::vector<Parts> scratch;
+        cells[c].cost = project(coarse, cells[c].p, o, 1, scratch).cost;
+    });
     std::sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.cost < b.cost; });
 
     // LM from the best cells (distinct starts), robustly reweighted on all samples.
