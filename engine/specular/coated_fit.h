@@ -70,7 +70,7 @@ struct CoatedFitOptions {
     /// Set: eta is held at this value (the coating's index when known: 1.45 to 1.6 for most
     /// plastics, varnishes and glazes) and alpha alone is fitted; its standard error is then 0.
     std::optional<double> fixed_eta;
-    /// Set (and eta not held): where eta ends within 5% of a bound of its range, the fit is made again with
+    /// Set (and eta not held): where eta ends within 5% of the top of its range, the fit is made again with
     /// eta held at this value, status underdetermined with the reason. 1.5: most plastics,
     /// varnishes and glazes.
     std::optional<double> eta_at_bound = 1.5;
@@ -105,7 +105,7 @@ struct CoatedFit {
 };
 
 /// Fits (alpha, eta) and optionally the tint to the samples (eta held where the options say
-/// so, or where it ends at the edge of its range: CoatedFitOptions::eta_at_bound). Never returns NaN: a
+/// so, or where it ends at the top of its range: CoatedFitOptions::eta_at_bound). Never returns NaN: a
 /// non-finite value ends the fit with an honest status.
 [[nodiscard]] CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOptions& options = {});
 

@@ -358,8 +358,13 @@ TEST(Planner, LambertianLeavesSpecularOutAndForcingItChangesLittle) {
     const double qa = a.report["evaluation"]["test"]["masked"]["q1"].get<double>();
     const double qf = f.report["evaluation"]["test"]["masked"]["q1"].get<double>();
     EXPECT_NEAR(qa, qf, kSpecularTolerance);
-    // The albedo does not depend on the specular stages at all.
-    EXPECT_EQ(mean_abs_difference(dir / "auto" / "albedo.exr", dir / "forced" / "albedo.exr"), 0.0);
+    // The albedo goes with the bundle's material (docs/pipeline.md 5.5): where the forced estimate
+    // ended with the material still moving, it was solved once more with that material, nearly no
+    // reflection on a Lambertian truth (eta near 1), so it moves little (0.0020 when measured);
+    // otherwise the specular stages leave it as the auto run has it, bit for bit.
+    const double moved = mean_abs_difference(dir / "auto" / "albedo.exr", dir / "forced" / "albedo.exr");
+    if (f.report["specular"]["joint"]["final_solve"].get<bool>()) EXPECT_LT(moved, 0.005);
+    else EXPECT_EQ(moved, 0.0);
 }
 
 // Planner, near-mirror lobe: the factorization grid follows the fitted lobe's width

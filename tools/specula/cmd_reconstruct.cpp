@@ -165,7 +165,7 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_option("--coated-eta", args->coated_eta,
                     "coated: hold the coating's index of refraction at this value and fit alpha alone (when it is\n"
                     "known: about 1.5 for most plastics, varnishes and glazes); default: fitted, and held at 1.5 only\n"
-                    "where the fit runs to the edge of its range (the report says so)")
+                    "where the fit runs to the top of its range (the report says so)")
         ->check(CLI::Range(double(shared::kCoatedMinEta), double(shared::kCoatedMaxEta)));
     cmd->add_option("--joint-rounds", args->config.joint_rounds,
                     "After a fit: rounds of (diffuse solve minus the lobe's light, residuals, refit) until the "
