@@ -53,8 +53,9 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         // the validation error through that mismatch alone (coated can, thesis rig, 512 px: round 2
         // undone, the estimate stuck at eta 2.45, alpha 0.72 for the truth's 1.5, 0.12). Before a
         // rise undoes the round, the new material is scored once more with its own albedo, and
-        // kept, with that albedo, where that does not rise.
-        if (rose()) {
+        // kept, with that albedo, where that does not rise; unless another candidate is more than
+        // kRivalFactor ahead (this one cannot win the choice).
+        if (rose() && (!options.rival_mse || *state.validation_mse < kRivalFactor * *options.rival_mse)) {
             LambertOptions own = lo;
             own.material = *next;
             LambertOutputs own_solve = steps.solve(own, tag + " (its own albedo)");

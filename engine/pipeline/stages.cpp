@@ -702,7 +702,11 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
                              .validation_mse = std::nullopt};
             state.residuals.counts = rs0.counts;
             MaterialCandidate c;
-            c.joint = joint_estimate(state, jo, steps[k]);
+            JointOptions candidate_rounds = jo;
+            for (const MaterialCandidate& before : s.candidates) // the best error another family reached
+                if (before.validation_mse && (!candidate_rounds.rival_mse || *before.validation_mse < *candidate_rounds.rival_mse))
+                    candidate_rounds.rival_mse = before.validation_mse;
+            c.joint = joint_estimate(state, candidate_rounds, steps[k]);
             (void)name_unsettled(state.fit, c.joint, jo.rounds, fo.coated.max_relative_error);
             c.fit = std::move(state.fit);
             c.validation_mse = state.validation_mse;

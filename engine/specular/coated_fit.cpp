@@ -179,16 +179,12 @@ Projected project(const std::vector<Prepared>& s, const Point& p, const CoatedFi
     return {l, cost_at(s, scratch, l, threads)};
 }
 
-/// The Jacobian of the 3m residuals sqrt(w) (model - b), accumulated as J^T J and J^T r, in
-/// (ln alpha, eta) by central differences (the model's derivatives through Fresnel and Smith
-/// are long and the two columns are cheap), and in the linear parameters exactly (the diffuse
-/// scale's column is the diffuse part, channel c's tint's the specular in channel c): columns
-/// 0 ln alpha, 1 eta, 2 scale, 3-5 tint.
-using Matrix6 = Eigen::Matrix<double, 6, 6>;
-using Vector6 = Eigen::Matrix<double, 6, 1>;
+/// The Jacobian of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed linear parameters, by
+/// central differences (the model's derivatives through Fresnel and Smith are long and the
+/// two columns are cheap), accumulated as J^T J and J^T r.
 struct Normal {
-    Matrix6 jtj = Matrix6::Zero();
-    Vector6 jtr = Vector6::Zero();
+    Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d jtr = Eigen::Vector2d::Zero();
     double cost = 0.0;
     Normal& operator+=(const Normal& o) {
         jtj += o.jtj;
@@ -205,26 +201,17 @@ Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const Li
         const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
         const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
         const glm::dvec3 r = model(q0, l) - x.b;
-        std::array<glm::dvec3, 6> j{(model(qa, l) - model(qb, l)) / (2.0 * h), (model(qe, l) - model(qf, l)) / (2.0 * h), q0.diffuse,
-                                    glm::dvec3(q0.specular, 0.0, 0.0), glm::dvec3(0.0, q0.specular, 0.0), glm::dvec3(0.0, 0.0, q0.specular)};
-        for (int a = 0; a < 6; ++a) {
-            for (int b = a; b < 6; ++b) acc.jtj(a, b) += x.w * glm::dot(j[a], j[b]);
-            acc.jtr(a) += x.w * glm::dot(j[a], r);
-        }
+        const glm::dvec3 ja = (model(qa, l) - model(qb, l)) / (2.0 * h);
+        const glm::dvec3 je = (model(qe, l) - model(qf, l)) / (2.0 * h);
+        acc.jtj(0, 0) += x.w * glm::dot(ja, ja);
+        acc.jtj(0, 1) += x.w * glm::dot(ja, je);
+        acc.jtj(1, 1) += x.w * glm::dot(je, je);
+        acc.jtr(0) += x.w * glm::dot(ja, r);
+        acc.jtr(1) += x.w * glm::dot(je, r);
         acc.cost += x.w * glm::dot(r, r);
     });
-    n.jtj = n.jtj.selfadjointView<Eigen::Upper>();
+    n.jtj(1, 0) = n.jtj(0, 1);
     return n;
-}
-
-/// The parameters a step moves, as columns of Normal: ln alpha; eta unless held; the scale and
-/// the tint where fitted.
-std::vector<int> active_columns(const CoatedFitOptions& o) {
-    std::vector<int> c{0};
-    if (!o.fixed_eta) c.push_back(1);
-    if (o.fit_diffuse_scale) c.push_back(2);
-    if (o.fit_tint) c.insert(c.end(), {3, 4, 5});
-    return c;
 }
 
 struct LmResult {
@@ -235,15 +222,9 @@ struct LmResult {
     bool converged;
 };
 
-/// Levenberg-Marquardt in (ln alpha, eta), the linear parameters re-solved in closed form at
-/// every trial point; its sums on up to `threads` workers. The step solves the damped normal
-/// equations of all the moving parameters, the linear ones included, and takes its (ln alpha,
-/// eta) part: eliminating the linear ones is then the variable-projection step of Kaufman (1975),
-/// which sees how the scale and the tint follow alpha and eta. Ignoring that (their columns held
-/// fixed) gave steps across the valley the scale and eta share: a Lafortune truth's coated fit
-/// took 546 iterations where 63 had done without the scale.
+/// Levenberg-Marquardt in (ln alpha, eta), the linear parameters re-solved after each accepted
+/// step; its sums on up to `threads` workers.
 LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o, unsigned threads) {
-    const std::vector<int> columns = active_columns(o);
     std::vector<Parts> scratch;
     const Projected start = project(s, p, o, threads, scratch);
     Linear lin = start.linear;
@@ -253,21 +234,15 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
         ++r.iterations;
         const Normal n = normal_equations(s, p, lin, threads);
-        const std::size_t k = columns.size();
-        Eigen::MatrixXd jtj(k, k);
-        Eigen::VectorXd jtr(k);
-        for (std::size_t a = 0; a < k; ++a) {
-            jtr(a) = n.jtr(columns[a]);
-            for (std::size_t b = 0; b < k; ++b) jtj(a, b) = n.jtj(columns[a], columns[b]);
-        }
         bool accepted = false;
         for (int tries = 0; tries < 12 && !accepted; ++tries) {
-            Eigen::MatrixXd a = jtj;
-            a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-30);
-            const Eigen::VectorXd step = a.ldlt().solve(-jtr);
+            Eigen::Matrix2d a = n.jtj;
+            a.diagonal() += lambda * n.jtj.diagonal().cwiseMax(1e-30);
+            Eigen::Vector2d step;
+            if (o.fixed_eta) step = {-n.jtr(0) / a(0, 0), 0.0}; // eta held: ln alpha alone
+            else step = a.ldlt().solve(-n.jtr);
             if (!step.allFinite()) break;
-            const double d_eta = o.fixed_eta ? 0.0 : step(1); // column 1 is eta when it moves
-            const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + d_eta)};
+            const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
             const Projected trial = project(s, q, o, threads, scratch);
             const Linear& t = trial.linear;
             const double c = trial.cost;
@@ -395,14 +370,12 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
         best = r;
     }
 
-    // Uncertainty at the minimum (the robust weights kept), of (ln alpha, eta) at the fitted
-    // linear parameters.
+    // Uncertainty at the minimum (the robust weights kept).
     const Normal n = normal_equations(all, best.p, best.linear, threads);
-    const Eigen::Matrix2d jtj = n.jtj.topLeftCorner<2, 2>();
     const double m = 3.0 * double(all.size());
     const double s2 = n.cost / std::max(1.0, m - double(params));
-    const Eigen::Vector2d scale = jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-    const Eigen::Matrix2d scaled = scale.asDiagonal() * jtj * scale.asDiagonal();
+    const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::Matrix2d scaled = scale.asDiagonal() * n.jtj * scale.asDiagonal();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scaled);
     const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().maxCoeff();
     fit.condition = lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity();
@@ -410,10 +383,10 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     if (o.fixed_eta) {
         // eta given: ln alpha's variance alone, and no error on eta.
         fit.condition = 1.0;
-        fit.std_error_alpha = jtj(0, 0) > 0.0 ? alpha * std::sqrt(s2 / jtj(0, 0)) : std::numeric_limits<double>::infinity();
+        fit.std_error_alpha = n.jtj(0, 0) > 0.0 ? alpha * std::sqrt(s2 / n.jtj(0, 0)) : std::numeric_limits<double>::infinity();
         fit.std_error_eta = 0.0;
     } else if (lo > 0.0) {
-        const Eigen::Matrix2d cov = s2 * jtj.inverse();
+        const Eigen::Matrix2d cov = s2 * n.jtj.inverse();
         fit.std_error_alpha = alpha * std::sqrt(std::max(0.0, cov(0, 0))); // d alpha = alpha d ln alpha
         fit.std_error_eta = std::sqrt(std::max(0.0, cov(1, 1)));
     } else {

@@ -275,6 +275,21 @@ TEST(JointEstimate, ARoundWhoseOwnAlbedoLowersTheErrorIsKeptWithIt) {
     EXPECT_FALSE(r.unsettled_change);
 }
 
+// The same rise, with another candidate more than kRivalFactor ahead: this one cannot win the
+// choice, so no extra solve is spent on it and the round is undone; within the factor it is.
+TEST(JointEstimate, ACandidateFarBehindItsRivalSpendsNoSolveOnItsOwnAlbedo) {
+    for (const double rival : {4e-6, 6e-6}) { // the state's error after round 1 is 5e-5
+        Script s{.fits = {coated_of(1.45f, 0.09f), coated_of(1.5f, 0.12f)}, .validation = {6e-5, 5e-5, 7e-5, 4e-5}};
+        JointState state{.fit = coated_of(1.40f, 0.07f)};
+        const JointResult r = joint_estimate(state, {.rounds = 2, .tolerance = 0.005, .rival_mse = rival}, s.steps());
+        ASSERT_EQ(r.rounds.size(), 2u);
+        const bool far_behind = 5e-5 >= kRivalFactor * rival;
+        EXPECT_EQ(r.rounds[1].rejected, far_behind) << rival;
+        EXPECT_EQ(r.rounds[1].own_albedo, !far_behind) << rival;
+        EXPECT_EQ(s.subtracted.size(), far_behind ? 2u : 3u) << rival;
+    }
+}
+
 TEST(JointEstimate, ConvergedLobeKeepsOnlyConvergedChannels) {
     MaterialFit f = fit_of(-0.9f, 0.8f, 20.0f);
     f.lafortune->channel[1].status = LafortuneFitStatus::NoSpecularEnergy;
