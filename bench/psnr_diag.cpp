@@ -50,6 +50,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 int main(int argc, char** argv) {
@@ -274,6 +275,12 @@ int main(int argc, char** argv) {
         if (!truth_lobe.empty()) b.material.specular = synth::make_preset(truth_lobe, false, family).material.specular();
     }
     if (!write_to.empty()) write_bundle(write_to, b);
+    std::optional<synth::Renderer> caster; // --ray-shadows: a white Lambertian object, its scene built once
+    if (ray_shadows) {
+        synth::Material white;
+        white.albedo_value = glm::vec3(1.0f);
+        caster.emplace(cap.mesh, white);
+    }
     gpu::Context ctx;
     const std::vector<glm::vec2> corner_uv = corner_uvs(b.mesh);
     render::Renderer r(ctx, render::Scene{.mesh = &b.mesh, .corner_uv = corner_uv, .albedo = &b.albedo,
@@ -294,9 +301,7 @@ int main(int argc, char** argv) {
         if (ray_shadows) {
             // The light's visibility as the captures have it: the ground-truth ray caster's lit
             // pixels (a white Lambertian render is > 0 exactly where a pixel's point is lit).
-            synth::Material white;
-            white.albedo_value = glm::vec3(1.0f);
-            const synth::RenderedFrame lit = synth::render_frame(cap.mesh, white, fd.camera(), fd.light);
+            const synth::RenderedFrame lit = caster->render(fd.camera(), fd.light);
             for (int y = 0; y < both.color.height; ++y)
                 for (int x = 0; x < both.color.width; ++x)
                     if (!(lit.color.at(x, y, 0) > 0.0f))

@@ -41,7 +41,10 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         std::vector<ResidualSample>().swap(state.residuals.samples); // fitted: only the counts are kept (peak memory)
         LambertOptions lo = state.solve_options;
         lo.material = *previous;
-        LambertOutputs solve = steps.solve(lo, tag);
+        // A round kept with its own albedo left the state solved with *previous already: that
+        // solve is this round's, not made again.
+        const bool solved = !out.rounds.empty() && out.rounds.back().own_albedo;
+        LambertOutputs solve = solved ? state.solve : steps.solve(lo, tag);
         ResidualSamples residuals = steps.residuals(solve, lo, tag);
         MaterialFit fit = steps.fit(residuals, tag);
         std::vector<ResidualSample>().swap(residuals.samples); // fitted: only the counts are kept (peak memory)
