@@ -180,20 +180,24 @@ struct Projected {
     Linear linear;
     double cost;
 };
+void parts_at(const std::vector<Prepared>& s, const Point& p, unsigned threads, std::vector<Parts>& out) {
+    out.resize(s.size());
+    parallel_for_chunks(s.size(), std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) out[i] = parts(s[i], p);
+    });
+}
 Projected project(const std::vector<Prepared>& s, const Point& p, const CoatedFitOptions& o, unsigned threads,
                   std::vector<Parts>& scratch) {
-    scratch.resize(s.size());
-    parallel_for_chunks(s.size(), std::max(threads, 1u), kSumChunk, [&](unsigned, std::size_t begin, std::size_t end) {
-        for (std::size_t i = begin; i < end; ++i) scratch[i] = parts(s[i], p);
-    });
+    parts_at(s, p, threads, scratch);
     const Linear l = solve_linear(s, scratch, o, threads);
     return {l, cost_at(s, scratch, l, threads)};
 }
 
 /// The Jacobian J of the 3m residuals sqrt(w) (model - b) in (ln alpha, eta) at fixed linear
-/// parameters, by central differences (the model's derivatives through Fresnel and Smith are
-/// long and the two columns are cheap), accumulated as J^T J and J^T r; and with it the
-/// Jacobian P in the linear parameters (scale, tint), as J^T P and P^T P.
+/// parameters, by forward differences from the parts at the point (the model's derivatives
+/// through Fresnel and Smith are long; a difference costs one more part, for alpha the
+/// specular alone: the diffuse factor does not depend on it), accumulated as J^T J and J^T r;
+/// and with it the Jacobian P in the linear parameters (scale, tint), as J^T P and P^T P.
 struct Normal {
     Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
     Eigen::Vector2d jtr = Eigen::Vector2d::Zero();
@@ -234,16 +238,19 @@ struct Normal {
         return h;
     }
 };
-Normal normal_equations(const std::vector<Prepared>& s, const Point& p, const Linear& l, unsigned threads = 1) {
-    constexpr double h = 1e-5;
+/// `at`: the parts at p (parts_at).
+Normal normal_equations(const std::vector<Prepared>& s, const std::vector<Parts>& at, const Point& p, const Linear& l,
+                        unsigned threads = 1) {
+    constexpr double h = 1e-7;
+    const double alpha_h = std::exp(p.log_alpha + h);
     Normal n = chunked_sum<Normal>(s.size(), threads, [&](Normal& acc, std::size_t i) {
         const Prepared& x = s[i];
-        const Parts q0 = parts(x, p);
-        const Parts qa = parts(x, {p.log_alpha + h, p.eta}), qb = parts(x, {p.log_alpha - h, p.eta});
-        const Parts qe = parts(x, {p.log_alpha, p.eta + h}), qf = parts(x, {p.log_alpha, p.eta - h});
+        const Parts& q0 = at[i];
+        const double specular_a = f64::coated_specular(x.ci, x.co, x.cuv, alpha_h, p.eta);
+        const Parts qe = parts(x, {p.log_alpha, p.eta + h});
         const glm::dvec3 r = model(q0, l) - x.b;
-        const glm::dvec3 ja = (model(qa, l) - model(qb, l)) / (2.0 * h);
-        const glm::dvec3 je = (model(qe, l) - model(qf, l)) / (2.0 * h);
+        const glm::dvec3 ja = l.tint * ((specular_a - q0.specular) / h);
+        const glm::dvec3 je = (model(qe, l) - model(q0, l)) / h;
         acc.jtj(0, 0) += x.w * glm::dot(ja, ja);
         acc.jtj(0, 1) += x.w * glm::dot(ja, je);
         acc.jtj(1, 1) += x.w * glm::dot(je, je);
@@ -279,15 +286,15 @@ struct LmResult {
 /// Levenberg-Marquardt in (ln alpha, eta), the linear parameters re-solved after each accepted
 /// step; its sums on up to `threads` workers.
 LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const CoatedFitOptions& o, unsigned threads) {
-    std::vector<Parts> scratch;
-    const Projected start = project(s, p, o, threads, scratch);
+    std::vector<Parts> at, scratch; // the parts at p, and at a trial point
+    const Projected start = project(s, p, o, threads, at);
     Linear lin = start.linear;
     double cost = start.cost;
     double lambda = 1e-3;
     LmResult r{p, lin, cost, 0, false};
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
         ++r.iterations;
-        const Normal n = normal_equations(s, p, lin, threads);
+        const Normal n = normal_equations(s, at, p, lin, threads);
         const Eigen::Matrix2d h = n.projected(lin.free);
         bool accepted = false;
         for (int tries = 0; tries < 12 && !accepted; ++tries) {
@@ -306,6 +313,7 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
                 p = q;
                 lin = t;
                 cost = c;
+                at.swap(scratch);
                 lambda = std::max(lambda / 10.0, 1e-12);
                 accepted = true;
                 if (decrease < o.cost_tolerance) r.converged = true;
@@ -426,7 +434,9 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     }
 
     // Uncertainty at the minimum (the robust weights kept).
-    const Normal n = normal_equations(all, best.p, best.linear, threads);
+    std::vector<Parts> at;
+    parts_at(all, best.p, threads, at);
+    const Normal n = normal_equations(all, at, best.p, best.linear, threads);
     const double m = 3.0 * double(all.size());
     const double s2 = n.cost / std::max(1.0, m - double(params));
     const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
@@ -450,7 +460,7 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     if (o.fit_tint) {
         // The tint is linear: its variance given (alpha, eta) is s^2 / sum w s_spec^2.
         double den = 0.0;
-        for (const Prepared& x : all) den += x.w * std::pow(parts(x, best.p).specular, 2);
+        for (std::size_t i = 0; i < all.size(); ++i) den += all[i].w * at[i].specular * at[i].specular;
         fit.std_error_tint = glm::dvec3(den > 0.0 ? std::sqrt(s2 / den) : std::numeric_limits<double>::infinity());
     }
     fit.params = CoatedParams{.eta = float(best.p.eta), .alpha = float(alpha), .tint = glm::vec3(best.linear.tint)};
@@ -458,7 +468,7 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     fit.cost = best.cost;
     double sq = 0.0, wsum = 0.0;
     for (std::size_t i = 0; i < all.size(); ++i) {
-        const glm::dvec3 r = model(parts(all[i], best.p), best.linear) - all[i].b;
+        const glm::dvec3 r = model(at[i], best.linear) - all[i].b;
         sq += base_w[i] * glm::dot(r, r) / 3.0;
         wsum += base_w[i];
     }
