@@ -218,7 +218,10 @@ struct Normal {
     /// linear parameters' own gradient P^T r is 0 where they are solved. The correlation
     /// between eta and the diffuse scale (both scale the diffuse term) makes the plain J^T J a
     /// poor model of the projected cost: 40 to 100 iterations a fit instead of a few.
-    [[nodiscard]] Eigen::Matrix2d projected(const std::array<bool, 4>& free) const {
+    /// The complement as it comes (it measures what the samples determine of (ln alpha, eta)
+    /// with the linear parameters free: the standard errors at the minimum); `projected` keeps
+    /// the plain matrix for the steps where rounding leaves it not positive definite.
+    [[nodiscard]] Eigen::Matrix2d complement(const std::array<bool, 4>& free) const {
         std::array<int, 4> idx{};
         int k = 0;
         for (int j = 0; j < 4; ++j)
@@ -231,7 +234,10 @@ struct Normal {
         }
         const Eigen::LDLT<Eigen::MatrixXd> ldlt(c);
         if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return jtj;
-        const Eigen::Matrix2d h = jtj - b * ldlt.solve(b.transpose());
+        return jtj - b * ldlt.solve(b.transpose());
+    }
+    [[nodiscard]] Eigen::Matrix2d projected(const std::array<bool, 4>& free) const {
+        const Eigen::Matrix2d h = complement(free);
         // Rounding can leave the complement a hair below 0 where the columns are nearly
         // dependent: keep the plain matrix there (its step is short, never wrong in sign).
         if (!h.allFinite() || !(h(0, 0) > 0.0) || !(h(1, 1) > 0.0) || h.determinant() < 0.0) return jtj;
@@ -433,14 +439,17 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
         best = r;
     }
 
-    // Uncertainty at the minimum (the robust weights kept).
+    // Uncertainty at the minimum (the robust weights kept), with the free linear parameters
+    // projected out: eta and the diffuse scale trade against each other, and eta's error with
+    // the scale held would understate what the samples leave open.
     std::vector<Parts> at;
     parts_at(all, best.p, threads, at);
     const Normal n = normal_equations(all, at, best.p, best.linear, threads);
+    const Eigen::Matrix2d h = n.complement(best.linear.free);
     const double m = 3.0 * double(all.size());
     const double s2 = n.cost / std::max(1.0, m - double(params));
-    const Eigen::Vector2d scale = n.jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-    const Eigen::Matrix2d scaled = scale.asDiagonal() * n.jtj * scale.asDiagonal();
+    const Eigen::Vector2d scale = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::Matrix2d scaled = scale.asDiagonal() * h * scale.asDiagonal();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scaled);
     const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().maxCoeff();
     fit.condition = lo > 0.0 ? hi / lo : std::numeric_limits<double>::infinity();
@@ -448,10 +457,10 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     if (o.fixed_eta) {
         // eta given: ln alpha's variance alone, and no error on eta.
         fit.condition = 1.0;
-        fit.std_error_alpha = n.jtj(0, 0) > 0.0 ? alpha * std::sqrt(s2 / n.jtj(0, 0)) : std::numeric_limits<double>::infinity();
+        fit.std_error_alpha = h(0, 0) > 0.0 ? alpha * std::sqrt(s2 / h(0, 0)) : std::numeric_limits<double>::infinity();
         fit.std_error_eta = 0.0;
     } else if (lo > 0.0) {
-        const Eigen::Matrix2d cov = s2 * n.jtj.inverse();
+        const Eigen::Matrix2d cov = s2 * h.inverse();
         fit.std_error_alpha = alpha * std::sqrt(std::max(0.0, cov(0, 0))); // d alpha = alpha d ln alpha
         fit.std_error_eta = std::sqrt(std::max(0.0, cov(1, 1)));
     } else {

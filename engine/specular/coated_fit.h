@@ -27,7 +27,9 @@
 // linearly, not quadratically.
 //
 // Uncertainty as the Lafortune fit reports it: standard errors sqrt(diag(s^2 (J^T J)^-1)),
-// s^2 = cost / (m - p), the condition number of J^T J (column-scaled), iterations and cost. A
+// s^2 = cost / (m - p), the condition number of J^T J (column-scaled), iterations and cost;
+// J^T J with the free linear parameters projected out (the scale and eta trade against each
+// other: with the scale held, eta's error would understate what the samples leave open). A
 // parameter whose relative standard error exceeds `max_relative_error` is named as one the
 // samples do not determine (for instance eta from a rig whose lights sit near the camera: the
 // diffuse factor's fall-off and the Fresnel term both need grazing or wide-angle samples).
@@ -96,7 +98,7 @@ struct CoatedFit {
     bool alpha_determined = false, eta_determined = false;
     double cost = 0.0;      ///< robust-weighted sum of squared residuals (image units^2)
     double rms = 0.0;       ///< sqrt(unweighted-by-robustness mean square residual per channel)
-    double condition = 0.0; ///< of the column-scaled J^T J in (ln alpha, eta)
+    double condition = 0.0; ///< of the column-scaled J^T J in (ln alpha, eta), the linear parameters projected out
     std::uint32_t iterations = 0;
     std::uint32_t samples = 0;
     double seconds = 0.0;
