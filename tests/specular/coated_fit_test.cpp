@@ -156,10 +156,11 @@ TEST(CoatedFit, TheStepsProjectOutTheScaleAndTintAndConvergeInAFewIterations) {
 TEST(CoatedFit, TheStandardErrorOfEtaIsItsSpreadOverNoiseDraws) {
     const CoatedParams truth{.eta = 1.5f, .alpha = 0.15f};
     constexpr int kDraws = 8;
+    const std::vector<MaterialSample> clean = make_samples(truth, Rig::Thesis, 20000, 31);
     std::vector<double> etas;
     double reported = 0.0;
     for (int d = 0; d < kDraws; ++d) {
-        std::vector<MaterialSample> s = make_samples(truth, Rig::Thesis, 20000, 31);
+        std::vector<MaterialSample> s = clean;
         std::mt19937 rng(100 + d);
         std::normal_distribution<float> noise(0.0f, 0.02f);
         for (MaterialSample& x : s) x.b *= glm::vec3(1.0f + noise(rng), 1.0f + noise(rng), 1.0f + noise(rng));
