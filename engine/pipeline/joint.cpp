@@ -134,13 +134,18 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
 // parameter must meet to count as determined (the coated fit's max_relative_error, 5%), the
 // coated parameters are named underdetermined with the reason, and a Lafortune fit keeps its
 // status (its lobe stays usable) with the reason appended. Returns whether it was named.
-bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds, double bound) {
+std::string rounds_text(const JointResult& joint) {
+    const std::size_t n = joint.rounds.size();
+    return std::to_string(n) + (n == 1 ? " round" : " rounds");
+}
+
+bool name_unsettled(MaterialFit& fit, const JointResult& joint, double bound) {
     if (!joint.unsettled_change) return false;
     const double last = *joint.unsettled_change;
     const double distance = joint.unsettled_remaining ? last + *joint.unsettled_remaining : std::numeric_limits<double>::infinity();
     if (distance <= bound) return false;
-    std::string reason = "the joint estimate of albedo and material had not settled after " + std::to_string(rounds) +
-                         " rounds: the material last moved by " + format_text("%.2g", 100.0 * last) + "%";
+    std::string reason = "the joint estimate of albedo and material had not settled after " + rounds_text(joint) +
+                         ": the material last moved by " + format_text("%.2g", 100.0 * last) + "%";
     const bool undone = !joint.rounds.empty() && joint.rounds.back().rejected;
     reason += undone ? " (round " + std::to_string(joint.rounds.back().round) + " was undone: it raised the validation error)"
               : joint.unsettled_remaining

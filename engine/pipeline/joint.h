@@ -103,14 +103,17 @@ struct ValidationSplit {
 };
 [[nodiscard]] ValidationSplit split_validation_frames(const LambertInputs& in, std::size_t min_frames = 4);
 
+/// "N round(s)": how many rounds `joint` ran, an undone one included.
+[[nodiscard]] std::string rounds_text(const JointResult& joint);
+
 /// Where `joint` ran out of rounds while the material still moved (unsettled_change) and the
 /// distance to the fixed point (the last change plus its geometric tail; unknown when the
 /// changes do not shrink) exceeds `bound` (relative; the pipeline passes the coated fit's
 /// max_relative_error, 5%), says so in `fit`: the coated parameters are named
 /// underdetermined with the reason (the fit's standard errors hold the albedo fixed and
 /// cannot see it), a Lafortune fit keeps its status and lobe with the reason appended.
-/// `rounds`: the limit the loop ran with. Returns whether it named anything.
-bool name_unsettled(MaterialFit& fit, const JointResult& joint, std::uint32_t rounds, double bound);
+/// The reason counts the rounds that ran (an undone one included). Returns whether it named anything.
+bool name_unsettled(MaterialFit& fit, const JointResult& joint, double bound);
 
 /// Runs the rounds on `state` (which holds the first solve, residuals and fit on entry and the
 /// last accepted ones on return). The residual samples are released once fitted (a round's as

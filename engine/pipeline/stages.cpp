@@ -707,7 +707,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
                 if (before.validation_mse && (!candidate_rounds.rival_mse || *before.validation_mse < *candidate_rounds.rival_mse))
                     candidate_rounds.rival_mse = before.validation_mse;
             c.joint = joint_estimate(state, candidate_rounds, steps[k]);
-            (void)name_unsettled(state.fit, c.joint, jo.rounds, fo.coated.max_relative_error);
+            (void)name_unsettled(state.fit, c.joint, fo.coated.max_relative_error);
             c.fit = std::move(state.fit);
             c.validation_mse = state.validation_mse;
             c.seconds = first_seconds[k] + w.seconds();
@@ -793,9 +793,9 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
     const bool undid_a_round = !validated.rounds.empty() && validated.rounds.back().rejected;
     if (split.held_out > 0 && undid_a_round) final_rounds.rounds = validated.accepted;
     s.joint = joint_estimate(state, final_rounds, steps);
-    if (name_unsettled(state.fit, s.joint, final_rounds.rounds, fo.coated.max_relative_error))
-        run.warn("the joint estimate had not settled after " + std::to_string(final_rounds.rounds) +
-                 " rounds: the material may be off by more than its standard errors say (report.json specular)");
+    if (name_unsettled(state.fit, s.joint, fo.coated.max_relative_error))
+        run.warn("the joint estimate had not settled after " + rounds_text(s.joint) +
+                 ": the material may be off by more than its standard errors say (report.json specular)");
     if (config.joint_rounds == 0) run.leave_out("joint albedo and material estimate", "--joint-rounds 0: the thesis's one-pass estimate");
     // The state's albedo was solved with the material before its fit. Where the rounds ended
     // with the material still moving (out of rounds, or capped where the validated estimate
