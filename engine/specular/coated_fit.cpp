@@ -302,12 +302,27 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
         ++r.iterations;
         const Normal n = normal_equations(s, at, p, lin, threads);
         const Eigen::Matrix2d h = n.projected(lin.free);
+        // A parameter at a bound whose descent direction points out of the range is held for this
+        // step (an active set): the coupled step would spend itself on the clamped parameter and
+        // leave the other to creep along the bound (100 iterations without converging, eta at
+        // the top of its range on a Lafortune capture, against a few held).
+        const auto held_at_bound = [&](double x, double lo, double hi, double descent) {
+            return (x <= lo && descent < 0.0) || (x >= hi && descent > 0.0);
+        };
+        const bool hold_alpha = held_at_bound(p.log_alpha, std::log(double(shared::kCoatedMinAlpha)),
+                                              std::log(double(shared::kCoatedMaxAlpha)), -n.jtr(0));
+        const bool hold_eta = o.fixed_eta || held_at_bound(p.eta, shared::kCoatedMinEta, shared::kCoatedMaxEta, -n.jtr(1));
+        if (hold_alpha && hold_eta) {
+            r.converged = std::isfinite(cost); // both pressed against their bounds: a minimum on the box
+            break;
+        }
         bool accepted = false;
         for (int tries = 0; tries < 12 && !accepted; ++tries) {
             Eigen::Matrix2d a = h;
             a.diagonal() += lambda * h.diagonal().cwiseMax(1e-30);
             Eigen::Vector2d step;
-            if (o.fixed_eta) step = {-n.jtr(0) / a(0, 0), 0.0}; // eta held: ln alpha alone
+            if (hold_eta) step = {-n.jtr(0) / a(0, 0), 0.0};      // eta held: ln alpha alone
+            else if (hold_alpha) step = {0.0, -n.jtr(1) / a(1, 1)}; // ln alpha held: eta alone
             else step = a.ldlt().solve(-n.jtr);
             if (!step.allFinite()) break;
             const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
