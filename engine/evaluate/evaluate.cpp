@@ -44,6 +44,7 @@ nlohmann::json lod_levels_json(const EvaluationResult& r) {
 nlohmann::json settings_json(const EvaluationResult& r) {
     return {{"mode", render::mode_name(r.render.mode)},
             {"specular", render::specular_path_name(r.render.specular)},
+            {"passes", render::passes_name(r.render.passes)},
             {"shadows", r.render.shadows}, // cast shadows drawn (false: the thesis's unshadowed render)
             {"lod_max_error_px", r.lod_max_error_px}, // levels of detail (0: every triangle drawn)
             {"lod_levels", lod_levels_json(r)},
@@ -137,6 +138,10 @@ Image make_sheet(const Image& captured, const Image& rendered, double amplificat
                 sheet.at(2 * (w + gap) + x, y, c) = srgb_to_linear(static_cast<float>(std::clamp(d, 0.0, 1.0)));
             }
     return sheet;
+}
+
+Backend metrics_backend_for(const gpu::Context& ctx) noexcept {
+    return ctx.info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
 }
 
 EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture& capture, const EvaluateOptions& options) {
@@ -466,8 +471,8 @@ std::string format_summary(const EvaluationResult& r) {
     }
     const std::size_t n = r.frames.size();
     std::snprintf(line, sizeof line,
-                  "render %s/%s, %s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
-                  render::mode_name(r.render.mode), render::specular_path_name(r.render.specular),
+                  "render %s/%s (%s), %s, metrics on %s: %zu frames, %.1f ms per frame (render %.1f + metrics %.1f), setup %.2f s, total %.2f s\n",
+                  render::mode_name(r.render.mode), render::specular_path_name(r.render.specular), render::passes_name(r.render.passes),
                   r.render.shadows ? "shadows" : "no shadows", to_string(r.metrics_backend),
                   n, r.timings.per_frame_ms(n), n ? 1000.0 * r.timings.render_s / n : 0.0,
                   n ? 1000.0 * r.timings.metrics_s / n : 0.0, r.timings.setup_s, r.timings.total_s);

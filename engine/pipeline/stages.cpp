@@ -1128,8 +1128,7 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
     }
     evaluate::EvaluationResult ev = run.stage("evaluation", [&] {
         evaluate::EvaluateOptions eo;
-        // A CPU Vulkan driver (lavapipe) runs the metric kernels ~9x slower than the C++ reference.
-        eo.metrics_backend = ctx->info().kind == gpu::DeviceKind::Cpu ? Backend::Cpu : Backend::Vulkan;
+        eo.metrics_backend = evaluate::metrics_backend_for(*ctx);
         eo.max_frames_per_split = config.evaluate_max_frames;
         eo.max_train_frames = config.evaluate_train_frames;
         eo.include_train = config.evaluate_train;

@@ -171,6 +171,24 @@ TEST_F(EvaluateTest, CpuAndVulkanMetricsAgree) {
     EXPECT_NEAR(vk.metrics.train_masked.ssim, cpu.metrics.train_masked.ssim, 1e-4);
 }
 
+// The evaluation renders with the deferred pass by default: the same figures as the thesis's two
+// forward passes (the pixels agree to float rounding), frame by frame.
+TEST_F(EvaluateTest, TheDeferredPassScoresAsTheThesisPasses) {
+    const SphereCapture& s = sphere();
+    EXPECT_EQ(EvaluateOptions{}.render.passes, render::Passes::Deferred);
+    const EvaluationResult deferred = evaluate(ctx(), s.truth, s.capture, {.max_frames_per_split = 3});
+    const EvaluationResult separate =
+        evaluate(ctx(), s.truth, s.capture, {.render = {.passes = render::Passes::Separate}, .max_frames_per_split = 3});
+    EXPECT_EQ(deferred.render.passes, render::Passes::Deferred);
+    ASSERT_EQ(deferred.frames.size(), separate.frames.size());
+    ASSERT_FALSE(deferred.frames.empty());
+    for (std::size_t i = 0; i < deferred.frames.size(); ++i) {
+        EXPECT_EQ(deferred.frames[i].covered_pixels, separate.frames[i].covered_pixels);
+        EXPECT_NEAR(deferred.frames[i].masked.psnr, separate.frames[i].masked.psnr, 1e-3) << deferred.frames[i].file;
+        EXPECT_NEAR(deferred.frames[i].full.ssim, separate.frames[i].full.ssim, 1e-5) << deferred.frames[i].file;
+    }
+}
+
 // An 8-bit sRGB capture (synth png8) of the same sphere: the display figures are those of the
 // stored codes. Checked against an independent computation: the frame rendered again, encoded
 // with the sRGB formula written out here (IEC 61966-2-1) and rounded to 8 bits, against the
@@ -438,6 +456,10 @@ TEST_F(EvaluateTest, CliEvaluateWritesJsonAndSheets) {
     ASSERT_NE(table.find("Q1 disp"), std::string::npos) << table;
     EXPECT_LT(table.find("Q1 lin"), table.find("Q1 disp")) << table;
     EXPECT_NE(table.find("display values: srgb"), std::string::npos) << table;
+    // --metrics auto: the C++ measures on a CPU Vulkan driver, the kernels on a GPU.
+    EXPECT_EQ(j["settings"]["metrics_backend"], ctx().info().kind == gpu::DeviceKind::Cpu ? "cpu" : "vulkan");
+    EXPECT_EQ(j["settings"]["passes"], "deferred");
+    EXPECT_NE(table.find("(deferred)"), std::string::npos) << table;
 }
 #endif
 
