@@ -26,6 +26,7 @@ struct ThreadCounts {
     std::uint64_t rays_avoided = 0;
     std::uint64_t footprint_rejected = 0;
     std::uint64_t shadow_edge_rejected = 0;
+    std::uint64_t rays_answered = 0;
 };
 
 constexpr float kNoHit = std::numeric_limits<float>::infinity();
@@ -327,6 +328,9 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 if (skip_rays) {
                     seen[v / 32] |= 1u << (v % 32);
                     ++c.rays_avoided;
+                } else if (footprint_test && options.maps_answer_rays) {
+                    seen[v / 32] |= 1u << (v % 32); // the taps' primary rays reached the particle's surface
+                    ++c.rays_answered;
                 } else {
                     rays.push_back(scene.ray_toward(pos, n, view_center[v]));
                     targets.push_back({true, v});
@@ -353,10 +357,14 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
             for (std::uint32_t f = 0; f < lights.size(); ++f) {
                 const glm::vec3 light = glm::vec3(lights[f].position);
                 if (!faces(n, face, pos, light)) continue;
-                if (seen_only && !((seen[options.frame_view[f] / 32] >> (options.frame_view[f] % 32)) & 1u)) continue;
+                const bool view_sees = !options.frame_view.empty() && ((seen[options.frame_view[f] / 32] >> (options.frame_view[f] % 32)) & 1u);
+                if (seen_only && !view_sees) continue;
                 if (skip_rays) {
                     lit[f / 32] |= 1u << (f % 32);
                     ++c.rays_avoided;
+                } else if (tap_shadows && options.maps_answer_rays && view_sees) {
+                    lit[f / 32] |= 1u << (f % 32); // the shadow map's test below decides
+                    ++c.rays_answered;
                 } else {
                     rays.push_back(scene.ray_toward(pos, n, light));
                     targets.push_back({false, f});
@@ -395,6 +403,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         st.rays_avoided += c.rays_avoided;
         st.footprint_rejected += c.footprint_rejected;
         st.shadow_edge_rejected += c.shadow_edge_rejected;
+        st.rays_answered += c.rays_answered;
     }
     for (std::size_t p = 0; p < particles.size(); ++p) {
         if (vis.best_view[p] < 0) ++st.seen_by_no_view;
@@ -521,6 +530,9 @@ std::string describe(const VisibilityStats& s) {
         out += "  shadow-edge test: " + std::to_string(s.shadow_edge_rejected) +
                " (particle, frame) pairs unlit (a bilinear tap is dark: in a cast shadow or facing away from the light); " + std::to_string(s.shadow_map_rays) +
                " shadow-map rays\n";
+    if (s.rays_answered > 0)
+        out += "  " + std::to_string(s.rays_answered) +
+               " (particle, view or frame) pairs answered by the depth and shadow maps, without a ray of their own\n";
     out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
                              : "  occlusion rays skipped: " + s.skipped + "\n";
     return out;
