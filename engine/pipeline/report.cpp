@@ -49,7 +49,7 @@ json visibility_json(const VisibilityStats& s) {
             {"footprint_rejected_pairs", s.footprint_rejected},
             {"shadow_map_rays", s.shadow_map_rays},
             {"shadow_edge_rejected_pairs", s.shadow_edge_rejected},
-            {"rays_answered_by_maps", s.rays_answered},
+            {"light_rays_answered_by_shadow_maps", s.rays_answered},
             {"convex", s.convexity.convex},
             {"convexity_reason", s.convexity.reason},
             {"occlusion_rays_skipped", s.skipped},

@@ -54,7 +54,7 @@ void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, cons
     if (cast_rays) {
         d.measured_seconds = run.seconds("visibility");
         d.cost_basis = "measured: the visibility stage with " + std::to_string(stats.rays_cast) + " occlusion rays (" +
-                       std::to_string(stats.rays_answered) + " pairs answered by the maps), " + std::to_string(stats.depth_rays) +
+                       std::to_string(stats.rays_answered) + " light rays answered by the shadow maps), " + std::to_string(stats.depth_rays) +
                        " depth-map rays and " + std::to_string(stats.shadow_map_rays) + " shadow-map rays";
         return;
     }

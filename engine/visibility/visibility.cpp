@@ -328,9 +328,6 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 if (skip_rays) {
                     seen[v / 32] |= 1u << (v % 32);
                     ++c.rays_avoided;
-                } else if (footprint_test && options.maps_answer_rays) {
-                    seen[v / 32] |= 1u << (v % 32); // the taps' primary rays reached the particle's surface
-                    ++c.rays_answered;
                 } else {
                     rays.push_back(scene.ray_toward(pos, n, view_center[v]));
                     targets.push_back({true, v});
@@ -353,7 +350,8 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 targets.clear();
             };
             // The views' rays first where the lights' depend on what the particle sees.
-            if (seen_only) cast();
+            const bool maps_answer = tap_shadows && options.shadow_maps_answer_lights;
+            if (seen_only || maps_answer) cast();
             for (std::uint32_t f = 0; f < lights.size(); ++f) {
                 const glm::vec3 light = glm::vec3(lights[f].position);
                 if (!faces(n, face, pos, light)) continue;
@@ -362,7 +360,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 if (skip_rays) {
                     lit[f / 32] |= 1u << (f % 32);
                     ++c.rays_avoided;
-                } else if (tap_shadows && options.maps_answer_rays && view_sees) {
+                } else if (maps_answer && view_sees) {
                     lit[f / 32] |= 1u << (f % 32); // the shadow map's test below decides
                     ++c.rays_answered;
                 } else {
@@ -532,7 +530,7 @@ std::string describe(const VisibilityStats& s) {
                " shadow-map rays\n";
     if (s.rays_answered > 0)
         out += "  " + std::to_string(s.rays_answered) +
-               " (particle, view or frame) pairs answered by the depth and shadow maps, without a ray of their own\n";
+               " (particle, frame) pairs answered by the frames' shadow maps, without a light ray of their own\n";
     out += s.skipped.empty() ? "  occlusion rays cast: " + (s.convexity.convex ? std::string("forced on a convex mesh") : "mesh not convex: " + s.convexity.reason) + "\n"
                              : "  occlusion rays skipped: " + s.skipped + "\n";
     return out;

@@ -79,14 +79,13 @@ struct VisibilityOptions {
     /// stay clear until complete_lit casts them (the indirect light, whose emitters need not be
     /// seen). On the knot at 384 px about half the light rays.
     bool lit_seen_only = false;
-    /// With the footprint test: the maps answer for the particle's own rays. A view whose 4 taps
-    /// show the particle's surface sees it: their primary rays reached that surface, and the
-    /// particle's ray to the camera runs among them. A frame of such a view, the light in front
-    /// of the particle, lights it when none of the 4 taps is dark in the frame's shadow map:
-    /// their shadow rays, from the surface around the particle, reached the light. Only an
-    /// occluder thinner than the gap between those rays (under a pixel) could answer otherwise,
-    /// and the sample would still read the taps' lit pixels. false: one ray per pair as well.
-    bool maps_answer_rays = true;
+    /// With frame_view and the footprint test: the frames' pixel shadow maps answer for the
+    /// particle's light rays. A frame whose view sees the particle, the light in front of it,
+    /// lights it when none of its 4 taps is dark in the frame's shadow map: their shadow rays,
+    /// from the surface around the particle, reached the light. Only an occluder thinner than
+    /// the gap between those rays (under a pixel) could answer otherwise, and the sample would
+    /// still read the taps' lit pixels. false: a ray per pair as well.
+    bool shadow_maps_answer_lights = true;
 };
 
 inline constexpr float kFootprintMinCos = 0.2f;
@@ -106,7 +105,7 @@ struct VisibilityStats {
     std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     std::uint64_t shadow_map_rays = 0;    ///< shadow rays of the per-frame pixel shadow maps
     std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap is dark (cast shadow or facing away)
-    std::uint64_t rays_answered = 0; ///< (particle, view or frame) pairs the depth and shadow maps answered without a ray (maps_answer_rays)
+    std::uint64_t rays_answered = 0; ///< (particle, frame) pairs the shadow maps answered without a light ray (shadow_maps_answer_lights)
     ConvexityReport convexity;
     std::string skipped;             ///< why occlusion rays were skipped; empty when they were cast
     unsigned threads = 0;
