@@ -296,7 +296,12 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
     const Projected start = project(s, p, o, threads, at);
     Linear lin = start.linear;
     double cost = start.cost;
-    double lambda = 1e-3;
+    // The damping of each parameter, (ln alpha, eta). One shared damping let a parameter the
+    // samples barely see (alpha where eta is near 1 and the coating reflects almost nothing:
+    // J^T J's alpha entry 1e-14 to 1e-6 against eta's 60) drive it to 1e3..1e6, and the other
+    // then moved by a thousandth of its Newton step an iteration (the woodenpot, thesis rig:
+    // four runs of 100 iterations, none converged, the candidate lost).
+    Eigen::Vector2d lambda(1e-3, 1e-3);
     LmResult r{p, lin, cost, 0, false};
     for (std::uint32_t it = 0; it < o.max_iterations; ++it) {
         ++r.iterations;
@@ -316,31 +321,52 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
             r.converged = std::isfinite(cost); // both pressed against their bounds: a minimum on the box
             break;
         }
-        bool accepted = false;
-        for (int tries = 0; tries < 12 && !accepted; ++tries) {
-            Eigen::Matrix2d a = h;
-            a.diagonal() += lambda * h.diagonal().cwiseMax(1e-30);
-            Eigen::Vector2d step;
-            if (hold_eta) step = {-n.jtr(0) / a(0, 0), 0.0};      // eta held: ln alpha alone
-            else if (hold_alpha) step = {0.0, -n.jtr(1) / a(1, 1)}; // ln alpha held: eta alone
-            else step = a.ldlt().solve(-n.jtr);
-            if (!step.allFinite()) break;
+        const Eigen::Vector2d diag = h.diagonal().cwiseMax(1e-30);
+        // Tries `step`; where it lowers the cost, moves there and returns true.
+        const auto attempt = [&](const Eigen::Vector2d& step) {
+            if (!step.allFinite()) return false;
             const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
             const Projected trial = project(s, q, o, threads, scratch);
-            const Linear& t = trial.linear;
-            const double c = trial.cost;
-            if (std::isfinite(c) && c < cost) {
-                const double decrease = (cost - c) / std::max(cost, 1e-300);
-                p = q;
-                lin = t;
-                cost = c;
-                at.swap(scratch);
-                lambda = std::max(lambda / 10.0, 1e-12);
-                accepted = true;
-                if (decrease < o.cost_tolerance) r.converged = true;
-            } else {
-                lambda *= 10.0;
+            if (!(std::isfinite(trial.cost) && trial.cost < cost)) return false;
+            if ((cost - trial.cost) / std::max(cost, 1e-300) < o.cost_tolerance) r.converged = true;
+            p = q;
+            lin = trial.linear;
+            cost = trial.cost;
+            at.swap(scratch);
+            return true;
+        };
+        // One parameter alone, k = 0 (ln alpha) or 1 (eta), damped by its own lambda.
+        const auto alone = [&](int k) {
+            Eigen::Vector2d step = Eigen::Vector2d::Zero();
+            step(k) = -n.jtr(k) / (h(k, k) + lambda(k) * diag(k));
+            return step;
+        };
+        bool accepted = false;
+        for (int tries = 0; tries < 12 && !accepted; ++tries) {
+            if (hold_eta || hold_alpha) {
+                const int k = hold_eta ? 0 : 1; // the free one
+                accepted = attempt(alone(k));
+                lambda(k) = accepted ? std::max(lambda(k) / 10.0, 1e-12) : lambda(k) * 10.0;
+                continue;
             }
+            Eigen::Matrix2d a = h;
+            a.diagonal() += lambda.cwiseProduct(diag);
+            if (attempt(a.ldlt().solve(-n.jtr))) {
+                lambda = (lambda / 10.0).cwiseMax(1e-12);
+                accepted = true;
+                continue;
+            }
+            // The coupled step does not lower the cost: each parameter alone, eta first (the
+            // better determined on the captures measured). The one that moves relaxes its
+            // damping, the other's grows.
+            for (const int k : {1, 0}) {
+                if (!attempt(alone(k))) continue;
+                lambda(k) = std::max(lambda(k) / 10.0, 1e-12);
+                lambda(1 - k) *= 10.0;
+                accepted = true;
+                break;
+            }
+            if (!accepted) lambda *= 10.0;
         }
         if (!accepted) r.converged = std::isfinite(cost); // no step lowers the cost: a minimum (or a bound)
         r.p = p;

@@ -180,6 +180,39 @@ TEST(CoatedFit, TheStandardErrorOfEtaIsItsSpreadOverNoiseDraws) {
     EXPECT_LT(spread, 2.0 * reported) << spread << " " << reported;
 }
 
+// Reads the samples of tests/specular/data/NAME: 13 little-endian floats a sample, the fields of
+// MaterialSample in order.
+std::vector<MaterialSample> read_samples(const char* name) {
+    std::ifstream in(test::source_dir() / "tests" / "specular" / "data" / name, std::ios::binary);
+    EXPECT_TRUE(in.good()) << name;
+    std::vector<MaterialSample> s;
+    std::array<float, 13> v{};
+    while (in.read(reinterpret_cast<char*>(v.data()), sizeof v))
+        s.push_back({.u = {v[0], v[1], v[2]}, .v = {v[3], v[4], v[5]}, .b = {v[6], v[7], v[8]}, .rho_over_pi = {v[9], v[10], v[11]},
+                     .weight = v[12]});
+    return s;
+}
+
+// Residual samples from a real run (woodenpot_thesis_first_solve.f32: every 22nd of the coated
+// fit's samples after the first, Lambertian, solve of `specula synth --preset woodenpot --material
+// coated --rig thesis --size 512`): the albedo holds the highlight, the fit goes to eta near 1
+// (a coating that reflects almost nothing), where alpha barely changes the cost. With one
+// damping for both parameters alpha's drove it to 1e3..1e6 and eta crept by a thousandth of its
+// step an iteration: 409 iterations, "not converged", and the candidate was dropped. Each
+// parameter damped on its own: 31 iterations in the 8 runs, alpha named undetermined.
+TEST(CoatedFit, NearAnIndexOfOneTheFitConvergesAndNamesAlphaUndetermined) {
+    const std::vector<MaterialSample> s = read_samples("woodenpot_thesis_first_solve.f32");
+    ASSERT_EQ(s.size(), 8261u);
+    const CoatedFitOptions o;
+    const CoatedFit fit = fit_coated(s, o);
+    ASSERT_TRUE(fit.usable()) << fit.reason;
+    EXPECT_LT(fit.params.eta, 1.05f);
+    EXPECT_FALSE(fit.alpha_determined);
+    EXPECT_NE(fit.reason.find("do not determine alpha"), std::string::npos) << fit.reason;
+    const std::uint32_t runs = o.restarts + o.robust_passes + 1;
+    EXPECT_LE(fit.iterations, 10u * runs) << fit.iterations << " iterations in " << runs << " runs";
+}
+
 TEST(CoatedFit, AKnownIndexIsHeldAndAlphaAloneFitted) {
     const CoatedParams truth{.eta = 1.45f, .alpha = 0.2f};
     const std::vector<MaterialSample> s = make_samples(truth, Rig::Thesis, 20000, 23);
@@ -203,13 +236,7 @@ TEST(CoatedFit, AKnownIndexIsHeldAndAlphaAloneFitted) {
 // samples hold almost no n.h under 10 degrees: eta runs to its upper bound 3 (alpha 0.016,
 // against the truth's eta 1.52, alpha 0.05). The fit says so and holds eta at 1.5.
 TEST(CoatedFit, AnIndexThatRunsToItsBoundIsHeldAtACommonOneAndSaid) {
-    std::ifstream in(test::source_dir() / "tests" / "specular" / "data" / "cologne_thesis_first_solve.f32", std::ios::binary);
-    ASSERT_TRUE(in.good());
-    std::vector<MaterialSample> s;
-    std::array<float, 13> v{};
-    while (in.read(reinterpret_cast<char*>(v.data()), sizeof v))
-        s.push_back({.u = {v[0], v[1], v[2]}, .v = {v[3], v[4], v[5]}, .b = {v[6], v[7], v[8]}, .rho_over_pi = {v[9], v[10], v[11]},
-                     .weight = v[12]});
+    const std::vector<MaterialSample> s = read_samples("cologne_thesis_first_solve.f32");
     ASSERT_EQ(s.size(), 7928u);
     CoatedFitOptions free;
     free.eta_at_bound.reset();
