@@ -177,7 +177,8 @@ VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const
                                                     .skip_rays = !cast_rays,
                                                     .frame_view = v.inputs.frame_view,
                                                     .surface_maps = run.config.lambert.tap_irradiance,
-                                                    .lit_seen_only = true});
+                                                    .lit_seen_only = true,
+                                                    .shadow_maps_answer_lights = run.config.light_rays_from_shadow_maps});
     });
     // Legal but useless input (issue 21 cases 15, 17): most of the surface unseen or unlit is
     // warned; nothing seen, or nothing lit by a train frame of a view that sees it, is refused

@@ -84,8 +84,8 @@ struct VisibilityOptions {
     /// lights it when none of its 4 taps is dark in the frame's shadow map: their shadow rays,
     /// from the surface around the particle, reached the light. Only an occluder thinner than
     /// the gap between those rays (under a pixel) could answer otherwise, and the sample would
-    /// still read the taps' lit pixels. false: a ray per pair as well.
-    bool shadow_maps_answer_lights = true;
+    /// still read the taps' lit pixels. false (the default): a ray per pair as well.
+    bool shadow_maps_answer_lights = false;
 };
 
 inline constexpr float kFootprintMinCos = 0.2f;

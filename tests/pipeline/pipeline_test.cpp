@@ -69,12 +69,10 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     ASSERT_TRUE(fs::exists(c.out_dir / "report.json"));
     const nlohmann::json saved = nlohmann::json::parse(std::ifstream(c.out_dir / "report.json"));
     EXPECT_EQ(saved, r.report);
-    // The can is not convex: rays are cast (the light rays answered by the frames' shadow
-    // maps), and the report does not claim otherwise.
+    // The can is not convex: rays are cast, and the report does not claim otherwise.
     EXPECT_FALSE(left_out_mentions(saved, "occlusion rays"));
     EXPECT_GT(saved["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
-    EXPECT_GT(saved["visibility"]["shadow_map_rays"].get<std::uint64_t>(), 0u);
-    EXPECT_GT(saved["visibility"]["light_rays_answered_by_shadow_maps"].get<std::uint64_t>(), 0u);
+    EXPECT_EQ(saved["visibility"]["light_rays_answered_by_shadow_maps"].get<std::uint64_t>(), 0u); // off by default
     // Every stage is timed; the texture has the atlas's size.
     for (const char* stage : {"load", "atlas", "particles", "visibility", "diffuse solve", "albedo texture", "bundle",
                               "evaluation"}) {

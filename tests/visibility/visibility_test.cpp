@@ -110,7 +110,6 @@ TEST(Visibility, ShadowEdgeTestUnlightsTexelsWhoseTapsLieInTheCastShadow) {
     VisibilityOptions plain;
     VisibilityOptions edges;
     edges.frame_view = frame_view;
-    edges.shadow_maps_answer_lights = false; // the test beside the rays (the maps answering for them: below)
     const Visibility without = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, plain);
     const Visibility with = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, edges);
     EXPECT_EQ(without.stats.shadow_map_rays, 0u);
@@ -356,7 +355,7 @@ TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
 TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
     const TorusFrames t;
     const auto& [cams, s, lights, frame_view] = t;
-    const VisibilityOptions maps{.frame_view = frame_view, .lit_seen_only = true};
+    const VisibilityOptions maps{.frame_view = frame_view, .lit_seen_only = true, .shadow_maps_answer_lights = true};
     VisibilityOptions rays = maps;
     rays.shadow_maps_answer_lights = false;
     const Visibility a = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, rays);
