@@ -64,7 +64,7 @@ inline constexpr double kSheetAmplification = 4.0;
 struct EvaluateOptions {
     /// Mode (both/diffuse/specular), specular model, shadows, passes. Deferred by default: the
     /// same pixels as the forward passes (1e-5 relative, RenderTest.DeferredPassMatchesTheForwardPasses;
-    /// the knot at 384 px scores the same to 1e-12 dB), one shading a pixel instead of lavapipe's
+    /// every figure of the knot at 384 px the same to the last digit), one shading a pixel instead of lavapipe's
     /// block per triangle: 32 -> 25 ms a shadow-mapped frame there, 38 -> 33 ms on the demo can.
     render::Settings render{.passes = render::Passes::Deferred};
     /// The renderer's options: levels of detail (lod_max_error_px) to measure what they cost the
