@@ -194,8 +194,9 @@ std::vector<MaterialSample> read_samples(const char* name) {
 }
 
 // Residual samples from a real run (woodenpot_thesis_first_solve.f32: every 22nd of the coated
-// fit's samples after the first, Lambertian, solve of `specula synth --preset woodenpot --material
-// coated --rig thesis --size 512`): the albedo holds the highlight, the fit goes to eta near 1
+// candidate's first fit's samples, the validation split's after the first, Lambertian, solve of
+// `specula synth --preset woodenpot --material coated --rig thesis --size 512`, reconstructed
+// with --light-rays-from-shadow-maps): the albedo holds the highlight, the fit goes to eta near 1
 // (a coating that reflects almost nothing), where alpha barely changes the cost. With one
 // damping for both parameters alpha's drove it to 1e3..1e6 and eta crept by a thousandth of its
 // step an iteration: 409 iterations, "not converged", and the candidate was dropped. Each
