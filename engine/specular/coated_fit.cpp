@@ -44,10 +44,16 @@ struct Point {
     double log_alpha, eta;
 };
 
-double clamp_log_alpha(double x) {
-    return std::clamp(x, std::log(double(shared::kCoatedMinAlpha)), std::log(double(shared::kCoatedMaxAlpha)));
-}
-double clamp_eta(double x) { return std::clamp(x, double(shared::kCoatedMinEta), double(shared::kCoatedMaxEta)); }
+/// A parameter's range in the fit's coordinates: the steps are clamped to it, and a parameter
+/// at an end of it is held where the descent points out (levenberg_marquardt).
+struct Range {
+    double lo, hi;
+    [[nodiscard]] double clamp(double x) const { return std::clamp(x, lo, hi); }
+    /// At an end, with `descent` pointing out of the range.
+    [[nodiscard]] bool pressed(double x, double descent) const { return (x <= lo && descent < 0.0) || (x >= hi && descent > 0.0); }
+};
+const Range kLogAlphaRange{std::log(double(shared::kCoatedMinAlpha)), std::log(double(shared::kCoatedMaxAlpha))};
+const Range kEtaRange{double(shared::kCoatedMinEta), double(shared::kCoatedMaxEta)};
 
 /// The model's two parts at one sample: the diffuse factor times rho / pi, and the untinted
 /// specular (the tint multiplies it).
@@ -311,12 +317,8 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
         // step (an active set): the coupled step would spend itself on the clamped parameter and
         // leave the other to creep along the bound (100 iterations without converging, eta at
         // the top of its range on a Lafortune capture, against a few held).
-        const auto held_at_bound = [&](double x, double lo, double hi, double descent) {
-            return (x <= lo && descent < 0.0) || (x >= hi && descent > 0.0);
-        };
-        const bool hold_alpha = held_at_bound(p.log_alpha, std::log(double(shared::kCoatedMinAlpha)),
-                                              std::log(double(shared::kCoatedMaxAlpha)), -n.jtr(0));
-        const bool hold_eta = o.fixed_eta || held_at_bound(p.eta, shared::kCoatedMinEta, shared::kCoatedMaxEta, -n.jtr(1));
+        const bool hold_alpha = kLogAlphaRange.pressed(p.log_alpha, -n.jtr(0));
+        const bool hold_eta = o.fixed_eta || kEtaRange.pressed(p.eta, -n.jtr(1));
         if (hold_alpha && hold_eta) {
             r.converged = std::isfinite(cost); // both pressed against their bounds: a minimum on the box
             break;
@@ -325,7 +327,7 @@ LmResult levenberg_marquardt(const std::vector<Prepared>& s, Point p, const Coat
         // Tries `step`; where it lowers the cost, moves there and returns true.
         const auto attempt = [&](const Eigen::Vector2d& step) {
             if (!step.allFinite()) return false;
-            const Point q{clamp_log_alpha(p.log_alpha + step(0)), clamp_eta(p.eta + step(1))};
+            const Point q{kLogAlphaRange.clamp(p.log_alpha + step(0)), kEtaRange.clamp(p.eta + step(1))};
             const Projected trial = project(s, q, o, threads, scratch);
             if (!(std::isfinite(trial.cost) && trial.cost < cost)) return false;
             if ((cost - trial.cost) / std::max(cost, 1e-300) < o.cost_tolerance) r.converged = true;
@@ -443,7 +445,7 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
     for (int i = 0; i < kAlphaSteps; ++i)
         for (int j = 0; j < eta_steps; ++j) {
             const double la = std::log(0.005) + (std::log(1.0) - std::log(0.005)) * i / (kAlphaSteps - 1);
-            cells.push_back({{la, o.fixed_eta ? clamp_eta(*o.fixed_eta) : 1.1 + 0.1 * j}, 0.0});
+            cells.push_back({{la, o.fixed_eta ? kEtaRange.clamp(*o.fixed_eta) : 1.1 + 0.1 * j}, 0.0});
         }
     const unsigned threads = o.threads != 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
     parallel_for(cells.size(), threads, [&](std::size_t c) {
