@@ -53,9 +53,11 @@ void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, cons
     d.detail["rays_avoided"] = stats.rays_avoided;
     if (cast_rays) {
         d.measured_seconds = run.seconds("visibility");
-        d.cost_basis = "measured: the visibility stage with " + std::to_string(stats.rays_cast) + " occlusion rays (" +
-                       std::to_string(stats.rays_answered) + " light rays answered by the shadow maps), " + std::to_string(stats.depth_rays) +
-                       " depth-map rays and " + std::to_string(stats.shadow_map_rays) + " shadow-map rays";
+        d.cost_basis = "measured: the visibility stage with " + std::to_string(stats.rays_cast) + " occlusion rays" +
+                       (stats.rays_answered > 0 ? " (" + std::to_string(stats.rays_answered) + " light rays answered by the shadow maps)"
+                                                : std::string()) +
+                       ", " + std::to_string(stats.depth_rays) + " depth-map rays and " + std::to_string(stats.shadow_map_rays) +
+                       " shadow-map rays";
         return;
     }
     run.leave_out("occlusion rays (visibility and shadows)", d.reason);

@@ -349,13 +349,16 @@ TEST(Visibility, LightRaysOnlyTowardSeenParticlesThenCompletedGiveTheSameBits) {
     EXPECT_THROW(complete_lit(b, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, outside, 1), Error);
 }
 
-// The frames' shadow maps answer for the particles' light rays: on the torus, which hides and
-// shadows itself, the same lit bits as a ray per pair bar one in a thousand at most (measured: 1
-// of 502,133 lit pairs), the same seen bits, and no ray cast but the views'.
+// The frames' shadow maps answer for the particles' light rays where the frame's view sees the
+// particle: on the torus, which hides and shadows itself, the same lit bits as a ray per pair bar
+// ten in a million at most (measured: 1 of 2,049,224 lit pairs), the same seen bits, and no light
+// ray cast for those pairs.
 TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
     const TorusFrames t;
     const auto& [cams, s, lights, frame_view] = t;
-    const VisibilityOptions maps{.frame_view = frame_view, .lit_seen_only = true, .shadow_maps_answer_lights = true};
+    // Every frame's light rays (not only the seen particles'): the maps must answer only where the
+    // frame's view sees the particle, the rays the rest.
+    const VisibilityOptions maps{.frame_view = frame_view, .shadow_maps_answer_lights = true};
     VisibilityOptions rays = maps;
     rays.shadow_maps_answer_lights = false;
     const Visibility a = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, rays);
@@ -364,7 +367,7 @@ TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
     EXPECT_EQ(a.best_view, b.best_view);
     EXPECT_EQ(a.stats.rays_answered, 0u);
     EXPECT_EQ(b.stats.rays_cast + b.stats.rays_answered, a.stats.rays_cast); // the views' rays, and the lights' answered
-    EXPECT_GT(b.stats.rays_answered, a.stats.rays_cast / 2);
+    EXPECT_GT(b.stats.rays_answered, a.stats.rays_cast / 5); // measured 535,031 of 2,397,845
     EXPECT_EQ(b.stats.shadow_map_rays, a.stats.shadow_map_rays);
     std::size_t lit_pairs = 0, lit_differ = 0;
     for (std::size_t p = 0; p < s.particles.particles.size(); ++p)
@@ -374,7 +377,7 @@ TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
         }
     std::printf("lit: %zu of %zu pairs differ\n", lit_differ, lit_pairs);
     ASSERT_GT(lit_pairs, 10000u);
-    EXPECT_LE(lit_differ, lit_pairs / 1000);
+    EXPECT_LE(lit_differ, lit_pairs / 100000);
 }
 
 // complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
