@@ -2,6 +2,7 @@
 #include "metrics/display_values.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace specula::metrics {
@@ -51,12 +52,28 @@ DisplayEncoder::DisplayEncoder(const DisplayEncoding& e) : m_encoding(e) {
         while (code(f) < k1) f = std::nextafter(f, 2.0f);
         m_first[k] = f;
     }
+    // The buckets: every float in [0, 1) by its exponent and first 8 mantissa bits.
+    const auto code_of = [&](float v) {
+        return static_cast<std::uint32_t>(std::upper_bound(m_first.begin(), m_first.end(), v) - m_first.begin());
+    };
+    const std::uint32_t one = std::bit_cast<std::uint32_t>(1.0f) >> kBucketShift;
+    m_bucket.resize(std::size_t{one} + 1);
+    for (std::uint32_t b = 0; b < one; ++b) m_bucket[b] = code_of(std::bit_cast<float>(b << kBucketShift));
+    m_bucket[one] = code_of(1.0f);
 }
 
 float DisplayEncoder::operator()(float linear) const noexcept {
     if (m_first.empty() || std::isnan(linear)) return to_display(linear, m_encoding);
-    // The number of codes whose smallest float is <= linear is linear's code.
-    const auto k = static_cast<std::size_t>(std::upper_bound(m_first.begin(), m_first.end(), linear) - m_first.begin());
+    // The number of codes whose smallest float is <= linear is linear's code: below 0 none, from 1
+    // on all, between them at least its bucket's first code and at most the next bucket's.
+    std::size_t k = 0;
+    if (linear >= 1.0f) {
+        k = m_first.size();
+    } else if (linear > 0.0f) {
+        const std::uint32_t b = std::bit_cast<std::uint32_t>(linear) >> kBucketShift;
+        const auto first = m_first.begin();
+        k = static_cast<std::size_t>(std::upper_bound(first + m_bucket[b], first + m_bucket[b + 1], linear) - first);
+    }
     return static_cast<float>(static_cast<double>(k) / m_max_code);
 }
 

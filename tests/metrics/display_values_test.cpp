@@ -9,7 +9,10 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -50,6 +53,14 @@ TEST(DisplayValues, TheEncoderTableAgreesWithTheScalarDefinition) {
             const float v = u(rng);
             ASSERT_EQ(enc(v), to_display(v, e)) << e.name() << " " << v;
         }
+        // The encoder starts its search from the float's bits (2^15 floats a bucket): on both
+        // sides of every bucket's edge in [0, 1], and at the ends.
+        for (std::uint32_t bits = 0; bits <= std::bit_cast<std::uint32_t>(1.0f); bits += 1u << 15)
+            for (const float v : {std::bit_cast<float>(bits), std::nextafter(std::bit_cast<float>(bits), -1.0f)})
+                ASSERT_EQ(enc(v), to_display(v, e)) << e.name() << " " << v;
+        for (const float v : {0.0f, -0.0f, 1.0f, std::nextafter(1.0f, 0.0f), std::numeric_limits<float>::denorm_min(),
+                              std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()})
+            ASSERT_EQ(enc(v), to_display(v, e)) << e.name() << " " << v;
         if (e.bits != 8) continue;
         for (int k = 0; k < 255; ++k) { // around the boundary between codes k and k + 1
             const double b = (k + 0.5) / 255.0;
