@@ -25,7 +25,10 @@ ValidationSplit split_validation_frames(const LambertInputs& in, std::size_t min
     return split;
 }
 
-JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps) {
+namespace {
+
+// The rounds from `state` (joint_estimate without the restart).
+JointResult run_rounds(JointState& state, const JointOptions& options, const JointSteps& steps) {
     JointResult out;
     out.stop = "joint rounds: " + std::to_string(options.rounds) + " allowed";
     std::optional<SpecularModel> previous = state.fit.model();
@@ -125,6 +128,31 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
         if (n >= 2 && q < 1.0) out.unsettled_remaining = last * q / (1.0 - q);
     }
     return out;
+}
+
+} // namespace
+
+JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps) {
+    JointResult first = run_rounds(state, options, steps);
+    const bool low = options.restart_low_index && steps.validate && state.fit.coated && state.fit.coated->usable() &&
+                     state.fit.coated->params.eta < kCoatedLowStartEta;
+    if (!low) return first;
+    // The rounds ended near eta = 1: once more from a common dielectric, the same alpha and albedo.
+    JointState common = state;
+    common.fit.coated->params.eta = kCoatedCommonEta;
+    common.validation_mse.reset();
+    JointRestart restart{.first_eta = state.fit.coated->params.eta, .common_eta = kCoatedCommonEta};
+    JointResult second = run_rounds(common, options, steps);
+    restart.first_mse = state.validation_mse;
+    restart.common_mse = common.validation_mse;
+    restart.common_kept = common.validation_mse && (!state.validation_mse || *common.validation_mse < *state.validation_mse);
+    log::info(format_text("coated candidate: its rounds ended at eta %.3f, validation mean square %.6g; from eta %.2f: %.6g; ",
+                          restart.first_eta, restart.first_mse.value_or(-1.0), restart.common_eta, restart.common_mse.value_or(-1.0)) +
+              (restart.common_kept ? "the second kept" : "the first kept"));
+    JointResult& kept = restart.common_kept ? second : first;
+    if (restart.common_kept) state = std::move(common);
+    kept.restart = restart;
+    return std::move(kept);
 }
 
 // The joint rounds ran out while the material still moved (JointResult::unsettled_change):

@@ -129,6 +129,16 @@ json joint_json(const JointResult& joint) {
     }
     json j = {{"rounds", rounds}, {"accepted", joint.accepted}, {"stop", joint.stop}};
     if (joint.first_validation_mse) j["first_validation_mse"] = *joint.first_validation_mse;
+    if (joint.restart) {
+        const JointRestart& r = *joint.restart;
+        const auto mse = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+        j["restart"] = {{"why", "the rounds ended at an index near 1: estimated again from a common dielectric's"},
+                        {"first_eta", r.first_eta},
+                        {"first_validation_mse", mse(r.first_mse)},
+                        {"common_eta", r.common_eta},
+                        {"common_validation_mse", mse(r.common_mse)},
+                        {"kept", r.common_kept ? "common" : "first"}};
+    }
     return j;
 }
 

@@ -665,7 +665,8 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
     }
 
     const Stopwatch watch;
-    const JointOptions jo{.rounds = config.joint_rounds, .tolerance = config.joint_tolerance};
+    const JointOptions jo{.rounds = config.joint_rounds, .tolerance = config.joint_tolerance,
+                          .restart_low_index = !fo.coated.fixed_eta.has_value()};
     std::vector<MaterialFamily> families;
     if (config.material) families = {*config.material};
     else for (std::size_t f = 0; f < kMaterialFamilyCount; ++f) families.push_back(static_cast<MaterialFamily>(f));

@@ -140,6 +140,7 @@ TEST(JointEstimate, ValidationErrorNeverIncreasesFromRoundToRoundCoated) {
     EXPECT_EQ(r.accepted, 2u); // round 3 (eta 1.6) raised the error: stopped before round 4
     EXPECT_FLOAT_EQ(state.fit.coated->params.eta, 1.48f);
     EXPECT_EQ(std::get<CoatedParams>(s.subtracted[0]).eta, 1.4f);
+    EXPECT_FALSE(r.restart); // eta 1.4 is not near 1: one start
 }
 
 // The thesis rig's slow fixed point (issue 15; can, coated, 128 px: alpha 0.0765 -> 0.0972 ->
@@ -290,6 +291,79 @@ TEST(JointEstimate, ACandidateFarBehindItsRivalSpendsNoSolveOnItsOwnAlbedo) {
         EXPECT_EQ(r.rounds[1].rejected, far_behind) << rival;
         EXPECT_EQ(r.rounds[1].own_albedo, !far_behind) << rival;
         EXPECT_EQ(s.subtracted.size(), far_behind ? 2u : 3u) << rival;
+    }
+}
+
+// The coated woodenpot on the thesis rig (issue 15): its first fit lands near eta 1 and the
+// rounds from there stop at the first rise of the validation error. A coated estimate whose
+// rounds end below kCoatedLowStartEta is estimated again from kCoatedCommonEta, with its alpha,
+// and the start of the lower validation error kept, with its rounds; one that climbed out runs once.
+TEST(JointEstimate, AnEstimateEndingNearAnIndexOfOneIsEstimatedAgainFromACommonDielectric) {
+    // From eta 1.02: round 1 (eta 1.03) raises the error, with its own albedo too: stopped.
+    // From eta 1.5: round 1 (1.46) and round 2 (1.459, settled) lower it.
+    Script s{.fits = {coated_of(1.03f, 0.3f), coated_of(1.46f, 0.29f), coated_of(1.459f, 0.2901f)},
+             .validation = {1e-5, 1.2e-5, 1.1e-5, 5e-6, 1e-6, 9e-7}};
+    JointState state{.fit = coated_of(1.02f, 0.31f)};
+    const JointResult r = joint_estimate(state, {.rounds = 8, .tolerance = 0.005}, s.steps());
+    ASSERT_TRUE(r.restart);
+    EXPECT_FLOAT_EQ(static_cast<float>(r.restart->first_eta), 1.02f);
+    EXPECT_FLOAT_EQ(static_cast<float>(r.restart->common_eta), kCoatedCommonEta);
+    EXPECT_DOUBLE_EQ(*r.restart->first_mse, 1e-5);
+    EXPECT_DOUBLE_EQ(*r.restart->common_mse, 9e-7);
+    EXPECT_TRUE(r.restart->common_kept);
+    // The kept rounds are the second start's, and so is the state.
+    EXPECT_EQ(r.accepted, 2u);
+    EXPECT_DOUBLE_EQ(*r.first_validation_mse, 5e-6);
+    EXPECT_FLOAT_EQ(state.fit.coated->params.eta, 1.459f);
+    EXPECT_DOUBLE_EQ(*state.validation_mse, 9e-7);
+    // Solves: the first start's round 1 and its own albedo, then the second start's rounds 1 and
+    // 2, the first of which subtracted eta 1.5 with the first fit's alpha.
+    ASSERT_EQ(s.subtracted.size(), 4u);
+    EXPECT_FLOAT_EQ(std::get<CoatedParams>(s.subtracted[2]).eta, kCoatedCommonEta);
+    EXPECT_FLOAT_EQ(std::get<CoatedParams>(s.subtracted[2]).alpha, 0.31f);
+    EXPECT_EQ(state.solve.particles.size(), 4u);
+}
+
+TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItClimbsOrTheIndexIsHeld) {
+    {
+        // From eta 1.05: round 1 (1.06, settled) lowers the error to 2e-6; from 1.5 the first
+        // round raises it (with its own albedo too) and the start ends at 4e-6.
+        Script s{.fits = {coated_of(1.0505f, 0.2f), coated_of(1.4f, 0.2f)}, .validation = {3e-6, 2e-6, 4e-6, 5e-6, 4.5e-6}};
+        JointState state{.fit = coated_of(1.05f, 0.2f)};
+        const JointResult r = joint_estimate(state, {.rounds = 8, .tolerance = 0.005}, s.steps());
+        ASSERT_TRUE(r.restart);
+        EXPECT_FALSE(r.restart->common_kept);
+        EXPECT_DOUBLE_EQ(*r.restart->common_mse, 4e-6);
+        EXPECT_FLOAT_EQ(state.fit.coated->params.eta, 1.0505f);
+        EXPECT_DOUBLE_EQ(*state.validation_mse, 2e-6);
+        EXPECT_EQ(r.accepted, 1u);
+        EXPECT_EQ(state.solve.particles.size(), 1u); // the first start's round-1 solve
+    }
+    {
+        // From eta 1.02 the rounds climb to 1.3 and settle: one start.
+        Script s{.fits = {coated_of(1.3f, 0.2f), coated_of(1.3001f, 0.2f)}, .validation = {3e-6, 2e-6, 1e-6}};
+        JointState state{.fit = coated_of(1.02f, 0.2f)};
+        const JointResult r = joint_estimate(state, {.rounds = 8, .tolerance = 0.005}, s.steps());
+        EXPECT_FALSE(r.restart);
+        EXPECT_EQ(r.accepted, 2u);
+        EXPECT_EQ(s.subtracted.size(), 2u);
+    }
+    {
+        // --coated-eta holds the index: one start.
+        Script s{.fits = {coated_of(1.02f, 0.2f)}, .validation = {3e-6, 2e-6}};
+        JointState state{.fit = coated_of(1.02f, 0.2f)};
+        const JointResult r =
+            joint_estimate(state, {.rounds = 8, .tolerance = 0.005, .restart_low_index = false}, s.steps());
+        EXPECT_FALSE(r.restart);
+        EXPECT_EQ(s.subtracted.size(), 1u);
+    }
+    {
+        // Without a validation step (the final estimate on all the train frames): one start.
+        Script s{.fits = {coated_of(1.02f, 0.2f)}};
+        JointState state{.fit = coated_of(1.02f, 0.2f)};
+        const JointResult r = joint_estimate(state, {.rounds = 1, .tolerance = 0.005}, s.steps());
+        EXPECT_FALSE(r.restart);
+        EXPECT_EQ(s.subtracted.size(), 1u);
     }
 }
 
