@@ -135,7 +135,7 @@ JointResult run_rounds(JointState& state, const JointOptions& options, const Joi
 JointResult joint_estimate(JointState& state, const JointOptions& options, const JointSteps& steps) {
     JointResult first = run_rounds(state, options, steps);
     const bool low = options.restart_low_index && steps.validate && state.fit.coated && state.fit.coated->usable() &&
-                     state.fit.coated->params.eta < kCoatedLowStartEta;
+                     state.fit.coated->params.eta < kCoatedLowEta;
     if (!low) return first;
     // The rounds ended near eta = 1: once more from a common dielectric, the same alpha and albedo.
     JointState common = state;

@@ -42,7 +42,7 @@ struct JointOptions {
     /// Further behind it cannot win the choice, and the extra solves would be spent for nothing
     /// (the demo can's coated candidate, 47 times the Lafortune one's error: 2 rounds more, 14 s).
     std::optional<double> rival_mse;
-    /// With a validation step, a coated estimate whose rounds end below kCoatedLowStartEta is
+    /// With a validation step, a coated estimate whose rounds end below kCoatedLowEta is
     /// estimated again from kCoatedCommonEta (the same alpha and albedo), the lower validation
     /// error kept (JointResult::restart). Off where the index is held (--coated-eta).
     bool restart_low_index = true;
@@ -55,7 +55,7 @@ inline constexpr double kRivalFactor = 10.0;
 /// 512 px stalled at eta 1.013 (52.5 dB validation PSNR, lost to diffuse only) where two of its
 /// 7.3 million lit pairs turned; from eta 1.5 it reaches 1.452 (the truth 1.45, 63.8 dB). An
 /// estimate that climbed out (the knot on that rig: 1.088 -> 1.49) runs once.
-inline constexpr float kCoatedLowStartEta = 1.1f;
+inline constexpr float kCoatedLowEta = 1.1f;
 inline constexpr float kCoatedCommonEta = 1.5f; ///< a common dielectric (glass, most plastics and varnishes: 1.45 to 1.6)
 
 /// What the estimate advances: the last solve with its options (their material is the one that

@@ -296,7 +296,7 @@ TEST(JointEstimate, ACandidateFarBehindItsRivalSpendsNoSolveOnItsOwnAlbedo) {
 
 // The coated woodenpot on the thesis rig (issue 15): its first fit lands near eta 1 and the
 // rounds from there stop at the first rise of the validation error. A coated estimate whose
-// rounds end below kCoatedLowStartEta is estimated again from kCoatedCommonEta, with its alpha,
+// rounds end below kCoatedLowEta is estimated again from kCoatedCommonEta, with its alpha,
 // and the start of the lower validation error kept, with its rounds; one that climbed out runs once.
 TEST(JointEstimate, AnEstimateEndingNearAnIndexOfOneIsEstimatedAgainFromACommonDielectric) {
     // From eta 1.02: round 1 (eta 1.03) raises the error, with its own albedo too: stopped.
