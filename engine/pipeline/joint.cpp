@@ -136,7 +136,10 @@ JointResult joint_estimate(JointState& state, const JointOptions& options, const
     JointResult first = run_rounds(state, options, steps);
     const bool low = options.restart_low_index && steps.validate && state.fit.coated && state.fit.coated->usable() &&
                      state.fit.coated->params.eta < kCoatedLowEta;
-    if (!low) return first;
+    // Not where another candidate is more than kRivalFactor ahead: this one cannot win the choice
+    // (the Lafortune vase's coated candidate ends at eta 1.01, 130 times behind).
+    const bool behind = options.rival_mse && (!state.validation_mse || *state.validation_mse >= kRivalFactor * *options.rival_mse);
+    if (!low || behind) return first;
     // The rounds ended near eta = 1: once more from a common dielectric, the same alpha and albedo.
     JointState common = state;
     common.fit.coated->params.eta = kCoatedCommonEta;

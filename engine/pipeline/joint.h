@@ -44,7 +44,8 @@ struct JointOptions {
     std::optional<double> rival_mse;
     /// With a validation step, a coated estimate whose rounds end below kCoatedLowEta is
     /// estimated again from kCoatedCommonEta (the same alpha and albedo), the lower validation
-    /// error kept (JointResult::restart). Off where the index is held (--coated-eta).
+    /// error kept (JointResult::restart); not where rival_mse is more than kRivalFactor ahead.
+    /// Off where the index is held (--coated-eta).
     bool restart_low_index = true;
 };
 inline constexpr double kRivalFactor = 10.0;

@@ -324,7 +324,7 @@ TEST(JointEstimate, AnEstimateEndingNearAnIndexOfOneIsEstimatedAgainFromACommonD
     EXPECT_EQ(state.solve.particles.size(), 4u);
 }
 
-TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItClimbsOrTheIndexIsHeld) {
+TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItClimbsTrailsOrTheIndexIsHeld) {
     {
         // From eta 1.05: round 1 (1.06, settled) lowers the error to 2e-6; from 1.5 the first
         // round raises it (with its own albedo too) and the start ends at 4e-6.
@@ -347,6 +347,14 @@ TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItCli
         EXPECT_FALSE(r.restart);
         EXPECT_EQ(r.accepted, 2u);
         EXPECT_EQ(s.subtracted.size(), 2u);
+    }
+    {
+        // Another candidate more than kRivalFactor ahead (3e-6 against 2e-7): one start.
+        Script s{.fits = {coated_of(1.0505f, 0.2f)}, .validation = {3e-6, 2.9e-6}};
+        JointState state{.fit = coated_of(1.05f, 0.2f)};
+        const JointResult r = joint_estimate(state, {.rounds = 8, .tolerance = 0.005, .rival_mse = 2e-7}, s.steps());
+        EXPECT_FALSE(r.restart);
+        EXPECT_EQ(s.subtracted.size(), 1u);
     }
     {
         // --coated-eta holds the index: one start.
