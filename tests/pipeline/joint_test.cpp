@@ -326,7 +326,7 @@ TEST(JointEstimate, AnEstimateEndingNearAnIndexOfOneIsEstimatedAgainFromACommonD
 
 TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItClimbsTrailsOrTheIndexIsHeld) {
     {
-        // From eta 1.05: round 1 (1.06, settled) lowers the error to 2e-6; from 1.5 the first
+        // From eta 1.05: round 1 (1.0505, settled) lowers the error to 2e-6; from 1.5 the first
         // round raises it (with its own albedo too) and the start ends at 4e-6.
         Script s{.fits = {coated_of(1.0505f, 0.2f), coated_of(1.4f, 0.2f)}, .validation = {3e-6, 2e-6, 4e-6, 5e-6, 4.5e-6}};
         JointState state{.fit = coated_of(1.05f, 0.2f)};
@@ -349,7 +349,7 @@ TEST(JointEstimate, TheFirstStartIsKeptWhereItsErrorIsLowerAndOneStartWhereItCli
         EXPECT_EQ(s.subtracted.size(), 2u);
     }
     {
-        // Another candidate more than kRivalFactor ahead (3e-6 against 2e-7): one start.
+        // Another candidate more than kRivalFactor ahead (2.9e-6 against 2e-7): one start.
         Script s{.fits = {coated_of(1.0505f, 0.2f)}, .validation = {3e-6, 2.9e-6}};
         JointState state{.fit = coated_of(1.05f, 0.2f)};
         const JointResult r = joint_estimate(state, {.rounds = 8, .tolerance = 0.005, .rival_mse = 2e-7}, s.steps());
