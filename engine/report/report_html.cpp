@@ -279,6 +279,19 @@ std::string material_section(const json& r) {
                         num(c.value("validation_psnr_linear_db", json()), "%.2f"), num(at(c, {"joint", "accepted"}), "%g"),
                         num(c.value("seconds", json()), "%.2f")});
     out += "</table>\n";
+    // A candidate estimated twice (report.json joint.restart): where its first start ended, and which was kept.
+    if (candidates.is_array())
+        for (const json& c : candidates) {
+            const json& restart = at(c, {"joint", "restart"});
+            if (!restart.is_object()) continue;
+            const bool common = restart.value("kept", std::string()) == "common";
+            out += "<p>The " + str(c.value("family", json())) + " candidate's rounds ended at eta " +
+                   num(restart.value("first_eta", json()), "%.4g") + " (validation mean square " +
+                   num(restart.value("first_validation_mse", json()), "%.3g") + "), near no coating at all: it was estimated again from eta " +
+                   num(restart.value("common_eta", json()), "%.3g") + ", a common dielectric (" +
+                   num(restart.value("common_validation_mse", json()), "%.3g") + "), and the " +
+                   (common ? "second" : "first") + " start kept.</p>\n";
+        }
     const json& coated = at(r, {"specular", "coated"});
     if (coated.is_object())
         out += "<p>Coated: eta " + num(coated.value("eta", json()), "%.4g") + " &plusmn; " +

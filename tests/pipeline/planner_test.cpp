@@ -257,6 +257,23 @@ TEST(ReportHtml, QualityShowsDisplayAndLinearFiguresDisplayFirstForSrgbCaptures)
     }
 }
 
+// The model choice says where a coated candidate was estimated twice (joint.restart).
+TEST(ReportHtml, TheMaterialSectionSaysWhereACandidateStartedTwice) {
+    const json restart = {{"first_eta", 1.013}, {"first_validation_mse", 5.57e-6}, {"common_eta", 1.5},
+                          {"common_validation_mse", 4.29e-7}, {"kept", "common"}};
+    const json r = {{"specular",
+                     {{"material",
+                       {{"family", "coated"},
+                        {"choice", "coated has the least mean square error"},
+                        {"candidates", json::array({{{"family", "lafortune"}, {"joint", {{"accepted", 8}}}},
+                                                    {{"family", "coated"}, {"joint", {{"accepted", 7}, {"restart", restart}}}}})}}}}}};
+    const std::string html = report::report_html(r);
+    EXPECT_NE(html.find("The coated candidate's rounds ended at eta 1.013 (validation mean square 5.57e-06)"), std::string::npos)
+        << html.substr(html.find("Material model"), 1500);
+    EXPECT_NE(html.find("again from eta 1.5, a common dielectric (4.29e-07), and the second start kept"), std::string::npos);
+    EXPECT_EQ(html.find("The lafortune candidate's rounds"), std::string::npos);
+}
+
 // The transfer's blocks grow with the atlas's density: about kTransferBlockRows rows, at least 2.
 TEST(Planner, IndirectBlockAimsAtAboutAHundredThousandRows) {
     EXPECT_EQ(transfer_block_for(0), 2u);
