@@ -72,6 +72,7 @@ TEST(Reconstruct, WritesOutputsAndACompleteReport) {
     // The can is not convex: rays are cast, and the report does not claim otherwise.
     EXPECT_FALSE(left_out_mentions(saved, "occlusion rays"));
     EXPECT_GT(saved["visibility"]["rays_cast"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(saved["visibility"]["shadow_map_rays"].get<std::uint64_t>(), 0u); // the shadow-edge test's
     EXPECT_EQ(saved["visibility"]["light_rays_answered_by_shadow_maps"].get<std::uint64_t>(), 0u); // off by default
     // Every stage is timed; the texture has the atlas's size.
     for (const char* stage : {"load", "atlas", "particles", "visibility", "diffuse solve", "albedo texture", "bundle",

@@ -234,8 +234,8 @@ void add_reconstruct_command(CLI::App& app) {
     cmd->add_flag("--light-rays-from-shadow-maps", args->config.light_rays_from_shadow_maps,
                   "Let each frame's pixel shadow map answer for the particles' light rays (a frame lights a particle\n"
                   "its view sees when none of the sample's 4 pixels is dark): about 40% off the visibility stage, the\n"
-                  "same bits bar a few pairs in a million; off by default, since a capture whose material choice is\n"
-                  "fragile can turn on those few (docs/pipeline.md section 2)");
+                  "same bits bar a few pairs in a million; off by default, since those few move some lobes by a few\n"
+                  "tenths of a percent (docs/pipeline.md section 2)");
     cmd->add_option("--factorization-grid", args->grid,
                     "H[,D]: the factorization's h and d grid resolutions (default: the planner's, from the lobe's width:\n"
                     "2 cells per lobe half-width, h in [16, 128], d in [16, 64]); H x D at most 3072")
