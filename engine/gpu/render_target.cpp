@@ -64,25 +64,27 @@ UniqueRenderPass make_render_pass(VkDevice dev, VkFormat color, VkFormat depth, 
 
 // The deferred pass: subpass 0 draws the mesh into the two G-buffer images (attachments 2
 // and 3) with the depth test; subpass 1 reads them back per pixel as input attachments and
-// writes the colour (attachment 0). The G-buffer lives only inside the pass.
-UniqueRenderPass make_deferred_render_pass(VkDevice dev, VkFormat color, VkFormat depth, VkFormat gbuffer,
+// writes the colour (attachment 0). The G-buffer is stored after the pass, so that `reuse`, a
+// compatible pass (the same attachments and subpasses; only the load operations and initial
+// layouts differ, so the same pipelines and framebuffer serve), can load it and the depth as
+// the last deferred pass left them and shade again with an empty subpass 0.
+UniqueRenderPass make_deferred_render_pass(VkDevice dev, VkFormat color, VkFormat depth, VkFormat gbuffer, bool reuse,
                                            const std::string& what) {
-    const auto attachment = [](VkFormat format, VkAttachmentStoreOp store, VkImageLayout final_layout) {
+    const auto attachment = [](VkFormat format, bool load, VkImageLayout layout) {
         return VkAttachmentDescription{.format = format,
                                        .samples = VK_SAMPLE_COUNT_1_BIT,
-                                       .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-                                       .storeOp = store,
+                                       .loadOp = load ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR,
+                                       .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
                                        .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
                                        .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
-                                       .initialLayout = VK_IMAGE_LAYOUT_UNDEFINED,
-                                       .finalLayout = final_layout};
+                                       .initialLayout = load ? layout : VK_IMAGE_LAYOUT_UNDEFINED,
+                                       .finalLayout = layout};
     };
     // Colour and depth end as the other passes leave them (later passes may test and blend).
-    const std::array attachments{
-        attachment(color, VK_ATTACHMENT_STORE_OP_STORE, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL),
-        attachment(depth, VK_ATTACHMENT_STORE_OP_STORE, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
-        attachment(gbuffer, VK_ATTACHMENT_STORE_OP_DONT_CARE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL),
-        attachment(gbuffer, VK_ATTACHMENT_STORE_OP_DONT_CARE, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL)};
+    const std::array attachments{attachment(color, false, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL),
+                                 attachment(depth, reuse, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
+                                 attachment(gbuffer, reuse, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL),
+                                 attachment(gbuffer, reuse, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL)};
     const std::array gbuffer_out{VkAttachmentReference{2, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL},
                                  VkAttachmentReference{3, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL}};
     const std::array gbuffer_in{VkAttachmentReference{2, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
@@ -98,15 +100,18 @@ UniqueRenderPass make_deferred_render_pass(VkDevice dev, VkFormat color, VkForma
                                                     .pInputAttachments = gbuffer_in.data(),
                                                     .colorAttachmentCount = 1,
                                                     .pColorAttachments = &color_ref}};
-    // Before either subpass: as make_render_pass (previous attachment writes, previous readback).
+    // Before either subpass: as make_render_pass (previous attachment writes, previous readback),
+    // and the previous deferred pass's input reads of the G-buffer (before it is written again)
+    // and its G-buffer writes (before a reusing pass's subpass 1 reads them).
     // Between them: the G-buffer's colour writes -> the shading subpass's input reads, per pixel.
     const auto from_outside = [](uint32_t subpass) {
         return VkSubpassDependency{.srcSubpass = VK_SUBPASS_EXTERNAL,
                                    .dstSubpass = subpass,
-                                   .srcStageMask = kAttachmentStages | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                   .dstStageMask = kAttachmentStages,
+                                   .srcStageMask = kAttachmentStages | VK_PIPELINE_STAGE_TRANSFER_BIT |
+                                                   VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                                   .dstStageMask = kAttachmentStages | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
                                    .srcAccessMask = kAttachmentWrites,
-                                   .dstAccessMask = kAttachmentAccess};
+                                   .dstAccessMask = kAttachmentAccess | VK_ACCESS_INPUT_ATTACHMENT_READ_BIT};
     };
     const std::array dependencies{from_outside(0), from_outside(1),
                                   VkSubpassDependency{.srcSubpass = 0,
@@ -157,8 +162,10 @@ RenderTarget::RenderTarget(Context& ctx, uint32_t width, uint32_t height, std::s
     const VkDevice dev = ctx.device();
     m_clear_pass = make_render_pass(dev, m_color.format(), m_depth.format(), true, "render pass (clear) of '" + name + "'");
     m_keep_pass = make_render_pass(dev, m_color.format(), m_depth.format(), false, "render pass (keep) of '" + name + "'");
-    m_deferred_pass = make_deferred_render_pass(dev, m_color.format(), m_depth.format(), m_gbuffer[0].format(),
+    m_deferred_pass = make_deferred_render_pass(dev, m_color.format(), m_depth.format(), m_gbuffer[0].format(), false,
                                                 "render pass (deferred) of '" + name + "'");
+    m_deferred_reuse_pass = make_deferred_render_pass(dev, m_color.format(), m_depth.format(), m_gbuffer[0].format(),
+                                                      true, "render pass (deferred, G-buffer kept) of '" + name + "'");
     const std::array views{m_color.view(), m_depth.view()};
     m_clear_framebuffer = make_framebuffer(dev, m_clear_pass.get(), views, m_color, "framebuffer of '" + name + "'");
     m_keep_framebuffer = make_framebuffer(dev, m_keep_pass.get(), views, m_color, "framebuffer of '" + name + "'");
@@ -182,10 +189,11 @@ void RenderTarget::begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_
     set_viewport(cmd);
 }
 
-void RenderTarget::begin_deferred(VkCommandBuffer cmd) const {
+void RenderTarget::begin_deferred(VkCommandBuffer cmd, GbufferLoad load) const {
     std::array<VkClearValue, 4> clears{}; // colour, G-buffer: 0 (not covered); depth: 0, the far end
     const VkRenderPassBeginInfo info{.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO,
-                                     .renderPass = m_deferred_pass.get(),
+                                     .renderPass = load == GbufferLoad::Keep ? m_deferred_reuse_pass.get()
+                                                                             : m_deferred_pass.get(),
                                      .framebuffer = m_deferred_framebuffer.get(),
                                      .renderArea = {{0, 0}, {width(), height()}},
                                      .clearValueCount = static_cast<uint32_t>(clears.size()),

@@ -9,6 +9,9 @@
 //                                                     the deferred pass: the mesh into the
 //                                                     G-buffer, then one shading draw that
 //                                                     reads it per pixel and writes the colour
+//   begin_deferred(cmd, GbufferLoad::Keep) next_subpass(cmd) ... draw ... end(cmd)
+//                                                     shades again from the G-buffer the last
+//                                                     deferred pass drew (same camera)
 //   record_readback(cmd)                              colour -> host buffer (barriers included)
 //   ... submit and wait ...
 //   read_color()                                      RGBA per pixel, row 0 at the top
@@ -32,6 +35,9 @@ namespace specula::gpu {
 class RenderTarget {
 public:
     enum class Load { Clear, Keep };
+    /// The deferred pass's G-buffer and depth: cleared for subpass 0 to draw, or kept as the last
+    /// deferred pass left them (subpass 0 then draws nothing; the colour is cleared either way).
+    enum class GbufferLoad { Clear, Keep };
 
     /// Formats: choose_color_target_format / choose_depth_format.
     RenderTarget(Context& ctx, uint32_t width, uint32_t height, std::string name);
@@ -58,7 +64,9 @@ public:
     void begin(VkCommandBuffer cmd, Load load, const glm::vec4& clear_color = glm::vec4(0.0f)) const;
     /// Begins the deferred pass in its subpass 0, everything cleared (colour and G-buffer to
     /// 0, depth to 0), with the viewport and scissor set; next_subpass moves to subpass 1.
-    void begin_deferred(VkCommandBuffer cmd) const;
+    /// GbufferLoad::Keep: the G-buffer and depth as the last deferred pass on this target left
+    /// them (the caller knows they hold its camera's view), only the colour cleared.
+    void begin_deferred(VkCommandBuffer cmd, GbufferLoad load = GbufferLoad::Clear) const;
     void next_subpass(VkCommandBuffer cmd) const;
     void end(VkCommandBuffer cmd) const;
     /// After the last pass of a frame: colour -> TRANSFER_SRC -> host buffer -> host.
@@ -75,6 +83,7 @@ private:
     UniqueRenderPass m_clear_pass;
     UniqueRenderPass m_keep_pass;
     UniqueRenderPass m_deferred_pass;
+    UniqueRenderPass m_deferred_reuse_pass; // compatible with m_deferred_pass: its framebuffer serves
     UniqueFramebuffer m_clear_framebuffer;
     UniqueFramebuffer m_keep_framebuffer;
     UniqueFramebuffer m_deferred_framebuffer;

@@ -59,11 +59,11 @@ AlbedoRefineResult refine_albedo(gpu::Context& ctx, const Capture& capture, cons
         for (std::size_t v = 0; v < inputs.views.size(); ++v)
             for (const std::uint32_t f : inputs.views[v].frames) {
                 const FrameImage& captured = capture.images[f];
-                // Fused: both terms in one pass, the same arithmetic as the thesis's two passes (the
-                // same images here) at half the raster work: 1.7 s instead of 3.4 s for the can's 120 frames.
-                render::Frame frame =
-                    renderer.render(inputs.views[v].camera, inputs.lights[f],
-                                    render::Settings{.mode = render::Mode::Both, .passes = render::Passes::Fused, .shadows = false});
+                // Deferred: the view's G-buffer drawn for its first light, its other lights shaded from
+                // it (render::FrameInfo::gbuffer_kept); the same arithmetic as the thesis's two passes.
+                render::Frame frame = renderer.render(
+                    inputs.views[v].camera, inputs.lights[f],
+                    render::Settings{.mode = render::Mode::Both, .passes = render::Passes::Deferred, .shadows = false});
                 FrameImage& im = images[f];
                 im.color = std::move(frame.color);
                 if (std::isfinite(captured.saturation))

@@ -346,6 +346,18 @@ struct Renderer::Impl {
     gpu::UniqueSampler sampler;
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
+    // What a deferred frame's G-buffer depends on: the target, the camera's projection and
+    // position (which also choose the clusters drawn), the level of detail. prepare() sets
+    // frame_key; render() keeps, in target_gbuffer, the key of the G-buffer its target holds.
+    struct GbufferKey {
+        VkImageView view = VK_NULL_HANDLE;
+        glm::mat4 world_to_clip{0.0f};
+        glm::vec3 eye{0.0f};
+        std::size_t level = 0;
+        bool operator==(const GbufferKey&) const = default;
+    };
+    GbufferKey frame_key;
+    std::optional<GbufferKey> target_gbuffer;
     gpu::ShadowMap shadow_map;
     gpu::GraphicsPipeline shadow_pass;
     gpu::DescriptorSet shadow_set;
@@ -703,6 +715,7 @@ struct Renderer::Impl {
         shared::RenderParams p{};
         p.world_to_clip = glm::mat4(world_to_clip(camera, near));
         p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
+        frame_key = {.world_to_clip = p.world_to_clip, .eye = glm::vec3(p.eye), .level = drawn_level};
         p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
         p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
         p.material = material;
@@ -741,13 +754,17 @@ struct Renderer::Impl {
              gpu::RenderTarget::Load::Clear);
     }
     // Passes::Deferred: the G-buffer, then each pixel shaded once (params.flags say which terms).
-    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model, gpu::PassClock* clock = nullptr) {
+    // keep_gbuffer: t's G-buffer already holds this frame's view (render(), FrameInfo::gbuffer_kept).
+    void draw_deferred(VkCommandBuffer cmd, const gpu::RenderTarget& t, SpecularPath model, gpu::PassClock* clock = nullptr,
+                       bool keep_gbuffer = false) {
         use_gbuffer_of(t);
-        t.begin_deferred(cmd);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.pipeline());
-        const VkDescriptorSet g = gbuffer_set.get();
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.layout(), 0, 1, &g, 0, nullptr);
-        draw_mesh(cmd);
+        t.begin_deferred(cmd, keep_gbuffer ? gpu::RenderTarget::GbufferLoad::Keep : gpu::RenderTarget::GbufferLoad::Clear);
+        if (!keep_gbuffer) {
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.pipeline());
+            const VkDescriptorSet g = gbuffer_set.get();
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbuffer.layout(), 0, 1, &g, 0, nullptr);
+            draw_mesh(cmd);
+        }
         if (clock != nullptr) clock->mark(cmd, "g-buffer");
         t.next_subpass(cmd);
         // Without a factorization the analytic shader serves (flags.z is 0 unless the specular term is drawn).
@@ -905,6 +922,7 @@ FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target,
         mark("shadow map");
     }
     if (info.deferred) {
+        if (&target == m.target.get()) m.target_gbuffer.reset(); // render()'s own target drawn here
         m.draw_deferred(cmd, target, settings.specular, clock);
         mark("shading");
         return info;
@@ -930,9 +948,13 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
     frame.info = m.prepare(camera, light, settings);
     FrameInfo& info = frame.info;
     const Intrinsics& k = camera.intrinsics;
-    if (m.target->width() != static_cast<uint32_t>(k.w) || m.target->height() != static_cast<uint32_t>(k.h))
+    if (m.target->width() != static_cast<uint32_t>(k.w) || m.target->height() != static_cast<uint32_t>(k.h)) {
         m.target = std::make_unique<gpu::RenderTarget>(*m.ctx, static_cast<uint32_t>(k.w), static_cast<uint32_t>(k.h),
                                                        "render target");
+        m.target_gbuffer.reset();
+    }
+    m.frame_key.view = m.target->gbuffer(0).view();
+    info.gbuffer_kept = info.deferred && m.target_gbuffer == m.frame_key;
 
     gpu::Sequence& seq = m.sequence;
     seq.reset();
@@ -940,7 +962,9 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
         seq.time_begin("shadow pass").record([&](VkCommandBuffer cmd) { m.draw_shadow_map(cmd); }).time_end();
     if (info.deferred)
         seq.time_begin("diffuse pass")
-            .record([&](VkCommandBuffer cmd) { m.draw_deferred(cmd, *m.target, settings.specular); })
+            .record([&](VkCommandBuffer cmd) {
+                m.draw_deferred(cmd, *m.target, settings.specular, nullptr, info.gbuffer_kept);
+            })
             .time_end();
     else if (info.fused)
         seq.time_begin("diffuse pass")
@@ -953,7 +977,9 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
             .record([&](VkCommandBuffer cmd) { m.draw_specular(cmd, *m.target, settings.specular); })
             .time_end();
     seq.time_begin("readback").record([&](VkCommandBuffer cmd) { m.target->record_readback(cmd); }).time_end();
+    if (info.deferred) m.target_gbuffer.reset(); // until the submit has completed
     seq.submit_and_wait();
+    if (info.deferred) m.target_gbuffer = m.frame_key;
     for (const gpu::GpuTiming& t : seq.timings()) {
         if (!t.ns) continue;
         if (t.label == "shadow pass") info.shadow_gpu_ms = to_ms(t.ns);

@@ -865,6 +865,77 @@ TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
     EXPECT_EQ(after.color.pixels, before.color.pixels);
 }
 
+/// A view's lights pay for its G-buffer once: a deferred frame whose camera and level of detail
+/// are the previous deferred frame's shades from the G-buffer that frame left (FrameInfo::
+/// gbuffer_kept), with the same pixels, bit for bit, as a renderer that draws it afresh, in every
+/// mode, with shadows or without, after forward frames of another camera in between; another
+/// camera, near plane or image size draws it again.
+TEST_F(RenderTest, DeferredFramesOfOneCameraShadeFromOneGbuffer) {
+    const synth::Preset preset = synth::make_preset("knot");
+    SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
+    data.albedo = Image(16, 16, 3);
+    for (std::size_t i = 0; i < data.albedo.pixels.size(); ++i)
+        data.albedo.pixels[i] = 0.1f + 0.8f * static_cast<float>((i * 7919) % 101) / 101.0f;
+    for (std::size_t k = 0; k < data.corner_uv.size(); ++k)
+        data.corner_uv[k] = glm::vec2(0.03f + 0.94f * static_cast<float>((k * 37) % 61) / 61.0f,
+                                      0.03f + 0.94f * static_cast<float>((k * 53) % 67) / 67.0f);
+    const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const Camera other_cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {-2.0, 1.5, 3.5}, {0, 0, 0});
+    const std::array<PointLight, 3> lights = {PointLight{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}},
+                                              PointLight{{-2.5, 1.0, 2.5}, {15.0, 18.0, 20.0}},
+                                              PointLight{{0.5, -2.0, 3.5}, {25.0, 20.0, 15.0}}};
+    const Scene scene = data.scene(preset.material.lobe);
+    Renderer r(ctx(), scene), ref(ctx(), scene);
+    // The reference draws its G-buffer afresh: a frame of a third camera comes first.
+    const Camera third = make_camera(96, 80, 90.0, 90.0, 48.0, 40.0, {3.0, -1.0, 3.0}, {0, 0, 0});
+    const auto fresh = [&](const Camera& c, const PointLight& l, const Settings& s) {
+        (void)ref.render(third, l, s);
+        const Frame f = ref.render(c, l, s);
+        EXPECT_FALSE(f.info.gbuffer_kept);
+        return f;
+    };
+    const auto expect_same = [](const Frame& a, const Frame& b, const std::string& what) {
+        EXPECT_EQ(a.mask, b.mask) << what;
+        EXPECT_EQ(a.color.pixels, b.color.pixels) << what;
+        EXPECT_GT(a.info.covered_pixels, 500u) << what;
+    };
+    for (const bool shadows : {true, false})
+        for (const Mode mode : {Mode::Both, Mode::Diffuse, Mode::Specular}) {
+            const Settings s{.mode = mode, .passes = Passes::Deferred, .shadows = shadows};
+            const std::string what = std::string(mode_name(mode)) + (shadows ? "/shadows" : "/no shadows");
+            for (std::size_t l = 0; l < lights.size(); ++l) {
+                const Frame f = r.render(cam, lights[l], s);
+                // Only the very first frame of the renderer draws the G-buffer: every later one
+                // has the same camera, whatever the mode, the light or the shadows.
+                EXPECT_EQ(f.info.gbuffer_kept, shadows == false || mode != Mode::Both || l > 0) << what << " light " << l;
+                expect_same(f, fresh(cam, lights[l], s), what + " light " + std::to_string(l));
+            }
+        }
+    const Settings deferred{.passes = Passes::Deferred};
+    // Forward frames of another camera leave the G-buffer alone (they write the colour and depth).
+    const Frame forward = r.render(other_cam, lights[0], {.passes = Passes::Fused});
+    EXPECT_FALSE(forward.info.gbuffer_kept);
+    const Frame again = r.render(cam, lights[1], deferred);
+    EXPECT_TRUE(again.info.gbuffer_kept);
+    expect_same(again, fresh(cam, lights[1], deferred), "after a forward frame of another camera");
+    // Another camera, near plane or image size: the G-buffer is drawn again.
+    const Frame moved = r.render(other_cam, lights[1], deferred);
+    EXPECT_FALSE(moved.info.gbuffer_kept);
+    expect_same(moved, fresh(other_cam, lights[1], deferred), "another camera");
+    const Frame back = r.render(cam, lights[1], deferred);
+    EXPECT_FALSE(back.info.gbuffer_kept);
+    expect_same(back, again, "back to the first camera");
+    Settings nearer = deferred;
+    nearer.near = 0.5;
+    const Frame near_frame = r.render(cam, lights[1], nearer);
+    EXPECT_FALSE(near_frame.info.gbuffer_kept);
+    EXPECT_TRUE(r.render(cam, lights[2], nearer).info.gbuffer_kept);
+    const Camera larger = make_camera(120, 100, 125.0, 125.0, 60.0, 50.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const Frame resized = r.render(larger, lights[2], deferred);
+    EXPECT_FALSE(resized.info.gbuffer_kept);
+    expect_same(resized, fresh(larger, lights[2], deferred), "another image size");
+}
+
 TEST_F(RenderTest, TwoRendersAreIdentical) {
     const synth::Preset preset = synth::make_preset("knot");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
