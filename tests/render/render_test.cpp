@@ -802,13 +802,9 @@ TEST_F(RenderTest, FusedPassMatchesTheTwoPasses) {
     EXPECT_EQ(d1.color.pixels, d2.color.pixels);
 }
 
-/// The deferred pass (G-buffer, then one shading draw per pixel) computes the same terms
-/// from the same interpolated inputs as the forward passes, in every mode and both
-/// specular models, with shadows: the same coverage and colours equal up to float
-/// rounding (separately compiled shaders: 1e-5 relative). The atlas varies per texel and
-/// the corners spread over it, so the atlas coordinates must come through the G-buffer.
-TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
-    const synth::Preset preset = synth::make_preset("knot");
+/// The knot with an atlas that varies per texel, its triangles' corners spread over it: the
+/// atlas coordinates must come through whatever path a pass takes.
+SceneData knot_with_varied_atlas(const synth::Preset& preset) {
     SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
     data.albedo = Image(16, 16, 3);
     for (std::size_t i = 0; i < data.albedo.pixels.size(); ++i)
@@ -816,6 +812,17 @@ TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
     for (std::size_t k = 0; k < data.corner_uv.size(); ++k)
         data.corner_uv[k] = glm::vec2(0.03f + 0.94f * static_cast<float>((k * 37) % 61) / 61.0f,
                                       0.03f + 0.94f * static_cast<float>((k * 53) % 67) / 67.0f);
+    return data;
+}
+
+/// The deferred pass (G-buffer, then one shading draw per pixel) computes the same terms
+/// from the same interpolated inputs as the forward passes, in every mode and both
+/// specular models, with shadows: the same coverage and colours equal up to float
+/// rounding (separately compiled shaders: 1e-5 relative). The atlas varies per texel and
+/// the corners spread over it, so the atlas coordinates must come through the G-buffer.
+TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = knot_with_varied_atlas(preset);
     const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
     const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
     Renderer r(ctx(), data.scene(preset.material.lobe));
@@ -872,13 +879,7 @@ TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
 /// camera, near plane or image size draws it again.
 TEST_F(RenderTest, DeferredFramesOfOneCameraShadeFromOneGbuffer) {
     const synth::Preset preset = synth::make_preset("knot");
-    SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f));
-    data.albedo = Image(16, 16, 3);
-    for (std::size_t i = 0; i < data.albedo.pixels.size(); ++i)
-        data.albedo.pixels[i] = 0.1f + 0.8f * static_cast<float>((i * 7919) % 101) / 101.0f;
-    for (std::size_t k = 0; k < data.corner_uv.size(); ++k)
-        data.corner_uv[k] = glm::vec2(0.03f + 0.94f * static_cast<float>((k * 37) % 61) / 61.0f,
-                                      0.03f + 0.94f * static_cast<float>((k * 53) % 67) / 67.0f);
+    const SceneData data = knot_with_varied_atlas(preset);
     const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
     const Camera other_cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {-2.0, 1.5, 3.5}, {0, 0, 0});
     const std::array<PointLight, 3> lights = {PointLight{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}},
