@@ -60,10 +60,11 @@ constexpr double kFovMargin = 1.02, kDepthMargin = 0.02;
 // Bias (shared/render.h shadow_lookup_point; the depth pass's rasterizer bias): a normal
 // offset of (kNormalOffsetConstant + kNormalOffsetGrazing sin(theta)) texels, and a
 // slope-scaled depth bias of kDepthBiasSlope times the depth's slope per texel. The offset
-// moves the shadow's edge by as much, so it is the smallest that leaves a convex surface
-// unshadowed (RenderTest.ShadowMapPutsNoAcneOnAConvexSphere: acne at 0.15 texel on a light
-// behind the sphere's limb, none at 0.25); a texel and more, as until 2026-12, cost the
-// coated can 1.3 dB and the woodenpot 4.1 dB of display PSNR (pooled over the test frames).
+// moves the shadow's edge by as much, so it is small: a quarter texel leaves a convex surface
+// unshadowed with a margin (RenderTest.ShadowMapPutsNoAcneOnAConvexSphere: acne at 0.15 texel
+// with a frustum around the bounding sphere, at 0.05 with the one fitted to the vertices); a
+// texel and more, as until 2026-12, cost the coated can 1.3 dB and the woodenpot 4.1 dB of
+// display PSNR (pooled over the test frames).
 constexpr float kNormalOffsetConstant = 0.25f, kNormalOffsetGrazing = 0.25f, kDepthBiasSlope = 2.0f;
 
 struct LightFrustum {

@@ -466,7 +466,8 @@ TEST_F(RenderTest, ShadowMapFrustumHoldsTheMeshNotItsBoundingSphere) {
 // than 2% of the frame's peak (away from the terminator, whose n.u the rasterized facets and
 // the interpolated normal disagree on) and the shadowed one is more than 1% darker. With no normal
 // offset and no depth bias the renderer showed acne on hundreds of these pixels; with the offset
-// the renderer uses (a quarter texel, renderer.cpp kNormalOffsetConstant) none.
+// the renderer uses (a quarter texel, renderer.cpp kNormalOffsetConstant) none, nor down to 0.1
+// texel (two pixels at 0.05) with the shadow map's frustum fitted to the vertices.
 TEST_F(RenderTest, ShadowMapPutsNoAcneOnAConvexSphere) {
     synth::Preset preset = synth::make_preset("sphere");
     const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.6f));
