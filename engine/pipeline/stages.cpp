@@ -700,24 +700,47 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
             first_seconds.push_back(w.seconds());
         }
         std::vector<ResidualSample>().swap(rs0.samples);
-        for (std::size_t k = 0; k < families.size(); ++k) {
+        // Every first fit's validation error, then the candidates' rounds in the order of it, the
+        // least first; a candidate whose first fit is more than kNoRoundsFactor behind the least
+        // error the rounds before it reached runs none: they could not make it win (joint.h).
+        std::vector<std::optional<double>> first_mse(families.size());
+        for (std::size_t k = 0; k < families.size(); ++k)
+            if (const std::optional<SpecularModel> m = first_fits[k].model(); m && steps[k].validate) {
+                const Stopwatch w;
+                first_mse[k] = steps[k].validate(solve0, *m, "");
+                first_seconds[k] += w.seconds();
+            }
+        std::vector<std::size_t> order(families.size());
+        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+            return first_mse[a] && (!first_mse[b] || *first_mse[a] < *first_mse[b]);
+        });
+        s.candidates.resize(families.size());
+        std::optional<double> rival; // the least validation error a candidate's rounds reached so far
+        for (const std::size_t k : order) {
             const Stopwatch w;
             JointState state{.solve_options = diffuse.options, .solve = solve0, .residuals = {}, .fit = std::move(first_fits[k]),
-                             .validation_mse = std::nullopt};
+                             .validation_mse = first_mse[k]};
             state.residuals.counts = rs0.counts;
-            MaterialCandidate c;
+            MaterialCandidate& c = s.candidates[k];
             JointOptions candidate_rounds = jo;
-            for (const MaterialCandidate& before : s.candidates) // the best error another family reached
-                if (before.validation_mse && (!candidate_rounds.rival_mse || *before.validation_mse < *candidate_rounds.rival_mse))
-                    candidate_rounds.rival_mse = before.validation_mse;
-            c.joint = joint_estimate(state, candidate_rounds, steps[k]);
-            (void)name_unsettled(state.fit, c.joint, fo.coated.max_relative_error);
+            candidate_rounds.rival_mse = rival;
+            if (rival && first_mse[k] && *first_mse[k] > kNoRoundsFactor * *rival) {
+                c.joint.first_validation_mse = first_mse[k];
+                c.joint.stop = format_text("no rounds: its first fit's validation error is %.3g times the least another "
+                                           "candidate reached, more than %g (rounds could not make it win)",
+                                           *first_mse[k] / *rival, kNoRoundsFactor);
+                log::info(std::string(to_string(families[k])) + " candidate: " + c.joint.stop);
+            } else {
+                c.joint = joint_estimate(state, candidate_rounds, steps[k]);
+                (void)name_unsettled(state.fit, c.joint, fo.coated.max_relative_error);
+            }
             c.fit = std::move(state.fit);
             c.validation_mse = state.validation_mse;
             c.seconds = first_seconds[k] + w.seconds();
+            if (c.validation_mse && (!rival || *c.validation_mse < *rival)) rival = c.validation_mse;
             log::info("material candidate " + c.fit.describe() +
                       (c.validation_mse ? "; validation PSNR " + std::to_string(psnr_of(*c.validation_mse)) + " dB" : std::string()));
-            s.candidates.push_back(std::move(c));
         }
     } else {
         for (const MaterialFamily family : families) {

@@ -5,6 +5,7 @@
 // rounds kept must never raise the validation error. Images are 128 px and 12 views to keep
 // each case under a minute on two cores (at 128 px the albedo textures are finer than the
 // pixels, which biases alpha by about 2%; docs/pipeline.md 5.7 gives the 512 px figures).
+#include "pipeline/joint.h"
 #include "pipeline/reconstruct.h"
 #include "synth/presets.h"
 #include "synth/synth.h"
@@ -65,8 +66,20 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
     EXPECT_EQ(m["family"], to_string(cc.truth));
     EXPECT_GT(m["validation_frames"].get<int>(), 0);
     ASSERT_EQ(m["candidates"].size(), kMaterialFamilyCount);
+    double winner_mse = 0.0;
+    for (const nlohmann::json& cand : m["candidates"])
+        if (cand["family"] == m["family"]) winner_mse = cand["validation_mse"].get<double>();
     for (const nlohmann::json& cand : m["candidates"]) {
         const nlohmann::json& joint = cand["joint"];
+        // A candidate runs no rounds only where its first fit is more than kNoRoundsFactor behind
+        // the error another candidate's rounds reached (the winner's at most): it cannot win.
+        std::printf("  %s: %zu rounds, %s\n", cand["family"].get<std::string>().c_str(), joint["rounds"].size(),
+                    joint["stop"].get<std::string>().c_str());
+        if (joint["stop"].get<std::string>().starts_with("no rounds")) {
+            EXPECT_NE(cand["family"], m["family"]);
+            EXPECT_TRUE(joint["rounds"].empty());
+            EXPECT_GT(joint["first_validation_mse"].get<double>(), kNoRoundsFactor * winner_mse) << cand["family"];
+        }
         double last = joint["first_validation_mse"].get<double>();
         for (const nlohmann::json& round : joint["rounds"]) {
             if (round.value("rejected", false)) continue;
