@@ -76,6 +76,7 @@ json lambert_json(const LambertOutputs& out, const LambertOptions& o, Backend ba
                 {"rejected_missing", s.rejected_missing},
                 {"rejected_grazing", s.rejected_grazing},
                 {"rejected_highlight", s.rejected_highlight},
+                {"rejected_shadow_edge", s.rejected_low},
                 {"rejected_outlier_view", s.rejected_view}}},
               {"thresholds",
                {{"min_light_cos", o.min_light_cos},

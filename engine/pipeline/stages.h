@@ -62,6 +62,10 @@ struct DiffuseStage {
     LambertInputs inputs;
     LambertOptions options;
     LambertOutputs solve;
+    /// `solve` read the train frames less the validation frames (split_validation_frames), not
+    /// all of them: the first solve, where the material's candidates start from that split.
+    /// Cleared by every solve of all the train frames.
+    bool on_fit_split = false;
 };
 [[nodiscard]] DiffuseStage diffuse_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
                                          const VisibilityStage& visibility, const LambertOptions& options);

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <string>
 
 namespace specula {
@@ -36,7 +37,7 @@ struct ChoiceCase {
 // The can at 128 px, 12 views, of the given truth and rig, reconstructed without evaluation or
 // refinement; `grid` > 0 forces a small factorization grid where the choice is the test.
 ReconstructResult reconstruct_can(const fs::path& dir, MaterialFamily truth, synth::RigKind rig, bool lambertian,
-                                  std::uint32_t grid = 0) {
+                                  std::uint32_t grid = 0, Toggle indirect = Toggle::Auto) {
     synth::SynthOptions so;
     so.size = 128;
     so.views = 12;
@@ -51,7 +52,24 @@ ReconstructResult reconstruct_can(const fs::path& dir, MaterialFamily truth, syn
     c.refine_rounds = 0;
     c.threads = 2;
     c.factorization_grid_h = c.factorization_grid_d = grid;
+    c.indirect = indirect;
     return reconstruct(c);
+}
+
+// The bundle's albedo is solved from every train frame: the validation frames held out for the
+// candidates are put back (the first solve leaves them out). Every (pair, frame) sample of the
+// final solve is used or rejected once, so the samples add up to the pairs times the views'
+// train frames (every view of these captures has as many).
+void expect_every_train_frame_solved(const nlohmann::json& report, const fs::path& capture_json) {
+    const nlohmann::json frames = nlohmann::json::parse(std::ifstream(capture_json))["frames"];
+    std::map<int, std::uint64_t> train;
+    for (const nlohmann::json& f : frames)
+        if (f["split"] == "train") ++train[f["view_index"].get<int>()];
+    ASSERT_FALSE(train.empty());
+    const std::uint64_t per_view = train.begin()->second;
+    std::uint64_t samples = 0;
+    for (const auto& [name, count] : report["diffuse"]["samples"].items()) samples += count.get<std::uint64_t>();
+    EXPECT_EQ(samples, report["diffuse"]["pairs"].get<std::uint64_t>() * per_view) << report["diffuse"]["samples"].dump();
 }
 
 class MaterialChoice : public ::testing::TestWithParam<ChoiceCase> {};
@@ -71,10 +89,10 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
         if (cand["family"] == m["family"]) winner_mse = cand["validation_mse"].get<double>();
     for (const nlohmann::json& cand : m["candidates"]) {
         const nlohmann::json& joint = cand["joint"];
-        // A candidate runs no rounds only where its first fit is more than kNoRoundsFactor behind
-        // the error another candidate's rounds reached (the winner's at most): it cannot win.
         std::printf("  %s: %zu rounds, %s\n", cand["family"].get<std::string>().c_str(), joint["rounds"].size(),
                     joint["stop"].get<std::string>().c_str());
+        // A candidate runs no rounds only where its first fit is more than kNoRoundsFactor behind
+        // the error another candidate's rounds reached (at least the winner's): it cannot win.
         if (joint["stop"].get<std::string>().starts_with("no rounds")) {
             EXPECT_NE(cand["family"], m["family"]);
             EXPECT_TRUE(joint["rounds"].empty());
@@ -93,6 +111,7 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
     // wherever the rounds ended with it still moving, or ran none (the first solve's is Lambertian).
     const nlohmann::json& joint = r.report["specular"]["joint"];
     EXPECT_EQ(joint["final_solve"].get<bool>(), !joint["settled"].get<bool>() || joint["accepted"].get<int>() == 0) << joint.dump();
+    expect_every_train_frame_solved(r.report, dir.path() / "can" / "capture.json");
     if (cc.truth == MaterialFamily::Coated) {
         const nlohmann::json& fit = r.report["specular"]["coated"];
         const nlohmann::json truth = nlohmann::json::parse(std::ifstream(dir.path() / "can" / "capture.json"))["ground_truth"]["material"];
@@ -110,6 +129,24 @@ INSTANTIATE_TEST_SUITE_P(Truths, MaterialChoice,
                                            ChoiceCase{"coated_thesis", MaterialFamily::Coated, synth::RigKind::Thesis, 0.02, 0.05},
                                            ChoiceCase{"lafortune_spread", MaterialFamily::Lafortune, synth::RigKind::Spread}),
                          [](const auto& info) { return info.param.name; });
+
+// Without the indirect stage's rounds (which solve every train frame) the first solve is the
+// candidates' own, on the train frames less the validation frames: it is not made twice, and
+// the validation frames are put back for the bundle's albedo.
+TEST(MaterialChoice, TheFirstSolveIsTheCandidatesAndTheBundleGetsEveryTrainFrame) {
+    test::TempDir dir("choice");
+    const ReconstructResult r =
+        reconstruct_can(dir.path(), MaterialFamily::Lafortune, synth::RigKind::Spread, /*lambertian=*/false, 0, Toggle::Off);
+    EXPECT_EQ(r.report["specular"]["material"]["family"], "lafortune");
+    std::size_t first_solves = 0;
+    for (const nlohmann::json& stage : r.report["stages"]) {
+        const std::string name = stage["name"];
+        first_solves += name == "diffuse solve" || name == "diffuse solve (validation split)";
+        EXPECT_EQ(name.find("indirect round"), std::string::npos) << name;
+    }
+    EXPECT_EQ(first_solves, 1u);
+    expect_every_train_frame_solved(r.report, dir.path() / "can" / "capture.json");
+}
 
 // The thesis's near-camera rig (issue 15): every light of a particle's best view sees its
 // highlight, so the first (Lambertian) solve absorbs most of a real lobe and the residuals keep
@@ -147,6 +184,7 @@ TEST(MaterialChoiceThesisRig, LafortuneTruthKeepsASpecularThatBeatsDiffuseOnly) 
     EXPECT_LT(best, s["material"]["diffuse_only"]["validation_mse"].get<double>());
     for (const nlohmann::json& status : s["lobe"]["status"]) EXPECT_TRUE(status == "constrained" || status == "converged") << status;
     EXPECT_EQ(r.report["bundle"]["has_lobe"], true);
+    expect_every_train_frame_solved(r.report, dir.path() / "can" / "capture.json");
 }
 
 TEST(MaterialChoiceThesisRig, LambertianTruthEndsDiffuseOnlyAndSaysWhy) {
@@ -160,6 +198,7 @@ TEST(MaterialChoiceThesisRig, LambertianTruthEndsDiffuseOnlyAndSaysWhy) {
     bool said = false;
     for (const auto& l : r.report["left_out"]) said = said || l.dump().find("specular fit") != std::string::npos;
     EXPECT_TRUE(said) << r.report["left_out"].dump();
+    expect_every_train_frame_solved(r.report, dir.path() / "can" / "capture.json");
 }
 
 } // namespace
