@@ -51,12 +51,13 @@ struct JointOptions {
 inline constexpr double kRivalFactor = 10.0;
 /// A candidate whose first fit's validation error is more than this many times the least error
 /// another candidate's rounds reached runs no rounds (pipeline/stages.cpp, the candidates run in
-/// the order of their first fits' errors). On the coated and Lafortune presets' captures every
-/// winner's first fit was at most 3.9 times the loser's final error (the coated vase, spread
-/// rig: the Lafortune rounds brought theirs down 3.1 times first), every loser's first fit
-/// that ran second 54 to 1,300 times the winner's final one where it went (12.5 and 18.6 where
-/// it still ran): a margin of 7.7 over the closest winner, wider than kRivalFactor's, since a
-/// candidate left without rounds wrongly would lose the choice (a silent wrong answer).
+/// the order of their first fits' errors). On the 17 captures of the coated and Lafortune
+/// presets every winner's first fit was at most 3.9 times the loser's final error (the coated
+/// vase, spread rig, where the Lafortune rounds ran first and brought theirs down 3.1 times);
+/// the losers whose rounds this leaves out started 54 to 1,300 times behind the winner's final
+/// error, and two that started 12.5 and 18.6 times behind still run theirs. A margin of 7.7 over
+/// the closest winner, wider than kRivalFactor's: a candidate wrongly left without rounds would
+/// lose the choice, a silent wrong answer.
 inline constexpr double kNoRoundsFactor = 30.0;
 /// A coated candidate's first fit lands near eta = 1 where the first (Lambertian) solve's albedo
 /// holds the highlight (lights near the camera put it in every frame of a particle's best
