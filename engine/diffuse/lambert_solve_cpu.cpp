@@ -42,7 +42,7 @@ bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v
 // Tap i of 4 (00, 10, 01, 11), as lambert_tap_index in lambert_sample.glsl.
 glm::ivec2 tap(const f64::LambertTaps& t, int i) { return {(i & 1) == 0 ? t.x0 : t.x1, (i & 2) == 0 ? t.y0 : t.y1}; }
 
-double lower_median(const std::vector<double>& values) { // rank (n - 1) / 2 in ascending order
+double lower_median(std::span<const double> values) { // rank (n - 1) / 2 in ascending order
     thread_local std::vector<double> v;
     v.assign(values.begin(), values.end());
     const std::size_t k = (v.size() - 1) / 2;
@@ -130,6 +130,30 @@ SampleRead lambert_read_sample(const FrameImage& im, const f64::LambertTaps& t, 
     return r;
 }
 
+double lambert_band_test(std::span<const double> q, std::span<const double> es, double tau, double k_sigma,
+                         std::uint32_t iterations, std::vector<std::uint8_t>& kept) {
+    kept.assign(q.size(), 1);
+    if (q.empty()) return 0.0;
+    double est = lower_median(q);
+    for (std::uint32_t it = 0; it < iterations; ++it) {
+        bool changed = false;
+        double num = 0.0, den = 0.0;
+        for (std::size_t i = 0; i < q.size(); ++i) {
+            const std::uint8_t keep =
+                f64::lambert_keep(q[i], es[i], est, tau, k_sigma) && !f64::lambert_low(q[i], es[i], est, tau, k_sigma) ? 1 : 0;
+            changed = changed || keep != kept[i];
+            kept[i] = keep;
+            if (keep) {
+                num += q[i] * es[i] * es[i]; // = cs es
+                den += es[i] * es[i];
+            }
+        }
+        if (den > 0.0) est = num / den;
+        if (!changed && it > 0) break;
+    }
+    return est;
+}
+
 shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const LambertOptions& o, std::uint32_t particle,
                                            std::uint32_t view_index) {
     const Particle& part = in.particles[particle];
@@ -197,26 +221,12 @@ shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const Lamber
             es.push_back(s.e.x + s.e.y + s.e.z);
             q.push_back((s.c.x + s.c.y + s.c.z) / es.back());
         }
-        double est = lower_median(q);
-        for (auto& s : samples) s.kept = true;
-        const double k_sigma = static_cast<double>(o.highlight_k) * static_cast<double>(o.noise_sigma);
-        for (std::uint32_t it = 0; it < o.highlight_iterations; ++it) {
-            bool changed = false;
-            double num = 0.0, den = 0.0;
-            for (std::size_t i = 0; i < samples.size(); ++i) {
-                const bool keep = f64::lambert_keep(q[i], es[i], est, static_cast<double>(o.highlight_tau), k_sigma) &&
-                                  !f64::lambert_low(q[i], es[i], est, static_cast<double>(o.highlight_tau), k_sigma);
-                changed = changed || keep != samples[i].kept;
-                samples[i].kept = keep;
-                if (keep) {
-                    num += q[i] * es[i] * es[i]; // = cs es
-                    den += es[i] * es[i];
-                }
-            }
-            if (den > 0.0) est = num / den;
-            if (!changed && it > 0) break;
-        }
+        thread_local std::vector<std::uint8_t> keep;
+        const double est = lambert_band_test(q, es, static_cast<double>(o.highlight_tau),
+                                             static_cast<double>(o.highlight_k) * static_cast<double>(o.noise_sigma),
+                                             o.highlight_iterations, keep);
         for (std::size_t i = 0; i < samples.size(); ++i) {
+            samples[i].kept = keep[i] != 0;
             kept += samples[i].kept ? 1u : 0u;
             if (!samples[i].kept && q[i] < est) ++low;
         }

@@ -24,6 +24,13 @@ struct SampleRead {
 [[nodiscard]] SampleRead lambert_read_sample(const FrameImage& im, const shared::f64::LambertTaps& t, const TapSurface* surface,
                                              const glm::dvec3& light, double e_particle, double min_cos);
 
+/// The band test on the channel sums (shared/lambert.h), in double: q_i = cs_i / Es_i and Es_i
+/// per sample; from the lower median, at most `iterations` refits on the kept samples. Sets
+/// kept[i] (1 kept, 0 a highlight above the band or a shadow edge below it) and returns the
+/// last estimate.
+[[nodiscard]] double lambert_band_test(std::span<const double> q, std::span<const double> es, double tau, double k_sigma,
+                                       std::uint32_t iterations, std::vector<std::uint8_t>& kept);
+
 /// The pair step of one (particle, view) in double.
 [[nodiscard]] shared::LambertPairResult lambert_pair_cpu(const LambertInputs& in, const LambertOptions& o,
                                                          std::uint32_t particle, std::uint32_t view);
