@@ -1,0 +1,108 @@
+// The pixel fit (refine/pixel_fit.h) against the preset's truth, on captures the synthetic
+// renderer made (a procedural texture sampled once per pixel centre, not the fit's bilinear
+// atlas): the albedo as the renderer reads it (between texel centres too: diffuse_scene.h
+// surface_error) must come nearer the truth than the solve's; a uniform albedo is left as it
+// is; each iteration lowers the train pixels' residual; the result is the same for any thread
+// count. No Vulkan device: C++ and Embree only.
+#include "diffuse/albedo_texture.h"
+#include "diffuse_scene.h"
+#include "refine/pixel_fit.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+
+using namespace specula;
+
+namespace {
+
+struct Fitted {
+    LambertOutputs solve;
+    AlbedoRefineResult fit;
+    PixelFitStats stats;
+};
+
+Fitted fit_scene(const test::DiffuseScene& s, const LambertOptions& o, unsigned threads = 2,
+                 std::uint32_t iterations = PixelFitOptions{}.iterations) {
+    const LambertInputs in = s.inputs();
+    Fitted f;
+    f.solve = lambert_solve_cpu(in, o);
+    const RayScene scene(s.capture.mesh);
+    f.fit = fit_albedo_to_pixels(s.capture.mesh, scene, s.atlas, s.particles.particles, in, f.solve, o,
+                                 PixelFitOptions{.iterations = iterations, .threads = threads}, &f.stats);
+    return f;
+}
+
+// Particles the solve gave a value, not gutter texels: where both estimates are defined.
+std::vector<std::uint8_t> solved_interior(const test::DiffuseScene& s, const LambertOutputs& solve) {
+    std::vector<std::uint8_t> sel(s.particles.particles.size(), 0);
+    for (std::size_t p = 0; p < sel.size(); ++p)
+        sel[p] = (solve.particles[p].status & shared::kLambertOk) && !s.particles.particles[p].is_gutter() ? 1 : 0;
+    return sel;
+}
+
+} // namespace
+
+// The can's label (stripes and lettering finer than the pixels), Lambertian, 128 px, 8 views x
+// 6 lights, png8. Measured: the albedo as rendered, RMSE over the solved texels' surface, solve
+// 9.19%, pixel fit 7.71% (0.84 times); the train pixels' weighted residual 0.0736 -> 0.0323 in
+// 8 iterations, the last lowering it by 0.0003.
+TEST(PixelFit, TheRenderedAlbedoComesNearerTheTruthThanTheSolves) {
+    const test::DiffuseScene s =
+        test::make_scene({.preset = "can", .lambertian = true, .size = 128, .views = 8, .format = synth::ImageFormat::Png8});
+    const Fitted f = fit_scene(s, {});
+    const std::vector<std::uint8_t> sel = solved_interior(s, f.solve);
+    const test::AlbedoError before = test::surface_error(s, make_albedo_texture(s.atlas, s.particles.particles, f.solve).image, sel);
+    const test::AlbedoError after =
+        test::surface_error(s, make_albedo_texture(s.atlas, s.particles.particles, f.fit.albedo, f.fit.valid).image, sel);
+    std::printf("surface RMSE over %zu texels: solve %.3f%%, pixel fit %.3f%%; %llu pixels used, residual", after.count,
+                100 * before.rmse, 100 * after.rmse, static_cast<unsigned long long>(f.stats.pixels_used));
+    for (double r : f.stats.rms) std::printf(" %.5f", r);
+    std::printf("\n");
+    ASSERT_EQ(f.stats.rms.size(), PixelFitOptions{}.iterations + 1u);
+    ASSERT_EQ(f.fit.rounds.size(), PixelFitOptions{}.iterations);
+    EXPECT_GT(f.stats.pixels_used, f.stats.pixels / 2);
+    EXPECT_LT(after.rmse, 0.9 * before.rmse);
+    // Each iteration lowers the residual (a majorized step: it cannot rise), and they settle.
+    for (std::size_t i = 1; i < f.stats.rms.size(); ++i) EXPECT_LE(f.stats.rms[i], f.stats.rms[i - 1] * (1 + 1e-9)) << i;
+    EXPECT_LT(f.stats.rms.back(), 0.7 * f.stats.rms.front());
+    EXPECT_LT(f.stats.rms[f.stats.rms.size() - 2] - f.stats.rms.back(), 0.05 * (f.stats.rms.front() - f.stats.rms.back()));
+}
+
+// A correct uniform albedo stays as it is: the fit has nothing to sharpen (knot, 128 px, 8
+// views, png8: the preset whose texels that only grazing views see drifted under the undamped
+// back-projection).
+TEST(PixelFit, UniformAlbedoIsLeftAsItIs) {
+    const test::DiffuseScene s = test::make_scene(
+        {.preset = "knot", .lambertian = true, .size = 128, .views = 8, .format = synth::ImageFormat::Png8,
+         .edit_preset = [](synth::Preset& p) {
+             std::fill(p.material.albedo_texture.pixels.begin(), p.material.albedo_texture.pixels.end(), 0.5f);
+         }});
+    const Fitted f = fit_scene(s, {});
+    const std::vector<std::uint8_t> sel = solved_interior(s, f.solve);
+    std::vector<glm::vec3> solve_albedo(sel.size());
+    for (std::size_t p = 0; p < sel.size(); ++p) solve_albedo[p] = glm::vec3(f.solve.albedo(p));
+    const test::AlbedoError before = test::albedo_error(solve_albedo, s.truth, sel);
+    const test::AlbedoError after = test::albedo_error(f.fit.albedo, s.truth, sel);
+    std::printf("uniform: texel RMSE over %zu texels %.4f%% -> %.4f%% (max %.4f -> %.4f)\n", after.count, 100 * before.rmse,
+                100 * after.rmse, before.max_abs, after.max_abs);
+    // Issue 3's criterion (RMSE under 0.5% of full scale over the seen texels) still holds, and
+    // the fit adds at most 0.1% to the solve's RMSE (the png8 quantization it cannot tell from
+    // texture: 0.290% -> 0.351% measured) without raising the largest error.
+    EXPECT_LT(after.rmse, 0.005);
+    EXPECT_LE(after.rmse, before.rmse + 1e-3);
+    EXPECT_LE(after.max_abs, before.max_abs + 0.01);
+}
+
+// Every particle gathers its pixels in a fixed order: one thread and two give the same bits.
+TEST(PixelFit, SameResultForAnyThreadCount) {
+    const test::DiffuseScene s =
+        test::make_scene({.preset = "cologne", .lambertian = true, .size = 96, .views = 6, .format = synth::ImageFormat::Png8});
+    const Fitted one = fit_scene(s, {}, 1, 3), two = fit_scene(s, {}, 2, 3);
+    ASSERT_EQ(one.fit.albedo.size(), two.fit.albedo.size());
+    EXPECT_EQ(std::memcmp(one.fit.albedo.data(), two.fit.albedo.data(), one.fit.albedo.size() * sizeof(glm::vec3)), 0);
+    EXPECT_EQ(one.stats.pixels_used, two.stats.pixels_used);
+    EXPECT_EQ(one.stats.samples_used, two.stats.samples_used);
+}
