@@ -361,30 +361,49 @@ std::uint32_t decided_indirect_block(const PlanDecision& d) { return d.detail.at
 
 // ---- albedo refinement ------------------------------------------------------------------
 
-PlanDecision decide_albedo_refinement(std::optional<std::uint32_t> forced_rounds, double solve_seconds) {
+const char* to_string(RefineMethod m) noexcept {
+    switch (m) {
+    case RefineMethod::Pixels: return "pixels";
+    case RefineMethod::BackProjection: return "back-projection";
+    }
+    return "?";
+}
+
+PlanDecision decide_albedo_refinement(RefineMethod method, std::optional<std::uint32_t> forced_rounds, double solve_seconds) {
     PlanDecision d;
     d.name = "albedo_refinement";
     d.forced = forced_rounds.has_value();
-    const std::uint32_t rounds = forced_rounds.value_or(kAlbedoRefineRounds);
-    d.value = rounds == 0 ? "skip" : std::to_string(rounds) + (rounds == 1 ? " round" : " rounds");
+    const bool pixels = method == RefineMethod::Pixels;
+    const std::uint32_t auto_rounds = pixels ? kPixelFitIterations : kAlbedoRefineRounds;
+    const std::uint32_t rounds = forced_rounds.value_or(auto_rounds);
+    const char* unit = pixels ? (rounds == 1 ? " iteration" : " iterations") : (rounds == 1 ? " round" : " rounds");
+    d.value = rounds == 0 ? "skip" : std::to_string(rounds) + unit + " (" + to_string(method) + ")";
     d.skipped = rounds == 0;
-    d.detail = {{"rounds", rounds}, {"auto_rounds", kAlbedoRefineRounds}};
-    const std::string why =
+    d.detail = {{"method", to_string(method)}, {"rounds", rounds}, {"auto_rounds", auto_rounds}};
+    const std::string edge =
         "the solve reads each particle bilinearly from its best view and the renderer reads the atlas bilinearly again, "
-        "so a sharp albedo edge comes back as a ramp that held-out views and lights see at another sub-pixel phase; each "
-        "round renders the train frames from the albedo, solves them, and adds the difference to the captured frames' "
-        "solve (the robust combination over all views that see a particle)";
+        "so a sharp albedo edge comes back as a ramp that held-out views and lights see at another sub-pixel phase; ";
+    const std::string why =
+        edge + (pixels ? "the pixel fit finds the albedo whose bilinear atlas read best reproduces every train pixel's albedo "
+                         "(least squares through the atlas point each pixel's centre ray hits; no renders)"
+                       : "each round renders the train frames from the albedo, solves them, and adds the difference to "
+                         "the captured frames' solve (the robust combination over all views that see a particle)");
+    const std::string named = std::to_string(auto_rounds) + (pixels ? " iterations" : " rounds");
     if (!d.forced) {
-        d.reason = why + ": " + std::to_string(rounds) + " rounds (a third changes the can's test PSNR by < 0.01 dB)";
+        d.reason = why + ": " + named +
+                   (pixels ? " (the train pixels' residual settles within 1%; the coated can at 512 px: 38.36 dB by 2 "
+                             "rounds of back-projection, 41.07 dB)"
+                           : " (a third changes the can's test PSNR by < 0.01 dB)");
     } else if (rounds == 0) {
-        d.reason = "--refine-rounds 0: the solve's bilinear reading of the best view (the planner runs " +
-                   std::to_string(kAlbedoRefineRounds) + " rounds: " + why + ")";
-        d.avoided_seconds = static_cast<double>(kAlbedoRefineRounds) * solve_seconds;
-        d.cost_basis = "estimate: " + std::to_string(kAlbedoRefineRounds) + " diffuse solves (the first took " +
-                       format_text("%.3g", solve_seconds) + " s); the renders of the train frames are not included";
+        d.reason = "--refine-rounds 0: the solve's bilinear reading of the best view (the planner runs " + named + ": " +
+                   why + ")";
+        if (!pixels) {
+            d.avoided_seconds = static_cast<double>(kAlbedoRefineRounds) * solve_seconds;
+            d.cost_basis = "estimate: " + std::to_string(kAlbedoRefineRounds) + " diffuse solves (the first took " +
+                           format_text("%.3g", solve_seconds) + " s); the renders of the train frames are not included";
+        }
     } else {
-        d.reason = "--refine-rounds " + std::to_string(rounds) + " (the planner runs " + std::to_string(kAlbedoRefineRounds) +
-                   ")";
+        d.reason = "--refine-rounds " + std::to_string(rounds) + " (the planner runs " + named + ")";
     }
     return d;
 }
@@ -394,7 +413,9 @@ std::uint32_t decided_refine_rounds(const PlanDecision& d) { return d.detail.val
 void set_refinement_cost(PlanDecision& d, double seconds) {
     d.measured_seconds = seconds;
     d.cost_basis = "measured: " + std::to_string(decided_refine_rounds(d)) +
-                   " rounds, each one render of every train frame and one diffuse solve";
+                   (d.detail.value("method", std::string()) == to_string(RefineMethod::Pixels)
+                        ? " iterations over the train pixels, and one ray per train-view pixel"
+                        : " rounds, each one render of every train frame and one diffuse solve");
 }
 
 // ---- specular stages --------------------------------------------------------------------

@@ -10,7 +10,7 @@
 //                       specular fit needs the highlights
 //   atlas               charts; texels <= image pixels (texels_per_pixel   --atlas charts|patchwork,
 //                       1), within the budget (geometry/atlas.h)           --texels-per-pixel, --texture-size
-//   albedo_refinement   kAlbedoRefineRounds rounds of back-projection      --refine-rounds
+//   albedo_refinement   kPixelFitIterations of the pixel fit               --refine-rounds, --refine-method
 //                       (refine/albedo_refine.h)
 //   specular_stages     residual samples, then the fit, factorization and  --specular on|off
 //                       specular pass only when the residuals hold more
@@ -202,15 +202,28 @@ struct IndirectMeasure {
 
 // ---- albedo refinement ------------------------------------------------------------------
 
-/// Rounds of albedo refinement by back-projection the planner runs (refine/albedo_refine.h).
+/// How the albedo is refined after the last solve (docs/pipeline.md section 3.8).
+enum class RefineMethod {
+    Pixels,          ///< refine/pixel_fit.h: least squares on the train pixels through the atlas's bilinear read
+    BackProjection,  ///< refine/albedo_refine.h: damped back-projection through renders of the train frames
+};
+[[nodiscard]] const char* to_string(RefineMethod m) noexcept;
+
+/// Iterations of the pixel fit the planner runs (refine/pixel_fit.h). Coated can, 512 px, noise
+/// free, spread rig: masked test PSNR on display values 41.07 dB with 8 (the back-projection's 2
+/// rounds: 38.36).
+inline constexpr std::uint32_t kPixelFitIterations = 8;
+/// Rounds of back-projection the planner runs when that method is asked for (refine/albedo_refine.h).
 /// Can preset, 512 px, noise free: masked test PSNR 39.8 dB without, 41.4 after 1 round,
 /// 41.7 after 2; a third changed it by less than 0.01 dB.
 inline constexpr std::uint32_t kAlbedoRefineRounds = 2;
 
-/// Auto: kAlbedoRefineRounds rounds; forced: the given count (0 leaves the refinement out).
-/// `solve_seconds` (the first diffuse solve) gives the estimate of what a forced 0 avoided.
-[[nodiscard]] PlanDecision decide_albedo_refinement(std::optional<std::uint32_t> forced_rounds, double solve_seconds);
-/// The rounds a decision chose.
+/// Auto: the method's default count (kPixelFitIterations, kAlbedoRefineRounds); forced: the given
+/// count (0 leaves the refinement out). `solve_seconds` (the first diffuse solve) gives the
+/// estimate of what a forced 0 avoided.
+[[nodiscard]] PlanDecision decide_albedo_refinement(RefineMethod method, std::optional<std::uint32_t> forced_rounds,
+                                                    double solve_seconds);
+/// The iterations or rounds a decision chose.
 [[nodiscard]] std::uint32_t decided_refine_rounds(const PlanDecision& d);
 /// Records the measured time of the rounds that ran.
 void set_refinement_cost(PlanDecision& d, double seconds);

@@ -60,7 +60,7 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const SpecularStage specular = specular_stage(run, diffuse, display_is_srgb(capture)); // joint rounds update `diffuse`
     indirect_update_stage(run, capture, geometry, visibility, specular, indirect, diffuse);
     atlas_decision(run, geometry);
-    const RefineStage refine = refine_stage(run, capture, geometry, diffuse);
+    const RefineStage refine = refine_stage(run, capture, geometry, visibility, diffuse);
     const AlbedoTexture texture = texture_stage(run, geometry, diffuse, refine);
     const NormalMapStage normals = normal_map_stage(run, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);

@@ -90,9 +90,11 @@ struct ReconstructConfig {
     /// solve's albedo absorbed; can, coated, 128 px: 6 rounds to settle, 3 leave alpha 7.6% low).
     std::uint32_t joint_rounds = 8;
     double joint_tolerance = 0.005; ///< stop when no lobe parameter changes by more than this (relative)
-    /// Albedo refinement by back-projection (albedo_refine.h): rounds of A <- A + S(captured) -
-    /// S(render(A)) after the last solve. nullopt: the planner's choice (kAlbedoRefineRounds);
-    /// 0: the solve's albedo (bilinear reading of the best view).
+    /// Albedo refinement after the last solve (planner.h RefineMethod): the pixel fit
+    /// (refine/pixel_fit.h, the default) or back-projection through renders (refine/albedo_refine.h).
+    RefineMethod refine_method = RefineMethod::Pixels;
+    /// Its iterations (pixel fit) or rounds (back-projection). nullopt: the planner's choice
+    /// (kPixelFitIterations, kAlbedoRefineRounds); 0: the solve's albedo (bilinear reading of the best view).
     std::optional<std::uint32_t> refine_rounds;
     /// Refined normals as a normal map in the bundle (planner.h decide_normal_map): auto on
     /// for photometric rigs (a view with many well-spread lights).

@@ -249,17 +249,35 @@ json refinement_json(const PipelineRun& run, const RefineStage& r) {
     json rounds = json::array();
     for (std::size_t i = 0; i < r.refined->rounds.size(); ++i) {
         const AlbedoRefineRound& round = r.refined->rounds[i];
-        rounds.push_back({{"round", i + 1},
-                          {"mean_abs_change", round.mean_abs_change},
-                          {"corrected_particles", round.corrected},
-                          {"render_seconds", round.render_seconds},
-                          {"solve_seconds", round.solve_seconds}});
+        json j = {{"round", i + 1}, {"mean_abs_change", round.mean_abs_change}, {"corrected_particles", round.corrected}};
+        if (r.pixel_fit) {
+            j["rms_residual_before"] = r.pixel_fit->rms[i];
+            j["rms_residual_after"] = r.pixel_fit->rms[i + 1];
+        } else {
+            j["render_seconds"] = round.render_seconds;
+            j["solve_seconds"] = round.solve_seconds;
+        }
+        rounds.push_back(j);
     }
-    return {{"rounds", rounds},
-            {"method", "A <- A + s [w (S(captured) - S(render(A))) - lambda (A - A_0)]: S the diffuse solve's robust "
-                       "combination over views, render without cast shadows with the solve's lobe, w the best view's n.v "
-                       "ramp, lambda a prior toward the solve's albedo A_0, s the step (pipeline/albedo_refine.h)"},
-            {"seconds", run.seconds("albedo refinement")}};
+    json out = {{"method", to_string(r.method)}, {"rounds", rounds}, {"seconds", run.seconds("albedo refinement")}};
+    if (r.pixel_fit) {
+        const PixelFitStats& p = *r.pixel_fit;
+        out["formula"] = "min over the atlas A of sum_i w_i (bilinear_A(t_i) - a_i)^2 + mu sum_p d_p (A_p - A0_p)^2: t_i the "
+                         "atlas point of train pixel i's centre ray, a_i the albedo its lit frames show (the solve's "
+                         "material and band test), w_i = sum of its kept frames' E^2, A0 the solve's albedo; Jacobi "
+                         "iterations (refine/pixel_fit.h)";
+        out["pixels"] = p.pixels;
+        out["pixels_used"] = p.pixels_used;
+        out["samples_used"] = p.samples_used;
+        out["ray_seconds"] = p.ray_seconds;
+        out["sample_seconds"] = p.sample_seconds;
+        out["fit_seconds"] = p.fit_seconds;
+    } else {
+        out["formula"] = "A <- A + s [w (S(captured) - S(render(A))) - lambda (A - A_0)]: S the diffuse solve's robust "
+                         "combination over views, render without cast shadows with the solve's lobe, w the best view's n.v "
+                         "ramp, lambda a prior toward the solve's albedo A_0, s the step (refine/albedo_refine.h)";
+    }
+    return out;
 }
 
 /// Every parametrization's factorization as the choice saw it (only the forced one when forced).

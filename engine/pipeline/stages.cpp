@@ -912,31 +912,55 @@ void atlas_decision(PipelineRun& run, const GeometryStage& geometry) {
     run.plan().add(decide_atlas(geometry.atlas.summary, run.config.atlas, geometry.particles.particles.size(), particle_seconds));
 }
 
-RefineStage refine_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const DiffuseStage& diffuse) {
+RefineStage refine_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry, const VisibilityStage& visibility,
+                         const DiffuseStage& diffuse) {
     RefineStage r;
-    PlanDecision& decision = run.plan().add(decide_albedo_refinement(run.config.refine_rounds, run.seconds("diffuse solve")));
+    r.method = run.config.refine_method;
+    PlanDecision& decision =
+        run.plan().add(decide_albedo_refinement(r.method, run.config.refine_rounds, run.seconds("diffuse solve")));
     r.rounds = decided_refine_rounds(decision);
     if (r.rounds == 0) {
         run.leave_out("albedo refinement", decision.reason);
         return r;
     }
-    gpu::Context* rc = run.render_context();
-    if (rc == nullptr) {
-        run.leave_out("albedo refinement", "rendering needs a Vulkan device and none could be had: " + run.no_device());
-        return r;
-    }
-    r.refined = run.stage("albedo refinement", [&] {
-        return refine_albedo(*rc, capture, geometry.atlas, geometry.particles.particles, diffuse.inputs, diffuse.solve,
-                             diffuse.options.material, r.rounds, [&](const LambertInputs& in) {
-                                 return run.on_particle_backend("diffuse solve", [&](Backend b) {
-                                     return lambert_solve(in, diffuse.options, b, run.compute_context());
+    if (r.method == RefineMethod::Pixels) {
+        if (!visibility.scene) {
+            run.leave_out("albedo refinement", "the pixel fit casts the train pixels' rays and the visibility stage built no ray scene");
+            return r;
+        }
+        r.refined = run.stage("albedo refinement", [&] {
+            PixelFitStats stats;
+            AlbedoRefineResult fit =
+                fit_albedo_to_pixels(capture.mesh, *visibility.scene, geometry.atlas, geometry.particles.particles, diffuse.inputs,
+                                     diffuse.solve, diffuse.options,
+                                     PixelFitOptions{.iterations = r.rounds, .threads = run.config.threads}, &stats);
+            r.pixel_fit = std::move(stats);
+            return fit;
+        });
+        log::info(format_text("albedo pixel fit: %llu train pixels (%llu samples), weighted RMS residual %.5f -> %.5f in %u iterations",
+                              static_cast<unsigned long long>(r.pixel_fit->pixels_used),
+                              static_cast<unsigned long long>(r.pixel_fit->samples_used), r.pixel_fit->rms.front(),
+                              r.pixel_fit->rms.back(), r.rounds));
+    } else {
+        gpu::Context* rc = run.render_context();
+        if (rc == nullptr) {
+            run.leave_out("albedo refinement", "back-projection renders the train frames, which needs a Vulkan device, and none "
+                                               "could be had: " + run.no_device());
+            return r;
+        }
+        r.refined = run.stage("albedo refinement", [&] {
+            return refine_albedo(*rc, capture, geometry.atlas, geometry.particles.particles, diffuse.inputs, diffuse.solve,
+                                 diffuse.options.material, r.rounds, [&](const LambertInputs& in) {
+                                     return run.on_particle_backend("diffuse solve", [&](Backend b) {
+                                         return lambert_solve(in, diffuse.options, b, run.compute_context());
+                                     });
                                  });
-                             });
-    });
-    for (std::size_t i = 0; i < r.refined->rounds.size(); ++i)
-        log::info("albedo refinement round " + std::to_string(i + 1) + ": mean |change| " +
-                  std::to_string(r.refined->rounds[i].mean_abs_change) + " over " + std::to_string(r.refined->rounds[i].corrected) +
-                  " particles");
+        });
+        for (std::size_t i = 0; i < r.refined->rounds.size(); ++i)
+            log::info("albedo refinement round " + std::to_string(i + 1) + ": mean |change| " +
+                      std::to_string(r.refined->rounds[i].mean_abs_change) + " over " +
+                      std::to_string(r.refined->rounds[i].corrected) + " particles");
+    }
     set_refinement_cost(*run.plan().find("albedo_refinement"), run.seconds("albedo refinement"));
     return r;
 }

@@ -19,6 +19,7 @@
 #include "pipeline/planner.h"
 #include "pipeline/run.h"
 #include "refine/albedo_refine.h"
+#include "refine/pixel_fit.h"
 #include "specular/core_fit.h"
 #include "specular/lafortune_fit.h"
 #include "specular/residuals.h"
@@ -152,13 +153,16 @@ void indirect_update_stage(PipelineRun& run, const Capture& capture, const Geome
 /// The atlas decision, once the stages whose cost grows with the particle count have run.
 void atlas_decision(PipelineRun& run, const GeometryStage& geometry);
 
-/// 7. Albedo refinement by back-projection through renders of the train frames (refine/).
+/// 7. Albedo refinement (refine/): the pixel fit, or back-projection through renders of the
+///    train frames.
 struct RefineStage {
-    std::optional<AlbedoRefineResult> refined; ///< absent: left out (0 rounds, or no device)
+    std::optional<AlbedoRefineResult> refined; ///< absent: left out (0 rounds, no ray scene, or no device)
+    RefineMethod method = RefineMethod::Pixels;
     std::uint32_t rounds = 0;
+    std::optional<PixelFitStats> pixel_fit;   ///< the pixel fit's counts and residuals
 };
 [[nodiscard]] RefineStage refine_stage(PipelineRun& run, const Capture& capture, const GeometryStage& geometry,
-                                       const DiffuseStage& diffuse);
+                                       const VisibilityStage& visibility, const DiffuseStage& diffuse);
 
 /// 8. The albedo texture (inpainting what no view saw), written as albedo.exr and albedo.png.
 [[nodiscard]] AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, const DiffuseStage& diffuse,

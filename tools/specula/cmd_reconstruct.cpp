@@ -37,6 +37,7 @@ struct ReconstructArgs {
     std::string factor_param = "auto";
     std::string factor_warp = "auto";
     std::string indirect_block = "auto";
+    std::string refine_method = "pixels";
 };
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -53,6 +54,7 @@ void run_reconstruct(ReconstructArgs& args) {
     c.normal_map = args.normal_map == "on" ? Toggle::On : args.normal_map == "off" ? Toggle::Off : Toggle::Auto;
     c.indirect = args.indirect == "on" ? Toggle::On : args.indirect == "off" ? Toggle::Off : Toggle::Auto;
     c.indirect_lobe_directions = args.indirect_lobe == "directed";
+    c.refine_method = args.refine_method == "back-projection" ? RefineMethod::BackProjection : RefineMethod::Pixels;
     if (args.force_occlusion_rays && args.occlusion_rays == "off")
         throw UsageError("--force-occlusion-rays contradicts --occlusion-rays off");
     if (!args.grid.empty()) {
@@ -172,12 +174,18 @@ void add_reconstruct_command(CLI::App& app) {
                     "lobe settles; 0 = the thesis's single pass")
         ->check(CLI::Range(0u, 10u))
         ->capture_default_str();
+    cmd->add_option("--refine-method", args->refine_method,
+                    "Albedo refinement, which sharpens albedo edges for held-out views. pixels: the albedo whose\n"
+                    "bilinear atlas read best reproduces every train pixel (least squares through the atlas point each\n"
+                    "pixel's centre ray hits; no renders, no Vulkan device); back-projection: rounds of (render the train\n"
+                    "frames from the albedo, solve them, add the difference to the captured frames' solve)")
+        ->check(CLI::IsMember({"pixels", "back-projection"}))
+        ->capture_default_str();
     cmd->add_option("--refine-rounds", args->config.refine_rounds,
-                    "Albedo refinement: rounds of (render the train frames from the albedo, solve them, add the\n"
-                    "difference to the captured frames' solve), which sharpens albedo edges for held-out views; each\n"
-                    "costs one render of every train frame and one diffuse solve (default: the planner's 2; 0 = the\n"
-                    "solve's bilinear reading of the best view)")
-        ->check(CLI::Range(0u, 10u));
+                    "Albedo refinement: iterations of the pixel fit (default: the planner's 8; each a pass over the\n"
+                    "train pixels) or rounds of back-projection (default 2; each one render of every train frame and one\n"
+                    "diffuse solve); 0 = the solve's bilinear reading of the best view")
+        ->check(CLI::Range(0u, 32u));
     cmd->add_option("--normal-map", args->normal_map,
                     "Refined normals as a tangent-space normal map in the bundle (glTF normalTexture, with TANGENT):\n"
                     "a photometric solve with the final material subtracted. auto: on when a train view has >= 12 lights\n"
