@@ -1,7 +1,7 @@
 // Where the masked error of a reconstruction lives, and what the albedo atlas could hold
 // (run by hand, not a ctest; built with SPECULA_BUILD_BENCHMARKS):
 //   psnr_diag CAPTURE BUNDLE.glb [--all] [--out DIR] [--no-shadows] [--shadow-map N]
-//             [--truth PRESET | --truth-lobe PRESET | --oracle PRESET TPP [--sim bilinear|nearest [--ibp N ...]]]
+//             [--truth PRESET | --truth-lobe PRESET | --oracle PRESET TPP [--sim bilinear|nearest [--lsq N] [--ibp N ...]]]
 // For every test frame (--all: every frame), renders the bundle (both terms, and the
 // specular term alone) and splits the masked squared error into pixel classes, first
 // match wins:
@@ -24,6 +24,10 @@
 //                      cos^--ibp-power, default 1; --ibp-best: the best view only) of the bilinear
 //                      residual (albedo image - A as rendered), step --ibp-step (default 1): the
 //                      simulation behind refine/albedo_refine.h
+//   --lsq N            ... then N Jacobi iterations of the least squares of the atlas's bilinear read at
+//                      every train pixel's atlas point against that pixel's albedo (--lsq-step, default
+//                      1; --lsq-reg, added to each texel's weight, default 0): the simulation behind
+//                      refine/pixel_fit.h (applied before --ibp when both are given)
 // --shadow-map N renders with an N x N shadow map (default 2048, the renderer's).
 // --ray-shadows: render unshadowed and black out the pixels the ground-truth ray caster finds
 // unlit (the captures' own shadows, exactly): what the reconstruction scores without the
@@ -64,6 +68,8 @@ int main(int argc, char** argv) {
     bool all = false, shadows = true;
     int shadow_map = 2048;
     int ibp_iterations = 0;
+    int lsq_iterations = 0;
+    double lsq_step = 1.0, lsq_reg = 0.0;
     float ibp_step = 1.0f;
     double ibp_weight_power = 1.0;
     bool ibp_best = false;
@@ -80,6 +86,9 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--sim") && i + 1 < argc) sim = argv[++i];
         else if (!std::strcmp(argv[i], "--truth-lobe") && i + 1 < argc) truth_lobe = argv[++i];
         else if (!std::strcmp(argv[i], "--ibp") && i + 1 < argc) ibp_iterations = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--lsq") && i + 1 < argc) lsq_iterations = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--lsq-step") && i + 1 < argc) lsq_step = std::atof(argv[++i]);
+        else if (!std::strcmp(argv[i], "--lsq-reg") && i + 1 < argc) lsq_reg = std::atof(argv[++i]);
         else if (!std::strcmp(argv[i], "--ibp-step") && i + 1 < argc) ibp_step = float(std::atof(argv[++i]));
         else if (!std::strcmp(argv[i], "--ibp-power") && i + 1 < argc) ibp_weight_power = std::atof(argv[++i]);
         else if (!std::strcmp(argv[i], "--ibp-best")) ibp_best = true;
@@ -209,6 +218,35 @@ int main(int argc, char** argv) {
                 return (1 - ax) * (1 - ay) * at(x0, y0) + ax * (1 - ay) * at(x0 + 1, y0) + (1 - ax) * ay * at(x0, y0 + 1) +
                        ax * ay * at(x0 + 1, y0 + 1);
             };
+            // Least squares: min over A of sum_i (bilinear_A(t_i) - a_i)^2 over every train pixel i (its
+            // atlas point t_i, its albedo a_i), by Jacobi iterations preconditioned by each texel's weight.
+            for (int it = 0; it < lsq_iterations; ++it) {
+                std::vector<glm::dvec3> g(std::size_t(atlas.width) * atlas.height, glm::dvec3(0.0));
+                std::vector<double> dsum(g.size(), 0.0);
+                double rss = 0.0, rn = 0.0;
+                for (std::size_t v = 0; v < cams.size(); ++v)
+                    for (const Px& px : views[v]) {
+                        if (!px.ok) continue;
+                        const glm::vec3 r = px.albedo - atlas_bilinear(px.texel);
+                        rss += glm::dot(r, r); rn += 3;
+                        const float fx = px.texel.x - 0.5f, fy = px.texel.y - 0.5f;
+                        const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+                        const float ax = fx - float(x0), ay = fy - float(y0);
+                        for (int k = 0; k < 4; ++k) {
+                            const int x = std::clamp(x0 + (k & 1), 0, int(atlas.width) - 1), y = std::clamp(y0 + (k >> 1), 0, int(atlas.height) - 1);
+                            const double wk = ((k & 1) ? ax : 1 - ax) * ((k >> 1) ? ay : 1 - ay);
+                            g[std::size_t(y) * atlas.width + x] += wk * glm::dvec3(r);
+                            dsum[std::size_t(y) * atlas.width + x] += wk;
+                        }
+                    }
+                std::printf("lsq %d: train albedo-image RMS %.5f\n", it, std::sqrt(rss / rn));
+                for (int y = 0; y < int(atlas.height); ++y)
+                    for (int x = 0; x < int(atlas.width); ++x) {
+                        const std::size_t i = std::size_t(y) * atlas.width + x;
+                        if (dsum[i] <= 0.0) continue;
+                        for (int k = 0; k < 3; ++k) img.at(x, y, k) += float(lsq_step * g[i][k] / (dsum[i] + lsq_reg));
+                    }
+            }
             for (int it = 0; it < ibp_iterations; ++it) {
                 std::vector<std::vector<glm::vec3>> resid(cams.size());
                 double rss = 0.0, rn = 0.0;
