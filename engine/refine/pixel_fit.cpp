@@ -223,6 +223,19 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
             }
     }
     const std::vector<glm::vec3> a0 = out.albedo;
+    // Each particle's bounds: the least and the largest albedo of the pixels that read it.
+    std::vector<glm::vec3> lo(particles.size()), hi(particles.size());
+    parallel_for_chunks(particles.size(), threads, 4096, [&](unsigned, std::size_t b, std::size_t e) {
+        for (std::size_t p = b; p < e; ++p) {
+            glm::vec3 l(std::numeric_limits<float>::max()), h(0.0f);
+            for (std::uint64_t k = first[p]; k < first[p + 1]; ++k) {
+                l = glm::min(l, data[entry_datum[k]].albedo);
+                h = glm::max(h, data[entry_datum[k]].albedo);
+            }
+            lo[p] = glm::max(l, glm::vec3(0.0f));
+            hi[p] = h;
+        }
+    });
     std::vector<glm::vec3> residual(data.size());
     const double mu = static_cast<double>(fit.prior);
     const auto residuals = [&] {
@@ -258,7 +271,7 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
                 }
                 if (!(dp > 0.0)) continue;
                 const glm::dvec3 step = (g - mu * dp * (glm::dvec3(out.albedo[p]) - glm::dvec3(a0[p]))) / ((1.0 + mu) * dp);
-                next[p] = glm::max(glm::vec3(glm::dvec3(out.albedo[p]) + step), glm::vec3(0.0f));
+                next[p] = glm::clamp(glm::vec3(glm::dvec3(out.albedo[p]) + step), lo[p], hi[p]);
                 change[p] = glm::dot(glm::abs(glm::dvec3(next[p]) - glm::dvec3(out.albedo[p])), glm::dvec3(1.0 / 3.0));
             }
         });

@@ -21,11 +21,16 @@
 /// others' weights renormalised), A0 the solve's albedo and d_p = sum_i w_i b_ip the data weight
 /// of particle p (mu: a faint prior where few pixels touch a texel).
 ///
-/// How. Jacobi iterations preconditioned by the data weight: A_p <- A_p + (g_p - mu d_p (A_p -
-/// A0_p)) / ((1 + mu) d_p), g_p = sum_i w_i b_ip r_i, r_i the pixel's residual. The weight
-/// dominates the normal matrix's rows, so every mode of the error shrinks or stays: a texel that
-/// only grazing views touch moves little, it is never amplified (the back-projection of
-/// albedo_refine.h had to be damped for that). Deterministic for any thread count: each particle
+/// How. Jacobi iterations preconditioned by the data weight: A_p <- clamp(A_p + (g_p - mu d_p
+/// (A_p - A0_p)) / ((1 + mu) d_p), lo_p, hi_p), g_p = sum_i w_i b_ip r_i, r_i the pixel's
+/// residual, [lo_p, hi_p] the least and the largest albedo of the pixels that read particle p. The
+/// weight dominates the normal matrix's rows, so each step minimises a separable quadratic above
+/// the objective (within the bounds too): the objective never rises, and a texel that only
+/// grazing views touch moves little, it is never amplified (the back-projection of
+/// albedo_refine.h had to be damped for that). The bounds keep a texel within what its pixels
+/// show: where few pixels at one phase read a texel, the least squares alone overshoot (the can's
+/// label at 128 px: 1.79 against a truth at most 0.86; one view of 48 lights: 0.53% RMSE on
+/// resolved texels, 0.01% within the bounds). Deterministic for any thread count: each particle
 /// gathers its pixels in a fixed order. No renders, no Vulkan device: one ray per pixel of the
 /// train views (Embree) and a few passes over the pixels.
 #include "capture/capture.h"

@@ -47,8 +47,8 @@ std::vector<std::uint8_t> solved_interior(const test::DiffuseScene& s, const Lam
 
 // The can's label (stripes and lettering finer than the pixels), Lambertian, 128 px, 8 views x
 // 6 lights, png8. Measured: the albedo as rendered, RMSE over the solved texels' surface, solve
-// 9.19%, pixel fit 7.71% (0.84 times); the train pixels' weighted residual 0.0736 -> 0.0323 in
-// 8 iterations, the last lowering it by 0.0003.
+// 9.19%, pixel fit 7.72% (0.84 times); the train pixels' weighted residual 0.0736 -> 0.0434 in
+// 8 iterations (0.0323 without the bounds), the last lowering it by 0.0001.
 TEST(PixelFit, TheRenderedAlbedoComesNearerTheTruthThanTheSolves) {
     const test::DiffuseScene s =
         test::make_scene({.preset = "can", .lambertian = true, .size = 128, .views = 8, .format = synth::ImageFormat::Png8});
@@ -65,6 +65,16 @@ TEST(PixelFit, TheRenderedAlbedoComesNearerTheTruthThanTheSolves) {
     ASSERT_EQ(f.fit.rounds.size(), PixelFitOptions{}.iterations);
     EXPECT_GT(f.stats.pixels_used, f.stats.pixels / 2);
     EXPECT_LT(after.rmse, 0.9 * before.rmse);
+    // Each texel stays within what the pixels that read it show: no overshoot past the data
+    // (without that bound the label's texels reached 1.79 against a truth at most 0.86).
+    float fit_max = 0.0f, truth_max = 0.0f;
+    for (std::size_t p = 0; p < sel.size(); ++p)
+        if (sel[p]) {
+            fit_max = std::max({fit_max, f.fit.albedo[p].x, f.fit.albedo[p].y, f.fit.albedo[p].z});
+            truth_max = std::max({truth_max, s.truth[p].x, s.truth[p].y, s.truth[p].z});
+        }
+    std::printf("largest albedo: pixel fit %.3f, truth %.3f\n", fit_max, truth_max);
+    EXPECT_LE(fit_max, 1.05f * truth_max);
     // Each iteration lowers the residual (a majorized step: it cannot rise), and they settle.
     for (std::size_t i = 1; i < f.stats.rms.size(); ++i) EXPECT_LE(f.stats.rms[i], f.stats.rms[i - 1] * (1 + 1e-9)) << i;
     EXPECT_LT(f.stats.rms.back(), 0.7 * f.stats.rms.front());
@@ -90,7 +100,7 @@ TEST(PixelFit, UniformAlbedoIsLeftAsItIs) {
                 100 * after.rmse, before.max_abs, after.max_abs);
     // Issue 3's criterion (RMSE under 0.5% of full scale over the seen texels) still holds, and
     // the fit adds at most 0.1% to the solve's RMSE (the png8 quantization it cannot tell from
-    // texture: 0.290% -> 0.351% measured) without raising the largest error.
+    // texture: 0.290% -> 0.305% measured) without raising the largest error.
     EXPECT_LT(after.rmse, 0.005);
     EXPECT_LE(after.rmse, before.rmse + 1e-3);
     EXPECT_LE(after.max_abs, before.max_abs + 0.01);
