@@ -236,7 +236,8 @@ double mean_abs_difference(const fs::path& a_path, const fs::path& b_path) {
 // or back-projection through renders (refine/albedo_refine.h).
 // 128 px, 12 views x 4 lights, 2 test views x 2 lights, png16. Measured (lavapipe): test
 // masked PSNR 41.26 dB, Q1 99.13 without the refinement, 42.93 dB, Q1 99.28 with 2 rounds of
-// back-projection, 44.57 dB, Q1 99.41 with the pixel fit's 8 iterations. Back-projection's
+// back-projection, 44.19 dB, Q1 99.38 with the pixel fit's 8 iterations (44.57, 99.41 before its
+// bounds). Back-projection's
 // thresholds lie between it and no refinement, the pixel fit's between it and back-projection.
 TEST(Reconstruct, AlbedoRefinementSharpensEdgesForHeldOutViews) {
     SPECULA_REQUIRE_VULKAN(); // the evaluation renders the test frames (and back-projection the train frames)
