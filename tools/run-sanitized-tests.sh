@@ -24,7 +24,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${SPECULA_SANITIZE_BUILD_DIR:-$root/build-asan} # the folder: SPECULA_SANITIZE_BUILD_DIR overrides
 tests=(core_tests capture_tests geometry_tests visibility_tests indirect_tests export_tests gpu_tests material_tests
   metrics_tests image_metrics_kernel_tests lambert_solve_kernel_tests residuals_kernel_tests factorization_kernel_tests
-  indirect_gather_kernel_tests indirect_lobe_kernel_tests)
+  indirect_gather_kernel_tests indirect_lobe_kernel_tests pixel_fit_tests)
 targets=("${tests[@]}")
 regex="^($(IFS='|'; echo "${tests[*]}"))\\."
 if [ "${1:-}" = "--all" ]; then

@@ -265,7 +265,8 @@ json refinement_json(const PipelineRun& run, const RefineStage& r) {
         out["formula"] = "min over the atlas A of sum_i w_i (bilinear_A(t_i) - a_i)^2 + mu sum_p d_p (A_p - A0_p)^2: t_i the "
                          "atlas point of train pixel i's centre ray, a_i the albedo its lit frames show (the solve's "
                          "material and band test), w_i = sum of its kept frames' E^2, A0 the solve's albedo; Jacobi "
-                         "iterations (refine/pixel_fit.h)";
+                         "iterations, each texel kept within the least and largest albedo of the pixels that read it "
+                         "(refine/pixel_fit.h)";
         out["pixels"] = p.pixels;
         out["pixels_used"] = p.pixels_used;
         out["samples_used"] = p.samples_used;
