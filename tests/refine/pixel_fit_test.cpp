@@ -2,8 +2,8 @@
 // renderer made (a procedural texture sampled once per pixel centre, not the fit's bilinear
 // atlas): the albedo as the renderer reads it (between texel centres too: diffuse_scene.h
 // surface_error) must come nearer the truth than the solve's; a uniform albedo is left as it
-// is; each iteration lowers the train pixels' residual; the result is the same for any thread
-// count. No Vulkan device: C++ and Embree only.
+// is; each iteration lowers the train pixels' residual; a known coated material is taken out of
+// every pixel; the result is the same for any thread count. No Vulkan device: C++ and Embree only.
 #include "diffuse/albedo_texture.h"
 #include "diffuse_scene.h"
 #include "refine/pixel_fit.h"
@@ -115,4 +115,39 @@ TEST(PixelFit, SameResultForAnyThreadCount) {
     EXPECT_EQ(std::memcmp(one.fit.albedo.data(), two.fit.albedo.data(), one.fit.albedo.size() * sizeof(glm::vec3)), 0);
     EXPECT_EQ(one.stats.pixels_used, two.stats.pixels_used);
     EXPECT_EQ(one.stats.samples_used, two.stats.samples_used);
+}
+
+// A coated truth (a Lambertian base under a dielectric coating, a GGX reflection: not the
+// Lambertian albedo the fit's data term assumes unless the material is known), uniform albedo 0.5
+// so that only the material can move the fit: with the true material known, its specular light
+// subtracted and its Fresnel diffuse factor applied pixel by pixel, the fit keeps the solve's
+// albedo or comes nearer the truth; fed the same solve but told nothing of the material, the fit
+// pulls every texel toward the albedos the pixels seem to show (the coating's fall-off toward
+// grazing angles, its highlights' tails). Can, 128 px, 8 views x 6 lights, png8. Measured: texel
+// RMSE against 0.5: solve 2.08%, fit with the material 1.20%, fit ignoring it 4.03%.
+TEST(PixelFit, AKnownCoatedMaterialIsTakenOutOfEveryPixel) {
+    const test::DiffuseScene s = test::make_scene(
+        {.preset = "can", .lambertian = false, .size = 128, .views = 8, .format = synth::ImageFormat::Png8,
+         .edit_preset = [](synth::Preset& p) {
+             p = synth::make_preset("can", false, MaterialFamily::Coated);
+             std::fill(p.material.albedo_texture.pixels.begin(), p.material.albedo_texture.pixels.end(), 0.5f);
+         }});
+    LambertOptions known;
+    known.material = s.preset.material.specular();
+    ASSERT_TRUE(known.material.has_value());
+    const Fitted with = fit_scene(s, known);
+    // The same solve (material known) for both fits: only the fit's own use of the material differs.
+    const RayScene scene(s.capture.mesh);
+    const AlbedoRefineResult ignored = fit_albedo_to_pixels(s.capture.mesh, scene, s.atlas, s.particles.particles, s.inputs(),
+                                                            with.solve, LambertOptions{}, PixelFitOptions{});
+    const std::vector<std::uint8_t> sel = solved_interior(s, with.solve);
+    std::vector<glm::vec3> solve_albedo(sel.size());
+    for (std::size_t p = 0; p < sel.size(); ++p) solve_albedo[p] = glm::vec3(with.solve.albedo(p));
+    const double e_solve = test::albedo_error(solve_albedo, s.truth, sel).rmse;
+    const double e_known = test::albedo_error(with.fit.albedo, s.truth, sel).rmse;
+    const double e_ignored = test::albedo_error(ignored.albedo, s.truth, sel).rmse;
+    std::printf("coated can, uniform albedo: texel RMSE solve %.3f%%, fit with the material %.3f%%, ignoring it %.3f%%\n",
+                100 * e_solve, 100 * e_known, 100 * e_ignored);
+    EXPECT_LT(e_known, e_solve);
+    EXPECT_GT(e_ignored, 2.5 * e_known);
 }
