@@ -223,12 +223,15 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
             }
     }
     const std::vector<glm::vec3> a0 = out.albedo;
-    // Each particle's bounds: the least and the largest albedo of the pixels that read it.
+    // Each particle's data weight d_p, and its bounds: the least and the largest albedo of the
+    // pixels that read it.
+    std::vector<double> weight(particles.size(), 0.0);
     std::vector<glm::vec3> lo(particles.size()), hi(particles.size());
     parallel_for_chunks(particles.size(), threads, 4096, [&](unsigned, std::size_t b, std::size_t e) {
         for (std::size_t p = b; p < e; ++p) {
             glm::vec3 l(std::numeric_limits<float>::max()), h(0.0f);
             for (std::uint64_t k = first[p]; k < first[p + 1]; ++k) {
+                weight[p] += double(entry_weight[k]);
                 l = glm::min(l, data[entry_datum[k]].albedo);
                 h = glm::max(h, data[entry_datum[k]].albedo);
             }
@@ -239,7 +242,6 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
     std::vector<glm::vec3> residual(data.size());
     const double mu = static_cast<double>(fit.prior);
     const auto residuals = [&] {
-        std::vector<double> part(threads, 0.0), wpart(threads, 0.0);
         parallel_for_chunks(data.size(), threads, 65536, [&](unsigned, std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) {
                 const PixelDatum& d = data[i];
@@ -262,14 +264,11 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
         std::vector<double> change(particles.size(), 0.0);
         parallel_for_chunks(particles.size(), threads, 4096, [&](unsigned, std::size_t b, std::size_t e) {
             for (std::size_t p = b; p < e; ++p) {
-                if (first[p] == first[p + 1]) continue;
-                glm::dvec3 g(0.0);
-                double dp = 0.0;
-                for (std::uint64_t k = first[p]; k < first[p + 1]; ++k) {
-                    g += double(entry_weight[k]) * glm::dvec3(residual[entry_datum[k]]);
-                    dp += double(entry_weight[k]);
-                }
+                const double dp = weight[p];
                 if (!(dp > 0.0)) continue;
+                glm::dvec3 g(0.0);
+                for (std::uint64_t k = first[p]; k < first[p + 1]; ++k)
+                    g += double(entry_weight[k]) * glm::dvec3(residual[entry_datum[k]]);
                 const glm::dvec3 step = (g - mu * dp * (glm::dvec3(out.albedo[p]) - glm::dvec3(a0[p]))) / ((1.0 + mu) * dp);
                 next[p] = glm::clamp(glm::vec3(glm::dvec3(out.albedo[p]) + step), lo[p], hi[p]);
                 change[p] = glm::dot(glm::abs(glm::dvec3(next[p]) - glm::dvec3(out.albedo[p])), glm::dvec3(1.0 / 3.0));
