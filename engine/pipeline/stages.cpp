@@ -937,9 +937,8 @@ RefineStage refine_stage(PipelineRun& run, const Capture& capture, const Geometr
             r.pixel_fit = std::move(stats);
             return fit;
         });
-        log::info(format_text("albedo pixel fit: %llu train pixels (%llu samples), weighted RMS residual %.5f -> %.5f in %u iterations",
-                              static_cast<unsigned long long>(r.pixel_fit->pixels_used),
-                              static_cast<unsigned long long>(r.pixel_fit->samples_used), r.pixel_fit->rms.front(),
+        log::info(format_text("albedo pixel fit: %.0f train pixels (%.0f samples), weighted RMS residual %.5f -> %.5f in %.0f iterations",
+                              r.pixel_fit->pixels_used, r.pixel_fit->samples_used, r.pixel_fit->rms.front(),
                               r.pixel_fit->rms.back(), r.rounds));
     } else {
         gpu::Context* rc = run.render_context();

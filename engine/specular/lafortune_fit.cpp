@@ -983,6 +983,10 @@ ChannelRun fit_free(std::span<const LafortuneSample> samples, int channel, const
             double cost;
         };
         std::vector<Start> starts;
+        const Data grid_sub = (o.grid_samples > 0 && work.size() > o.grid_samples)
+                                  ? stride_subsample(work, o.grid_samples)
+                                  : Data{};
+        const Data& grid = grid_sub.size() > 0 ? grid_sub : work;
         for (std::size_t r : refs) {
             RobustModel model;
             model.ref_a = d.a[r];
@@ -991,10 +995,10 @@ ChannelRun fit_free(std::span<const LafortuneSample> samples, int channel, const
                 if (!(n0 > 0.0)) continue;
                 for (double phi : phis) {
                     Vec3 p(0.0, phi, std::clamp(std::log(n0), lm.min_l, lm.max_l));
-                    if (!solve_height(model, work, p)) continue;
+                    if (!solve_height(model, grid, p)) continue;
                     RobustModel mdl = model;
                     if (!mdl.prepare(p)) continue;
-                    const Eval e = evaluate(mdl, work, false);
+                    const Eval e = evaluate(mdl, grid, false);
                     if (e.ok) starts.push_back({model, p, e.cost});
                 }
             }
@@ -1009,6 +1013,10 @@ ChannelRun fit_free(std::span<const LafortuneSample> samples, int channel, const
         const std::size_t runs = std::min<std::size_t>(starts.size(), std::size_t(o.restarts) + 1);
         RobustModel model = starts.front().model;
         for (std::size_t k = 0; k < runs; ++k) {
+            if (&grid != &work) {
+                Vec3 p = starts[k].p; // the height on the samples LM runs on
+                if (solve_height(starts[k].model, work, p)) starts[k].p = p;
+            }
             LmResult r = levenberg_marquardt(starts[k].model, work, starts[k].p, lm, refine);
             out.iterations += r.iterations;
             if (r.finite && (!best.finite || r.cost < best.cost)) {

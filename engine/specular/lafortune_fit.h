@@ -145,6 +145,10 @@ struct LafortuneFitOptions {
     /// Robust: the fit is first run on at most this many samples (a deterministic stride
     /// subsample), then polished on all of them. 0 = always use all.
     std::uint32_t coarse_samples = 50000;
+    /// Robust: the grid of starts is ranked on a stride subsample of at most this many of
+    /// the coarse samples (0 = on all of them); the best starts' heights are solved again on
+    /// the coarse samples before LM. The ranking only picks where LM starts.
+    std::uint32_t grid_samples = 10000;
     /// Underdetermined when a relative standard error (Cx, Cz or N) exceeds this...
     double max_relative_error = 0.5;
     /// ...or this, when no sample reaches half of the lobe's reachable peak.
