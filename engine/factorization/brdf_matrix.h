@@ -43,6 +43,7 @@ struct BrdfMatrixInputs {
     FactorParam param = FactorParam::Gshd;
     glm::vec4 warp{1.0f}; ///< (s, k_r, k_g, k_b), FactorParam::Warped only (warp_for_lobe)
     float weight_q = 0.0f; ///< entries times (h.z d.z)^weight_q; 0: the model itself (in [0, 8])
+    unsigned threads = 1;  ///< brdf_matrix_cpu's workers (each entry is computed alone: the same for any count)
 };
 
 static_assert(static_cast<uint32_t>(FactorParam::Gshd) == shared::kGshdPlain &&

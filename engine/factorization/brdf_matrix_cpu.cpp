@@ -2,6 +2,7 @@
 #include "factorization/brdf_matrix.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 #include <cmath>
 #include <string>
@@ -38,7 +39,7 @@ BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in) {
     const bool warped = in.param == FactorParam::Warped;
     const shared::MaterialGpu material = material_gpu(in.model); // the parameters in float, as the kernel reads them
     const double q = in.weight_q;
-    for (std::size_t row = 0; row < rows; ++row) {
+    parallel_for(rows, in.threads, [&](std::size_t row) {
         const glm::dvec3 h = f64::gshd_grid_dir(static_cast<uint32_t>(row), in.res_h);
         for (std::size_t col = 0; col < cols; ++col) {
             const double weight = q != 0.0 ? std::pow(h.z * dgrid[col].z, q) : 1.0;
@@ -57,7 +58,7 @@ BrdfMatrix brdf_matrix_cpu(const BrdfMatrixInputs& in) {
                 m.values[(c * rows + row) * cols + col] = static_cast<float>(f64::gshd_clamp_value(glm::dvec3(f)).x);
             }
         }
-    }
+    });
     return m;
 }
 

@@ -11,6 +11,7 @@
 #include <utility>
 #include <iterator>
 #include <random>
+#include <thread>
 
 namespace specula::factorization {
 
@@ -339,12 +340,13 @@ Factorization factorize_cpu_param(const SpecularModel& model, const Factorizatio
     f.weighting = options.weighting;
     Stopwatch total;
     Stopwatch step;
+    const unsigned threads = options.threads != 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     BrdfMatrix m = brdf_matrix_cpu({.model = model, .res_h = f.resolution.grid_h, .res_d = f.resolution.grid_d,
-                                    .param = param, .warp = f.cubes.warp, .weight_q = f.weight_q});
+                                    .param = param, .warp = f.cubes.warp, .weight_q = f.weight_q, .threads = threads});
     f.timings.matrix_s = step.seconds();
     step.restart();
     Decomposition first = normalized_decomposition_cpu({.matrix = &m, .p = options.p, .weighting = options.weighting});
-    if (const uint32_t it = first_term_iterations(model, options, param); it > 0) first = refine_first_term_cpu(m, first, it);
+    if (const uint32_t it = first_term_iterations(model, options, param); it > 0) first = refine_first_term_cpu(m, first, it, threads);
     f.timings.decomposition_s = step.seconds();
     step.restart();
     const auto term_cubes = [&](const Decomposition& d) {
@@ -355,7 +357,8 @@ Factorization factorize_cpu_param(const SpecularModel& model, const Factorizatio
     const uint32_t kmax = terms_to_compute(model, options, param, note);
     std::vector<Decomposition> rest;
     if (kmax > 1)
-        rest = residual_terms_cpu({.matrix = &m, .first = &first, .terms = kmax, .iterations = options.iterations});
+        rest = residual_terms_cpu(
+            {.matrix = &m, .first = &first, .terms = kmax, .iterations = options.iterations, .threads = threads});
     f.terms = choose_terms(&m, first, rest, options, note); // on the (weighted) matrix the terms were fitted to
     rest.resize(f.terms.count - 1);
     f.timings.residual_s = step.seconds();

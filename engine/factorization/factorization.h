@@ -86,6 +86,8 @@ struct FactorizationOptions {
     /// Exponent q of the entries' weight (h.z d.z)^q (brdf_matrix.h: a weighted least-squares fit):
     /// nullopt = default_weight_exponent(model), 0 for every lafortune lobe.
     std::optional<float> weight_q;
+    /// The C++ path's workers (0: the hardware's); the result is the same for any count.
+    unsigned threads = 0;
 };
 
 /// The coated family's weight exponent (default_weight_exponent): 0 up to alpha

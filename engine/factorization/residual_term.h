@@ -32,6 +32,7 @@ struct ResidualTermsInputs {
     const Decomposition* first = nullptr; ///< term 1 (normalized decomposition) on the same grids
     uint32_t terms = 2;                   ///< K, total including term 1; 2..kMaxFactorTerms
     uint32_t iterations = kResidualIterations;
+    unsigned threads = 1; ///< the C++ path's workers (the result is the same for any count)
 };
 
 void residual_terms_validate(const ResidualTermsInputs& in);
@@ -46,7 +47,8 @@ void residual_terms_validate(const ResidualTermsInputs& in);
 /// the valid set changes from row to row, so on a matrix that is exactly rank 1 over its valid
 /// entries (the warped parametrization, shared/gshd.h part 5) term 1 keeps ~34% relative RMS;
 /// the least-squares fit has none. Non-negative F and a non-negative start stay non-negative.
-[[nodiscard]] Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations);
+[[nodiscard]] Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations,
+                                                   unsigned threads = 1);
 
 /// The Vulkan kernel: per term, 1 + 2 iterations dispatches separated by compute->compute
 /// barriers. g and h hold all K terms, term-major (term 0 already written at offset 0).

@@ -3,8 +3,10 @@
 #include "factorization/residual_term.h"
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace specula::factorization {
@@ -46,60 +48,72 @@ void residual_terms_validate(const ResidualTermsInputs& in) {
 namespace {
 
 /// Fits term k of `all` to F - sum_{j < active, j != k} G_j H_j: from the column RMS (cold) or
-/// from the term's current H (warm), then `iterations` (G, H) pairs.
+/// from the term's current H (warm), then `iterations` (G, H) pairs. Every G entry is a sum over
+/// its row's columns and every H entry a sum over its column's rows, each added in the shader's
+/// order by one worker: the same result for any thread count.
 void fit_term(const BrdfMatrix& m, std::vector<Decomposition>& all, uint32_t k, uint32_t active, bool warm,
-              uint32_t iterations) {
+              uint32_t iterations, unsigned threads) {
     const std::size_t rows = m.rows();
     const std::size_t cols = m.cols();
-    std::vector<double> r(rows * cols); // residual of one channel; NaN marks invalid entries
+    // The residual of one channel, a float as the shader holds it (exact in double); NaN marks
+    // invalid entries.
+    std::vector<float> r(rows * cols);
     std::vector<double> g(rows), h(cols);
+    std::vector<BlockedSum2> sums(cols); // one per column
+    constexpr std::size_t kRowChunk = 8, kColChunk = 1024;
+    // Each column's sum over the rows in row order, as the shader adds them, taken row by row
+    // over a range of columns (the matrix is row-major: a column at a time strode through all of it).
+    const auto column_sums = [&](auto&& add) {
+        parallel_for_chunks(cols, threads, kColChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+            for (std::size_t col = begin; col < end; ++col) sums[col] = BlockedSum2{};
+            for (std::size_t row = 0; row < rows; ++row) {
+                const float* rr = r.data() + row * cols;
+                for (std::size_t col = begin; col < end; ++col)
+                    if (!std::isnan(rr[col])) add(sums[col], double(rr[col]), row);
+            }
+        });
+    };
     Decomposition& t = all[k];
     for (uint32_t c = 0; c < 3; ++c) {
         const int ci = static_cast<int>(c);
-        for (std::size_t row = 0; row < rows; ++row)
-            for (std::size_t col = 0; col < cols; ++col) {
-                const float v = m.at(c, row, col);
-                if (v < 0.0f) {
-                    r[row * cols + col] = std::nan("");
-                    continue;
+        parallel_for_chunks(rows, threads, kRowChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+            for (std::size_t row = begin; row < end; ++row)
+                for (std::size_t col = 0; col < cols; ++col) {
+                    const float v = m.at(c, row, col);
+                    if (v < 0.0f) {
+                        r[row * cols + col] = std::numeric_limits<float>::quiet_NaN();
+                        continue;
+                    }
+                    // Same order as the shader: F - G_0 H_0 - G_1 H_1 ..., products of floats.
+                    float acc = v;
+                    for (uint32_t j = 0; j < active; ++j)
+                        if (j != k) acc -= all[j].g[row][ci] * all[j].h[col][ci];
+                    r[row * cols + col] = acc;
                 }
-                // Same order as the shader: F - G_0 H_0 - G_1 H_1 ..., products of floats.
-                float acc = v;
-                for (uint32_t j = 0; j < active; ++j)
-                    if (j != k) acc -= all[j].g[row][ci] * all[j].h[col][ci];
-                r[row * cols + col] = acc;
-            }
+        });
         // The shader reads back its own float G and H between passes: round the same way.
         if (warm) {
             for (std::size_t col = 0; col < cols; ++col) h[col] = t.h[col][ci];
         } else {
+            column_sums([](BlockedSum2& s, double x, std::size_t) { s.add(x * x, 0.0); });
             for (std::size_t col = 0; col < cols; ++col) {
-                BlockedSum2 s;
-                for (std::size_t row = 0; row < rows; ++row) {
-                    const double x = r[row * cols + col];
-                    if (std::isnan(x)) continue;
-                    s.add(x * x, 0.0);
-                }
+                const BlockedSum2& s = sums[col];
                 h[col] = static_cast<float>(s.count > 0 ? std::sqrt(s.num() / s.count) : 0.0);
             }
         }
         for (uint32_t it = 0; it < iterations; ++it) {
-            for (std::size_t row = 0; row < rows; ++row) {
-                BlockedSum2 s;
-                for (std::size_t col = 0; col < cols; ++col) {
-                    const double x = r[row * cols + col];
-                    if (std::isnan(x)) continue;
-                    s.add(x * h[col], h[col] * h[col]);
+            parallel_for_chunks(rows, threads, kRowChunk, [&](unsigned, std::size_t begin, std::size_t end) {
+                for (std::size_t row = begin; row < end; ++row) {
+                    BlockedSum2 s;
+                    const float* rr = r.data() + row * cols;
+                    for (std::size_t col = 0; col < cols; ++col)
+                        if (!std::isnan(rr[col])) s.add(double(rr[col]) * h[col], h[col] * h[col]);
+                    g[row] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
                 }
-                g[row] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
-            }
+            });
+            column_sums([&g](BlockedSum2& s, double x, std::size_t row) { s.add(x * g[row], g[row] * g[row]); });
             for (std::size_t col = 0; col < cols; ++col) {
-                BlockedSum2 s;
-                for (std::size_t row = 0; row < rows; ++row) {
-                    const double x = r[row * cols + col];
-                    if (std::isnan(x)) continue;
-                    s.add(x * g[row], g[row] * g[row]);
-                }
+                const BlockedSum2& s = sums[col];
                 h[col] = static_cast<float>(s.den() > 0.0 ? s.num() / s.den() : 0.0);
             }
         }
@@ -122,14 +136,14 @@ std::vector<Decomposition> residual_terms_cpu(const ResidualTermsInputs& in) {
     // F minus all the others, warm, also term 1) was measured and gains little: pepsi K = 4
     // matrix RMS 0.155 greedy, 0.144 with 6 cycles of terms 2..K, 0.132 with 10 cycles
     // including term 1 (plain GSHD; term 1 alone: refine_first_term_cpu).
-    for (uint32_t k = 1; k < in.terms; ++k) fit_term(m, all, k, k, false, in.iterations); // greedy deflation
+    for (uint32_t k = 1; k < in.terms; ++k) fit_term(m, all, k, k, false, in.iterations, in.threads); // greedy deflation
     return {std::make_move_iterator(all.begin() + 1), std::make_move_iterator(all.end())};
 }
 
-Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations) {
+Decomposition refine_first_term_cpu(const BrdfMatrix& m, const Decomposition& first, uint32_t iterations, unsigned threads) {
     residual_terms_validate({.matrix = &m, .first = &first, .terms = 2, .iterations = iterations});
     std::vector<Decomposition> all{first};
-    fit_term(m, all, 0, 1, true, iterations);
+    fit_term(m, all, 0, 1, true, iterations, threads);
     return std::move(all[0]);
 }
 

@@ -1082,6 +1082,7 @@ FactorizationStage factorization_stage(PipelineRun& run, const SpecularStage& sp
         fo.grid_d = config.factorization_grid_d;
         fo.param = config.factor_param;
         fo.shared_warp = config.shared_warp;
+        fo.threads = config.threads;
         return factorization::factorize(model, fo, backend, backend == Backend::Vulkan ? run.compute_context() : nullptr);
     });
     const factorization::Factorization& cubes = *f.cubes;
