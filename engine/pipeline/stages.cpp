@@ -885,7 +885,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         if (!r.rejected) kept_tag = " (joint round " + std::to_string(r.round) + ")";
     const auto samples_of_state = std::find_if(kept.begin(), kept.end(), [&](const auto& k) { return k.first == kept_tag; });
     s.core = run.stage("core material fit", [&] {
-        const CoreFitOptions co{.srgb_display = srgb_display};
+        const CoreFitOptions co{.srgb_display = srgb_display, .threads = config.threads};
         if (samples_of_state != kept.end()) return fit_core_material(samples_of_state->second, co);
         // The validated estimate's fit with no final round accepted: its samples are gone; the
         // final solve's residuals stand in (computed with the material that solve assumed).

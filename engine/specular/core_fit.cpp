@@ -1,5 +1,6 @@
 #include "specular/core_fit.h"
 
+#include "core/parallel.h"
 #include "core/timer.h"
 #include "shared/gltf_core.h"
 
@@ -7,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <vector>
 
 namespace specula {
@@ -184,13 +186,21 @@ CoreFit fit_core_material(std::span<const MaterialSample> samples, const CoreFit
     const double norm = 1.0 / (3.0 * wsum);
     out.diffuse_only_rms = std::sqrt(std::max(0.0, sums_at(s, 1.0, 1.0).yy * norm));
 
-    // Hypothesis A: glTF's base specular layer (roughness, F0, F90).
-    const auto [r_a, sse_a] = minimise_roughness([&](double r) { return solve_at(s, r).sse; }, options);
-    const Solution sol_a = solve_at(s, r_a);
-    // Hypothesis B: a clearcoat layer alone over the diffuse base (what a coated dielectric is: its
-    // diffuse dimmed by the coating's Fresnel at the viewer, which the base layer cannot do).
-    const auto [r_b, sse_b] = minimise_roughness([&](double r) { return solve_coat_at(s, r).sse; }, options);
-    const CoatSolution sol_b = solve_coat_at(s, r_b);
+    // Hypothesis A: glTF's base specular layer (roughness, F0, F90). Hypothesis B: a clearcoat
+    // layer alone over the diffuse base (what a coated dielectric is: its diffuse dimmed by the
+    // coating's Fresnel at the viewer, which the base layer cannot do). Independent searches.
+    double r_a = 0.0, sse_a = 0.0, r_b = 0.0, sse_b = 0.0;
+    Solution sol_a;
+    CoatSolution sol_b;
+    parallel_for(2, options.threads, [&](std::size_t hypothesis) {
+        if (hypothesis == 0) {
+            std::tie(r_a, sse_a) = minimise_roughness([&](double r) { return solve_at(s, r).sse; }, options);
+            sol_a = solve_at(s, r_a);
+        } else {
+            std::tie(r_b, sse_b) = minimise_roughness([&](double r) { return solve_coat_at(s, r).sse; }, options);
+            sol_b = solve_coat_at(s, r_b);
+        }
+    });
     if (sse_b < sse_a && sol_b.c > 0.0) {
         out.material = {.roughness = 1.0, .f0 = 0.0, .f90 = 0.0, .clearcoat = sol_b.c, .clearcoat_roughness = r_b};
         out.rms = std::sqrt(std::max(0.0, sse_b * norm));

@@ -38,6 +38,9 @@ struct CoreFitOptions {
     /// captures) instead of linear ones: each sample's weight times the square of the encoding's slope
     /// at its observed pixel value (Ebar b, channel mean).
     bool srgb_display = false;
+    /// Workers: the two hypotheses' searches side by side (each the same as alone: the same
+    /// result for any count).
+    unsigned threads = 1;
 };
 
 struct CoreFit {

@@ -46,8 +46,15 @@ TEST(CoreFit, RecoversTheCoreMaterialFromItsOwnSamples) {
     for (const CoreMaterial truth : {CoreMaterial{.roughness = 0.4, .f0 = 0.05, .f90 = 0.8},
                                      CoreMaterial{.roughness = 0.7, .f0 = 0.04, .f90 = 1.0},
                                      CoreMaterial{.roughness = 0.25, .f0 = 0.1, .f90 = 0.1}}) {
-        const CoreFit fit = fit_core_material(make_samples(core_material_gpu(truth), 30000, 5));
+        const std::vector<MaterialSample> samples = make_samples(core_material_gpu(truth), 30000, 5);
+        const CoreFit fit = fit_core_material(samples);
         ASSERT_TRUE(fit.fitted) << fit.note;
+        // The hypotheses searched side by side: the same fit.
+        const CoreFit two = fit_core_material(samples, {.threads = 2});
+        EXPECT_EQ(two.material.roughness, fit.material.roughness);
+        EXPECT_EQ(two.material.f0, fit.material.f0);
+        EXPECT_EQ(two.material.clearcoat, fit.material.clearcoat);
+        EXPECT_EQ(two.rms, fit.rms);
         EXPECT_NEAR(fit.material.roughness, truth.roughness, 0.005);
         EXPECT_NEAR(fit.material.f0, truth.f0, 0.002);
         EXPECT_NEAR(fit.material.f90, truth.f90, 0.01);
