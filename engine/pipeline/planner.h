@@ -168,6 +168,10 @@ inline constexpr std::size_t kIndirectMeasureFrames = 24;
 /// ratio sums over thousands of pixels; a capture that holds the light (the measure says on)
 /// gets the transfer of --indirect-rays for its rounds.
 inline constexpr std::uint32_t kIndirectMeasureRays = 36;
+/// ... and of blocks this many times as wide as the rounds' (indirect_block): a quarter of the rows
+/// again. The light a surface sends itself varies over the object's features, and the measure sums
+/// it over thousands of pixels.
+inline constexpr std::uint32_t kIndirectMeasureBlockScale = 2;
 struct IndirectMeasure {
     double p99_codes = 0.0;             ///< the predicted light's change of the object pixels, 99th percentile (codes)
     std::size_t shadow_pixels = 0;      ///< unlit object pixels with a prediction of at least one code

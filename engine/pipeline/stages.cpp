@@ -445,25 +445,33 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     }
     s.options = IndirectOptions{.bounces = config.indirect_bounces, .kernel = s.gather.get(), .lobe_kernel = s.lobe.get(),
                                 .threads = config.threads, .lobe_directions = config.indirect_lobe_directions};
-    // The planner's measure goes through a transfer of fewer rays (kIndirectMeasureRays) unless
-    // the stage is forced on; the rounds get one of --indirect-rays.
-    const std::uint32_t measure_rays =
-        config.indirect == Toggle::On ? config.indirect_rays : std::min(config.indirect_rays, kIndirectMeasureRays);
+    // The planner's measure goes through a transfer of fewer rays (kIndirectMeasureRays) and wider
+    // blocks (kIndirectMeasureBlockScale) unless the stage is forced on; the rounds get one of
+    // --indirect-rays on the decided blocks.
+    const bool forced_on = config.indirect == Toggle::On;
+    const std::uint32_t measure_rays = forced_on ? config.indirect_rays : std::min(config.indirect_rays, kIndirectMeasureRays);
+    const std::uint32_t measure_block = forced_on ? block : block * kIndirectMeasureBlockScale;
+    const bool measure_transfer = measure_rays != config.indirect_rays || measure_block != block;
     (void)run.plan().add(std::move(block_decision));
-    const auto build = [&](std::uint32_t rays) {
+    const auto build = [&](std::uint32_t rays, std::uint32_t b) {
         s.transfer = build_transfer(geometry.particles.particles, capture.mesh, *visibility.scene, geometry.atlas,
-                                    TransferOptions{.rays = rays, .block = block, .threads = config.threads},
+                                    TransferOptions{.rays = rays, .block = b, .threads = config.threads},
                                     &s.transfer_stats);
         log::info(format_text("indirect transfer: %.0f rows (blocks of %.0f x %.0f texels), %.0f rays each, %.0f entries "
                               "(%.1f a row), %.1f%% of the rays reached the object",
-                              double(s.transfer->rows), double(block), double(block),
+                              double(s.transfer->rows), double(b), double(b),
                               double(s.transfer->rays_per_row), double(s.transfer->entry_count()),
                               double(s.transfer->entry_count()) / std::max<double>(1.0, s.transfer->rows),
                               100.0 * double(s.transfer_stats.hits) / std::max<double>(1.0, double(s.transfer_stats.rays))));
     };
-    run.stage(measure_rays != config.indirect_rays ? "indirect transfer (measure)" : "indirect transfer", [&] {
-        build(measure_rays);
-        complete_visibility(run, capture, geometry, visibility, indirect_frames(capture, true), *s.transfer);
+    // The frames whose light rays the measure casts, toward its blocks' stand-ins only.
+    std::vector<std::size_t> measure_completed;
+    run.stage(measure_transfer ? "indirect transfer (measure)" : "indirect transfer", [&] {
+        build(measure_rays, measure_block);
+        const std::vector<std::size_t> frames = indirect_frames(capture, true);
+        for (const std::size_t f : frames)
+            if (!visibility.visibility.lit_complete[f]) measure_completed.push_back(f);
+        complete_visibility(run, capture, geometry, visibility, frames, *s.transfer);
         for (const View& view : capture.views)
             s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas,
                                                          geometry.particles.particles, config.threads));
@@ -488,10 +496,12 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
     }
     run.stage("indirect transfer", [&] {
         // Every frame: the rounds read the train frames, the evaluation adds the light to the test frames too.
+        if (measure_transfer) build(config.indirect_rays, block);
+        // The measure's frames were completed for its wider blocks' stand-ins: cast again for these rows'.
+        if (measure_block != block) uncomplete_lit(visibility.visibility, visibility.inputs.frame_view, measure_completed);
         std::vector<std::size_t> all(capture.desc.frames.size());
         for (std::size_t f = 0; f < all.size(); ++f) all[f] = f;
         complete_visibility(run, capture, geometry, visibility, all, *s.transfer);
-        if (measure_rays != config.indirect_rays) build(config.indirect_rays);
     });
     const IndirectScene scene = indirect_scene(s, geometry, visibility);
     run.stage("indirect light", [&] {

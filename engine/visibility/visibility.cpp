@@ -482,6 +482,20 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
     for (const ThreadCounts& c : counts) vis.stats.rays_completed += c.rays_cast;
 }
 
+void uncomplete_lit(Visibility& vis, std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames) {
+    if (frame_view.size() != vis.frame_count || vis.lit_complete.size() != vis.frame_count)
+        throw Error("uncomplete_lit: frame_view is not the one the visibility was computed for");
+    for (const std::size_t f : frames) {
+        if (f >= vis.frame_count) throw Error("uncomplete_lit: frame " + std::to_string(f) + " of " + std::to_string(vis.frame_count));
+        if (!vis.lit_complete[f]) continue;
+        if (frame_view[f] >= vis.view_count)
+            throw Error("uncomplete_lit: a frame names view " + std::to_string(frame_view[f]) + " of " + std::to_string(vis.view_count));
+        for (std::size_t p = 0; p < vis.particle_count; ++p)
+            if (!vis.sees(p, frame_view[f])) vis.lit[p * vis.frame_words + f / 32] &= ~(1u << (f % 32));
+        vis.lit_complete[f] = 0;
+    }
+}
+
 VisibilityInputs visibility_inputs(const Capture& capture) {
     VisibilityInputs in;
     in.views.reserve(capture.views.size());

@@ -173,6 +173,11 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
                   std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames, unsigned threads,
                   std::span<const std::uint32_t> stand_in = {});
 
+/// Undoes complete_lit for `frames`: the bits of the particles that do not see a frame's view are
+/// cleared and the frame marked incomplete, as compute_visibility with lit_seen_only left it (to
+/// complete it again with other stand-ins). Frames not complete are left as they are.
+void uncomplete_lit(Visibility& vis, std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames);
+
 /// The views (in capture.views order, each with the OR of its frames' pixel
 /// flags when images are loaded) and the lights of all frames (in
 /// capture.desc.frames order) of a capture.

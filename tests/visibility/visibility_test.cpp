@@ -425,6 +425,23 @@ TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
         }
     ASSERT_GT(unseen, 1000u);
     EXPECT_GT(static_cast<double>(agree), 0.95 * static_cast<double>(unseen)); // neighbours mostly share their light
+    // Completed for groups of 16 (the planner's measure, on wider blocks), then undone for some
+    // frames and completed again for the groups of 4: the bits of the groups of 4 alone.
+    {
+        std::vector<std::uint32_t> wide(n);
+        for (std::size_t p = 0; p < n; ++p) wide[p] = static_cast<std::uint32_t>(p - p % 16);
+        Visibility v = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, deferred);
+        const std::vector<std::size_t> measured = {1, 4, 9, 16};
+        complete_lit(v, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, measured, 2, wide);
+        ASSERT_NE(v.lit, completed(groups, 1).lit);
+        const std::vector<std::size_t> undo = {1, 4, 9, 16, 20}; // 20 is not complete: left as it is
+        uncomplete_lit(v, frame_view, undo);
+        for (const std::size_t f : undo) EXPECT_EQ(v.lit_complete[f], 0u) << f;
+        complete_lit(v, s.particles.particles, s.mesh, s.rays, views_of(cams), lights, frame_view, all, 2, groups);
+        EXPECT_EQ(v.lit, g.lit);
+        EXPECT_THROW(uncomplete_lit(v, {}, undo), Error);
+        EXPECT_THROW(uncomplete_lit(v, frame_view, std::vector<std::size_t>{lights.size()}), Error);
+    }
     // Stand-ins of the wrong count, out of range, or standing in through another are refused.
     Visibility b = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights, deferred);
     const auto refused = [&](std::vector<std::uint32_t> stand_in) {
