@@ -351,7 +351,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
             };
             // The views' rays first where the lights' depend on what the particle sees.
             const bool maps_answer = tap_shadows && options.shadow_maps_answer_lights;
-            if (seen_only || maps_answer) cast();
+            if (seen_only || tap_shadows) cast();
             for (std::uint32_t f = 0; f < lights.size(); ++f) {
                 const glm::vec3 light = glm::vec3(lights[f].position);
                 if (!faces(n, face, pos, light)) continue;
@@ -360,8 +360,20 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 if (skip_rays) {
                     lit[f / 32] |= 1u << (f % 32);
                     ++c.rays_avoided;
-                } else if (maps_answer && view_sees) {
-                    lit[f / 32] |= 1u << (f % 32); // the shadow map's test below decides
+                    continue;
+                }
+                if (tap_shadows && view_sees) {
+                    // A frame whose sample would read a dark pixel (its shadow map) does not light
+                    // the particle, whatever its own light ray would say: that ray is not cast.
+                    const Camera& cam = views[options.frame_view[f]].camera;
+                    const auto q = cam.project(glm::dvec3(pos));
+                    if (q && any_tap_set(cam, shadows[f], *q)) {
+                        ++c.shadow_edge_rejected;
+                        continue;
+                    }
+                }
+                if (maps_answer && view_sees) {
+                    lit[f / 32] |= 1u << (f % 32); // its taps are lit
                     ++c.rays_answered;
                 } else {
                     rays.push_back(scene.ray_toward(pos, n, light));
@@ -369,17 +381,6 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
                 }
             }
             cast();
-            // A lit frame whose sample would read a dark pixel (shadow map) does not light it.
-            for (std::uint32_t f = 0; f < shadows.size(); ++f) {
-                if (!((lit[f / 32] >> (f % 32)) & 1u)) continue;
-                const std::uint32_t v = options.frame_view[f];
-                if (!((seen[v / 32] >> (v % 32)) & 1u)) continue;
-                const auto q = views[v].camera.project(glm::dvec3(pos));
-                if (q && any_tap_set(views[v].camera, shadows[f], *q)) {
-                    lit[f / 32] &= ~(1u << (f % 32));
-                    ++c.shadow_edge_rejected;
-                }
-            }
 
             // Best view (thesis 3.1.2): smallest angle between the normal and the direction to the camera.
             float best = -2.0f;

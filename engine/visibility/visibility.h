@@ -104,7 +104,9 @@ struct VisibilityStats {
     std::size_t surface_maps = 0;    ///< views with a surface map (per-tap irradiance)
     std::uint64_t footprint_rejected = 0; ///< (particle, view) pairs dropped: a bilinear tap shows another surface
     std::uint64_t shadow_map_rays = 0;    ///< shadow rays of the per-frame pixel shadow maps
-    std::uint64_t shadow_edge_rejected = 0; ///< (particle, frame) pairs unlit: a bilinear tap is dark (cast shadow or facing away)
+    /// (particle, frame) pairs unlit without a light ray: the frame's view sees the particle and a
+    /// bilinear tap is dark in the frame's shadow map (cast shadow or facing away)
+    std::uint64_t shadow_edge_rejected = 0;
     std::uint64_t rays_answered = 0; ///< (particle, frame) pairs the shadow maps answered without a light ray (shadow_maps_answer_lights)
     ConvexityReport convexity;
     std::string skipped;             ///< why occlusion rays were skipped; empty when they were cast
