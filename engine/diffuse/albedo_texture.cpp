@@ -232,11 +232,11 @@ AlbedoTexture make_albedo_texture(const Atlas& atlas, std::span<const Particle> 
     return make_albedo_texture(atlas, particles, albedo, valid);
 }
 
-void write_albedo_texture(const AlbedoTexture& texture, const std::filesystem::path& stem) {
-    std::filesystem::path exr = stem, png = stem;
-    exr += ".exr";
+void write_albedo_texture(const AlbedoTexture& texture, const std::filesystem::path& stem, bool exr) {
+    std::filesystem::path exr_path = stem, png = stem;
+    exr_path += ".exr";
     png += ".png";
-    write_image(exr, texture.image, ColorSpace::Linear);
+    if (exr) write_image(exr_path, texture.image, ColorSpace::Linear);
     write_image(png, texture.image, ColorSpace::Srgb, 8);
 }
 

@@ -51,7 +51,7 @@ struct AlbedoTexture {
 [[nodiscard]] AlbedoTexture make_albedo_texture(const Atlas& atlas, std::span<const Particle> particles,
                                                 const LambertOutputs& solve);
 
-/// Writes `stem`.exr (linear float) and `stem`.png (sRGB, 8 bits).
-void write_albedo_texture(const AlbedoTexture& texture, const std::filesystem::path& stem);
+/// Writes `stem`.png (sRGB, 8 bits) and, with `exr`, `stem`.exr (linear float).
+void write_albedo_texture(const AlbedoTexture& texture, const std::filesystem::path& stem, bool exr = true);
 
 } // namespace specula

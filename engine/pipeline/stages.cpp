@@ -979,7 +979,9 @@ AlbedoTexture texture_stage(PipelineRun& run, const GeometryStage& geometry, con
         AlbedoTexture t = refine.refined ? make_albedo_texture(geometry.atlas, geometry.particles.particles, refine.refined->albedo,
                                                                refine.refined->valid)
                                          : make_albedo_texture(geometry.atlas, geometry.particles.particles, diffuse.solve);
-        write_albedo_texture(t, run.config.out_dir / "albedo");
+        // albedo.exr: the bundle stage writes it beside object.glb (the same texels) unless the
+        // bundle embeds the float albedo; one zip-compressed encode of 8 MB is 0.1 s.
+        write_albedo_texture(t, run.config.out_dir / "albedo", run.config.embed_float_albedo);
         return t;
     });
 }
@@ -1169,8 +1171,8 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
                                         {"transfer", {{"rays", indirect.transfer->rays_per_row},
                                                       {"block", indirect.transfer_stats.block}}},
                                         {"baked", false}};
-        // The float albedo beside the bundle by default: albedo.exr, which the albedo texture
-        // stage wrote already with the same texels (write_bundle writes it again, exactly).
+        // The float albedo beside the bundle by default: albedo.exr (the albedo texture stage
+        // writes it only when the bundle embeds it instead).
         write_bundle(run.config.out_dir / "object.glb", b,
                      {.float_albedo_file = run.config.embed_float_albedo ? std::string() : std::string("albedo.exr")});
         return b;
