@@ -21,6 +21,7 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
+#include <future>
 #include <limits>
 #include <map>
 #include <optional>
@@ -423,6 +424,15 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
         if (const std::optional<std::string> why = invalid_parameters(*bundle.core))
             throw InputError(path, "core." + why->substr(0, why->find(':')), *why);
     const float base_scale = bundle.core ? static_cast<float>(bundle.core->base_color_scale()) : 1.0f;
+    // The float albedo beside the bundle (OpenEXR, float32), compressed while the PNG is.
+    std::future<void> float_albedo;
+    if (!options.float_albedo_file.empty()) {
+        if (!is_plain_file_name(options.float_albedo_file))
+            throw InputError(path, "float_albedo_file", "\"" + options.float_albedo_file + "\" is not a plain file name");
+        float_albedo = std::async(std::launch::async, [&] {
+            write_image(path.parent_path() / options.float_albedo_file, albedo, ColorSpace::Linear);
+        });
+    }
     Image rgb(albedo.width, albedo.height, 3);
     for (std::size_t i = 0; i < static_cast<std::size_t>(albedo.width) * albedo.height; ++i)
         for (int c = 0; c < 3; ++c)
@@ -457,9 +467,7 @@ void write_bundle(const fs::path& path, const Bundle& bundle, const BundleWriteO
     if (options.float_albedo_file.empty()) {
         ext["albedo"]["bufferView"] = glb.add_view(albedo.pixels.data(), albedo.pixels.size() * sizeof(float));
     } else {
-        if (!is_plain_file_name(options.float_albedo_file))
-            throw InputError(path, "float_albedo_file", "\"" + options.float_albedo_file + "\" is not a plain file name");
-        write_image(path.parent_path() / options.float_albedo_file, albedo, ColorSpace::Linear); // OpenEXR, float32
+        float_albedo.get(); // its error, if any, here
         ext["albedo"]["uri"] = options.float_albedo_file;
     }
     const auto cube_json = [&](const CubeMap& c) {
