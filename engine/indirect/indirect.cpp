@@ -317,22 +317,28 @@ IndirectTransfer build_transfer(std::span<const Particle> particles, const Mesh&
 }
 
 ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene, const Atlas& atlas,
-                                  std::span<const Particle> particles, unsigned threads) {
+                                  std::span<const Particle> particles, unsigned threads, const PixelHits* hits) {
     ViewAtlasMap map;
     map.width = camera.intrinsics.w;
     map.height = camera.intrinsics.h;
     const std::size_t n = static_cast<std::size_t>(std::max(map.width, 0)) * static_cast<std::size_t>(std::max(map.height, 0));
+    std::optional<PixelHits> cast;
+    if (hits == nullptr) hits = &cast.emplace(cast_pixel_hits(scene, camera, threads));
+    if (hits->width != map.width || hits->height != map.height || hits->triangle.size() != n || hits->uv.size() != n)
+        throw Error("build_view_atlas_map: the pixel hits are not the camera's (" + std::to_string(hits->width) + "x" +
+                    std::to_string(hits->height) + " for a " + std::to_string(map.width) + "x" + std::to_string(map.height) +
+                    " image)");
     map.texel.assign(n, glm::vec2(-1.0f));
     map.cos_view.assign(n, 0.0f);
-    const glm::vec3 eye(camera.center());
     parallel_for(static_cast<std::size_t>(std::max(map.height, 0)), std::max(threads, 1u), [&](std::size_t y) {
         for (int x = 0; x < map.width; ++x) {
-            const glm::vec3 dir(camera.ray_direction(x + 0.5, static_cast<double>(y) + 0.5));
-            const std::optional<RayHit> hit = scene.intersect(eye, dir, 0.0f, std::numeric_limits<float>::infinity());
-            if (!hit) continue;
             const std::size_t k = y * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(x);
-            map.texel[k] = atlas_point(atlas, hit->triangle, hit->u, hit->v);
-            const SurfacePoint sp = surface_point(mesh, hit->triangle, glm::dvec2(hit->u, hit->v));
+            const std::uint32_t triangle = hits->triangle[k];
+            if (triangle == PixelHits::kMiss) continue;
+            const glm::vec2 uv = hits->uv[k];
+            const glm::vec3 dir(camera.ray_direction(x + 0.5, static_cast<double>(y) + 0.5));
+            map.texel[k] = atlas_point(atlas, triangle, uv.x, uv.y);
+            const SurfacePoint sp = surface_point(mesh, triangle, glm::dvec2(uv.x, uv.y));
             map.cos_view[k] = std::max(0.0f, -glm::dot(sp.normal, glm::normalize(dir)));
         }
     });

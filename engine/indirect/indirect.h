@@ -114,8 +114,11 @@ struct ViewAtlasMap {
     std::vector<float> cos_view;
     std::vector<std::uint32_t> reads;
 };
+/// `hits`: the view's pixel hits when the visibility kept them (Visibility::pixel_hits), else null:
+/// they are cast here, a ray a pixel.
 [[nodiscard]] ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const RayScene& scene,
-                                                const Atlas& atlas, std::span<const Particle> particles, unsigned threads = 2);
+                                                const Atlas& atlas, std::span<const Particle> particles, unsigned threads = 2,
+                                                const PixelHits* hits = nullptr);
 
 struct IndirectOptions {
     std::uint32_t bounces = 2;

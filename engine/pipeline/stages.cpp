@@ -179,6 +179,7 @@ VisibilityStage visibility_stage(PipelineRun& run, const Capture& capture, const
                                                     .skip_rays = !cast_rays,
                                                     .frame_view = v.inputs.frame_view,
                                                     .surface_maps = run.config.lambert.tap_irradiance,
+                                                    .keep_pixel_hits = true, // the indirect measure's and the pixel fit's
                                                     .lit_seen_only = true,
                                                     .shadow_maps_answer_lights = run.config.light_rays_from_shadow_maps});
     });
@@ -473,8 +474,10 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
             if (!visibility.visibility.lit_complete[f]) measure_completed.push_back(f);
         complete_visibility(run, capture, geometry, visibility, frames, *s.transfer);
         for (const View& view : capture.views)
-            s.view_maps.push_back(build_view_atlas_map(view.camera, capture.mesh, *visibility.scene, geometry.atlas,
-                                                         geometry.particles.particles, config.threads));
+            s.view_maps.push_back(build_view_atlas_map(
+                view.camera, capture.mesh, *visibility.scene, geometry.atlas, geometry.particles.particles, config.threads,
+                s.view_maps.size() < visibility.visibility.pixel_hits.size() ? &visibility.visibility.pixel_hits[s.view_maps.size()]
+                                                                              : nullptr));
     });
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     std::size_t left_out = 0;  // by the last pass: the next solve's
@@ -943,7 +946,9 @@ RefineStage refine_stage(PipelineRun& run, const Capture& capture, const Geometr
             AlbedoRefineResult fit =
                 fit_albedo_to_pixels(capture.mesh, *visibility.scene, geometry.atlas, geometry.particles.particles, diffuse.inputs,
                                      diffuse.solve, diffuse.options,
-                                     PixelFitOptions{.iterations = r.rounds, .threads = run.config.threads}, &stats);
+                                     PixelFitOptions{.iterations = r.rounds, .threads = run.config.threads,
+                                                     .view_hits = visibility.visibility.pixel_hits},
+                                     &stats);
             r.pixel_fit = std::move(stats);
             return fit;
         });

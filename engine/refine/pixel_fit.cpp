@@ -12,6 +12,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <string>
 
 namespace specula {
 
@@ -32,7 +34,7 @@ struct PixelDatum {
 
 // What the ray through a pixel's centre hits: the atlas point (texel coordinates), the surface
 // point and its interpolated normal.
-struct PixelHit {
+struct PixelPoint {
     glm::vec2 texel{-1.0f};
     glm::vec3 x{0.0f};
     glm::vec3 n{0.0f};
@@ -76,20 +78,26 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
         if (view.frames.empty()) continue;
         const Camera& cam = view.camera;
         const int w = cam.intrinsics.w, h = cam.intrinsics.h;
-        const glm::vec3 eye(cam.center());
         Stopwatch sw;
-        std::vector<PixelHit> hits(std::size_t(w) * std::size_t(h));
+        std::vector<PixelPoint> hits(std::size_t(w) * std::size_t(h));
+        const glm::vec3 eye(cam.center());
+        std::optional<PixelHits> cast;
+        const PixelHits& view_hits =
+            vi < fit.view_hits.size() ? fit.view_hits[vi] : cast.emplace(cast_pixel_hits(scene, cam, threads));
+        if (view_hits.width != w || view_hits.height != h || view_hits.triangle.size() != hits.size() ||
+            view_hits.uv.size() != hits.size())
+            throw Error("albedo pixel fit: view " + std::to_string(vi) + "'s pixel hits are not its camera's");
         parallel_for(static_cast<std::size_t>(h), threads, [&](std::size_t y) {
             for (int x = 0; x < w; ++x) {
-                const glm::vec3 dir(cam.ray_direction(x + 0.5, static_cast<double>(y) + 0.5));
-                const std::optional<RayHit> hit = scene.intersect(eye, dir, 0.0f, std::numeric_limits<float>::infinity());
-                if (!hit) continue;
-                PixelHit& ph = hits[y * std::size_t(w) + std::size_t(x)];
-                const glm::dvec2 c0 = atlas.corner_texel(hit->triangle, 0), c1 = atlas.corner_texel(hit->triangle, 1),
-                                 c2 = atlas.corner_texel(hit->triangle, 2);
-                const double u = hit->u, v = hit->v;
+                const std::size_t k = y * std::size_t(w) + std::size_t(x);
+                const std::uint32_t triangle = view_hits.triangle[k];
+                if (triangle == PixelHits::kMiss) continue;
+                PixelPoint& ph = hits[k];
+                const glm::dvec2 c0 = atlas.corner_texel(triangle, 0), c1 = atlas.corner_texel(triangle, 1),
+                                 c2 = atlas.corner_texel(triangle, 2);
+                const double u = view_hits.uv[k].x, v = view_hits.uv[k].y;
                 ph.texel = glm::vec2((1.0 - u - v) * c0 + u * c1 + v * c2);
-                const SurfacePoint sp = surface_point(mesh, hit->triangle, glm::dvec2(u, v));
+                const SurfacePoint sp = surface_point(mesh, triangle, glm::dvec2(u, v));
                 ph.x = sp.position;
                 ph.n = sp.normal;
             }
@@ -105,7 +113,7 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
             std::vector<double> q, esum;
             std::vector<std::uint8_t> kept;
             for (int x = 0; x < w; ++x) {
-                const PixelHit& ph = hits[std::size_t(y) * std::size_t(w) + std::size_t(x)];
+                const PixelPoint& ph = hits[std::size_t(y) * std::size_t(w) + std::size_t(x)];
                 if (ph.texel.x < 0.0f) continue;
                 ++row_pixels[yy];
                 // Not on a silhouette: every 8-neighbour shows the surface too.

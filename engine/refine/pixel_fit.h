@@ -40,6 +40,7 @@
 #include "geometry/particles.h"
 #include "geometry/ray_scene.h"
 #include "refine/albedo_refine.h"
+#include "visibility/visibility.h"
 
 #include <cstdint>
 #include <span>
@@ -50,6 +51,9 @@ struct PixelFitOptions {
     std::uint32_t iterations = 8; ///< Jacobi iterations
     float prior = 0.05f;          ///< mu, toward the solve's albedo
     unsigned threads = 2;
+    /// Per view of the inputs (LambertInputs::views), the pixel hits the visibility kept
+    /// (Visibility::pixel_hits); empty: the rays are cast here.
+    std::span<const PixelHits> view_hits;
 };
 
 struct PixelFitStats {

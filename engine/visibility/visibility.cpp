@@ -55,6 +55,19 @@ std::vector<PixelHit> depth_map(const RayScene& scene, const Camera& cam, unsign
     return depth;
 }
 
+PixelHits to_pixel_hits(const Camera& cam, const std::vector<PixelHit>& depth) {
+    PixelHits out;
+    out.width = cam.intrinsics.w;
+    out.height = cam.intrinsics.h;
+    out.triangle.resize(depth.size());
+    out.uv.resize(depth.size());
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+        out.triangle[i] = depth[i].t == kNoHit ? PixelHits::kMiss : depth[i].triangle;
+        out.uv[i] = glm::vec2(depth[i].u, depth[i].v);
+    }
+    return out;
+}
+
 // Barycentrics (s, t) of point q in the plane of triangle (a, b, c): q = (1 - s - t) a + s b + t c.
 glm::vec2 barycentrics(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, const glm::vec3& q) {
     const glm::vec3 e1 = b - a, e2 = c - a, d = q - a;
@@ -264,6 +277,7 @@ Visibility compute_visibility(std::span<const Particle> particles, const Mesh& m
         depth[v] = depth_map(scene, views[v].camera, std::max(1u, options.threads));
         st.depth_rays += depth[v].size();
         if (options.surface_maps) vis.surfaces.push_back(surface_map(mesh, views[v].camera, depth[v]));
+        if (options.keep_pixel_hits) vis.pixel_hits.push_back(to_pixel_hits(views[v].camera, depth[v]));
     }
     st.surface_maps = vis.surfaces.size();
     const bool tap_shadows = footprint_test && !options.frame_view.empty();
@@ -481,6 +495,10 @@ void complete_lit(Visibility& vis, std::span<const Particle> particles, const Me
         });
     for (const std::uint32_t f : todo) vis.lit_complete[f] = 1;
     for (const ThreadCounts& c : counts) vis.stats.rays_completed += c.rays_cast;
+}
+
+PixelHits cast_pixel_hits(const RayScene& scene, const Camera& camera, unsigned threads) {
+    return to_pixel_hits(camera, depth_map(scene, camera, std::max(1u, threads)));
 }
 
 void uncomplete_lit(Visibility& vis, std::span<const std::uint32_t> frame_view, std::span<const std::size_t> frames) {

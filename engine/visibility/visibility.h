@@ -39,6 +39,19 @@
 
 namespace specula {
 
+/// What the ray through each pixel centre of a view hits first (the camera centre's ray,
+/// RayScene::intersect from t = 0 on): row-major w x h, the triangle (kMiss where the ray leaves
+/// the mesh) and the hit's barycentrics (u, v).
+struct PixelHits {
+    static constexpr std::uint32_t kMiss = 0xffffffffu;
+    int width = 0;
+    int height = 0;
+    std::vector<std::uint32_t> triangle;
+    std::vector<glm::vec2> uv;
+};
+/// One ray a pixel of `camera`, on `threads` workers.
+[[nodiscard]] PixelHits cast_pixel_hits(const RayScene& scene, const Camera& camera, unsigned threads);
+
 struct VisibilityView {
     Camera camera;
     /// Optional per-pixel PixelFlag sets, w x h row-major (FrameImage::flags);
@@ -74,6 +87,9 @@ struct VisibilityOptions {
     /// for the per-tap irradiance of the diffuse solve and the residual samples
     /// (shared/lambert.h). Its rays are the footprint test's depth rays where that test runs.
     bool surface_maps = true;
+    /// Keep each view's PixelHits (Visibility::pixel_hits: 12 bytes a pixel) where its depth rays
+    /// are cast (the footprint test or the surface maps), for the passes that would cast them again.
+    bool keep_pixel_hits = false;
     /// With frame_view: cast a frame's light rays only for the particles its view sees (the
     /// solves and the residuals read no other pair); the other particles' bits of that frame
     /// stay clear until complete_lit casts them (the indirect light, whose emitters need not be
@@ -142,6 +158,7 @@ struct Visibility {
     std::vector<std::uint32_t> lit;      ///< particle_count * frame_words
     std::vector<std::int32_t> best_view; ///< particle_count
     std::vector<SurfaceMap> surfaces;    ///< per view when VisibilityOptions::surface_maps, else empty
+    std::vector<PixelHits> pixel_hits;   ///< per view when VisibilityOptions::keep_pixel_hits (and depth rays), else empty
     /// Per frame: 1 when its lit bits hold for every particle, 0 when only for the particles
     /// its view sees (VisibilityOptions::lit_seen_only, until complete_lit).
     std::vector<std::uint8_t> lit_complete;

@@ -25,13 +25,16 @@ struct Fitted {
 };
 
 Fitted fit_scene(const test::DiffuseScene& s, const LambertOptions& o, unsigned threads = 2,
-                 std::uint32_t iterations = PixelFitOptions{}.iterations) {
+                 std::uint32_t iterations = PixelFitOptions{}.iterations, bool given_hits = false) {
     const LambertInputs in = s.inputs();
     Fitted f;
     f.solve = lambert_solve_cpu(in, o);
     const RayScene scene(s.capture.mesh);
+    std::vector<PixelHits> hits; // as the visibility keeps them
+    if (given_hits)
+        for (const LambertView& view : in.views) hits.push_back(cast_pixel_hits(scene, view.camera, 1));
     f.fit = fit_albedo_to_pixels(s.capture.mesh, scene, s.atlas, s.particles.particles, in, f.solve, o,
-                                 PixelFitOptions{.iterations = iterations, .threads = threads}, &f.stats);
+                                 PixelFitOptions{.iterations = iterations, .threads = threads, .view_hits = hits}, &f.stats);
     return f;
 }
 
@@ -115,6 +118,11 @@ TEST(PixelFit, SameResultForAnyThreadCount) {
     EXPECT_EQ(std::memcmp(one.fit.albedo.data(), two.fit.albedo.data(), one.fit.albedo.size() * sizeof(glm::vec3)), 0);
     EXPECT_EQ(one.stats.pixels_used, two.stats.pixels_used);
     EXPECT_EQ(one.stats.samples_used, two.stats.samples_used);
+    // The views' pixel hits given (the visibility's, as the pipeline passes them): the same fit.
+    const Fitted given = fit_scene(s, {}, 2, 3, true);
+    ASSERT_EQ(given.fit.albedo.size(), one.fit.albedo.size());
+    EXPECT_EQ(std::memcmp(given.fit.albedo.data(), one.fit.albedo.data(), one.fit.albedo.size() * sizeof(glm::vec3)), 0);
+    EXPECT_EQ(given.stats.pixels_used, one.stats.pixels_used);
 }
 
 // A coated truth (a Lambertian base under a dielectric coating, a GGX reflection: not the

@@ -385,6 +385,26 @@ TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
 
 // complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
 // another casts no ray and takes that one's bit where its own view does not see it.
+// The pixel hits the visibility keeps (its depth rays) are what a ray a pixel finds.
+TEST(Visibility, KeptPixelHitsAreTheCamerasRays) {
+    const TorusFrames t;
+    const auto& [cams, s, lights, frame_view] = t;
+    const Visibility v = compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights,
+                                            VisibilityOptions{.frame_view = frame_view, .keep_pixel_hits = true});
+    ASSERT_EQ(v.pixel_hits.size(), cams.size());
+    std::size_t hits = 0;
+    for (std::size_t k = 0; k < cams.size(); ++k) {
+        const PixelHits cast = cast_pixel_hits(s.rays, cams[k], 2);
+        EXPECT_EQ(v.pixel_hits[k].width, cams[k].intrinsics.w);
+        EXPECT_EQ(v.pixel_hits[k].triangle, cast.triangle);
+        EXPECT_EQ(v.pixel_hits[k].uv, cast.uv);
+        for (const std::uint32_t tri : cast.triangle) hits += tri != PixelHits::kMiss ? 1u : 0u;
+    }
+    EXPECT_GT(hits, 1000u);
+    EXPECT_TRUE(compute_visibility(s.particles.particles, s.mesh, s.rays, views_of(cams), lights,
+                                   VisibilityOptions{.frame_view = frame_view}).pixel_hits.empty());
+}
+
 TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
     const TorusFrames t;
     const auto& [cams, s, lights, frame_view] = t;
