@@ -166,7 +166,8 @@ struct LafortuneFitOptions {
     /// Refuse (free) or bound (constrained) lobes above the white-furnace bound by less than 2
     /// standard errors of ln(albedo).
     bool white_furnace = true;
-    /// Worker threads: the three channels' free fits run side by side (the fit is the same for any count).
+    /// Worker threads: above 1, the three channels' free fits run side by side, a thread each (the
+    /// fit is the same for any count).
     unsigned threads = 1;
 };
 
