@@ -57,14 +57,15 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     VisibilityStage visibility = visibility_stage(run, capture, geometry); // the indirect stage completes its lit bits
     DiffuseStage diffuse = diffuse_stage(run, capture, geometry, visibility, lambert);
     IndirectStage indirect = indirect_stage(run, capture, geometry, visibility, diffuse); // may correct `diffuse`'s images
-    // The views' pixel hits: the indirect measure's atlas maps took them; the pixel fit takes them
-    // (12 bytes a pixel, 42 MB on the knot at 384 px).
-    if (config.refine_method != RefineMethod::Pixels) decltype(visibility.visibility.pixel_hits)().swap(visibility.visibility.pixel_hits);
+    // The views' pixel hits (12 bytes a pixel, 42 MB on the knot at 384 px): the indirect
+    // measure's atlas maps took them; the pixel fit takes them, released after it.
+    const auto release_pixel_hits = [&] { decltype(visibility.visibility.pixel_hits)().swap(visibility.visibility.pixel_hits); };
+    if (config.refine_method != RefineMethod::Pixels) release_pixel_hits();
     const SpecularStage specular = specular_stage(run, diffuse, display_is_srgb(capture)); // joint rounds update `diffuse`
     indirect_update_stage(run, capture, geometry, visibility, specular, indirect, diffuse);
     atlas_decision(run, geometry);
     const RefineStage refine = refine_stage(run, capture, geometry, visibility, diffuse);
-    decltype(visibility.visibility.pixel_hits)().swap(visibility.visibility.pixel_hits);
+    release_pixel_hits();
     const AlbedoTexture texture = texture_stage(run, geometry, diffuse, refine);
     const NormalMapStage normals = normal_map_stage(run, geometry, diffuse);
     const FactorizationStage factorization = factorization_stage(run, specular);
