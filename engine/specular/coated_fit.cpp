@@ -475,17 +475,9 @@ CoatedFit fit_once(std::span<const MaterialSample> samples, const CoatedFitOptio
         fit.seconds = watch.seconds();
         return fit;
     }
-    // The reweightings on the subsample, the last one and its LM on all the samples (the weights
-    // settle within the first passes; each pass on all of them was most of the fit's time).
-    std::vector<Prepared> irls = coarse;
-    std::vector<double> irls_w(irls.size());
-    for (std::size_t i = 0; i < irls.size(); ++i) irls_w[i] = irls[i].w;
-    const bool subsampled = coarse.size() < all.size();
     for (std::uint32_t pass = 0; pass <= o.robust_passes; ++pass) {
-        const bool on_all = !subsampled || pass == o.robust_passes;
-        std::vector<Prepared>& set = on_all ? all : irls;
-        if (pass > 0) reweight(set, on_all ? base_w : irls_w, best.p, best.linear);
-        const LmResult r = levenberg_marquardt(set, best.p, o, threads);
+        if (pass > 0) reweight(all, base_w, best.p, best.linear);
+        const LmResult r = levenberg_marquardt(all, best.p, o, threads);
         fit.iterations += r.iterations;
         best = r;
     }

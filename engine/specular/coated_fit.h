@@ -20,13 +20,11 @@
 // complement of J^T J); eta and s both scale the diffuse term, and with them held fixed the
 // iteration crept along that valley (40 to 96 iterations a run on the demo can, 5 to 17 now).
 //
-// Starts: a grid over (ln alpha, eta) on a stride subsample; LM from the best cells on it.
-// Robust: iteratively reweighted (Huber weights, k = 1.345 robust sigmas, sigma from the median
-// absolute residual): clipped highlights are already dropped by the residual pass, and what
-// remains of shadow edges and of light that bounced off the object itself counts linearly, not
-// quadratically. The reweightings but the last run on the subsample, the last one and its LM on
-// all the samples (every pass on all of them: the same parameters within 0.015% on the coated
-// can and knot at 512 px, in 1.5 times the time).
+// Starts: a grid over (ln alpha, eta) on a stride subsample; LM from the best cells, on all the
+// samples. Robust: iteratively reweighted (Huber weights, k = 1.345 robust sigmas, sigma from
+// the median absolute residual): clipped highlights are already dropped by the residual pass,
+// and what remains of shadow edges and of light that bounced off the object itself counts
+// linearly, not quadratically.
 //
 // Uncertainty as the Lafortune fit reports it: standard errors sqrt(diag(s^2 (J^T J)^-1)),
 // s^2 = cost / (m - p), the condition number of J^T J (column-scaled), iterations and cost;
