@@ -383,8 +383,6 @@ TEST(Visibility, TheShadowMapsAnswerForTheLightRays) {
     EXPECT_LE(lit_differ, lit_pairs / 100000);
 }
 
-// complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
-// another casts no ray and takes that one's bit where its own view does not see it.
 // The pixel hits the visibility keeps (its depth rays) are what a ray a pixel finds.
 TEST(Visibility, KeptPixelHitsAreTheCamerasRays) {
     const TorusFrames t;
@@ -405,6 +403,8 @@ TEST(Visibility, KeptPixelHitsAreTheCamerasRays) {
                                    VisibilityOptions{.frame_view = frame_view}).pixel_hits.empty());
 }
 
+// complete_lit with stand-ins (the indirect light's blocks): a particle whose stand-in is
+// another casts no ray and takes that one's bit where its own view does not see it.
 TEST(Visibility, CompletedWithStandInsTakesTheirBitsWhereUnseen) {
     const TorusFrames t;
     const auto& [cams, s, lights, frame_view] = t;
