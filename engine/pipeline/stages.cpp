@@ -473,11 +473,11 @@ IndirectStage indirect_stage(PipelineRun& run, const Capture& capture, const Geo
         for (const std::size_t f : frames)
             if (!visibility.visibility.lit_complete[f]) measure_completed.push_back(f);
         complete_visibility(run, capture, geometry, visibility, frames, *s.transfer);
-        for (const View& view : capture.views)
-            s.view_maps.push_back(build_view_atlas_map(
-                view.camera, capture.mesh, *visibility.scene, geometry.atlas, geometry.particles.particles, config.threads,
-                s.view_maps.size() < visibility.visibility.pixel_hits.size() ? &visibility.visibility.pixel_hits[s.view_maps.size()]
-                                                                              : nullptr));
+        const std::vector<PixelHits>& hits = visibility.visibility.pixel_hits; // empty where not kept: cast here
+        for (std::size_t v = 0; v < capture.views.size(); ++v)
+            s.view_maps.push_back(build_view_atlas_map(capture.views[v].camera, capture.mesh, *visibility.scene, geometry.atlas,
+                                                         geometry.particles.particles, config.threads,
+                                                         v < hits.size() ? &hits[v] : nullptr));
     });
     std::vector<glm::vec3> albedo = solved_albedo(geometry, diffuse.solve);
     std::size_t left_out = 0;  // by the last pass: the next solve's
