@@ -74,14 +74,15 @@ void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, cons
 }
 
 // The residual samples of `solve` (solved with `options`, whose material it subtracted) on the
-// run's per-particle backend, timed as `name`.
+// run's per-particle backend, timed as `name`; with fit_samples, only those a fit of that many takes.
 ResidualSamples run_residuals(PipelineRun& run, const LambertInputs& inputs, const LambertOutputs& solve,
-                              const LambertOptions& options, const std::string& name) {
+                              const LambertOptions& options, const std::string& name, std::size_t fit_samples = 0) {
     const ResidualOptions ro{.min_light_cos = options.min_light_cos,
                              .material = options.material,
                              .tap_irradiance = options.tap_irradiance,
                              .max_binding_bytes = 0,
                              .max_albedo_spread = 0.02f,
+                             .fit_samples = fit_samples,
                              .threads = options.threads};
     ResidualSamples rs = run.stage(name, [&] {
         return run.on_particle_backend("residual samples", [&](Backend b) {
@@ -576,8 +577,10 @@ JointSteps material_steps(PipelineRun& run, SpecularStage& s, const LambertInput
     steps.solve = [&run, &inputs, label](const LambertOptions& o, const std::string& tag) {
         return run_solve(run, inputs, o, "diffuse solve" + label + tag);
     };
-    steps.residuals = [&run, &inputs, label](const LambertOutputs& solve, const LambertOptions& o, const std::string& tag) {
-        return run_residuals(run, inputs, solve, o, "residual samples" + label + tag);
+    // The rounds' samples go to the fit only: those it takes are made (ResidualOptions::fit_samples).
+    steps.residuals = [&run, &inputs, label, max = fo.max_samples](const LambertOutputs& solve, const LambertOptions& o,
+                                                                   const std::string& tag) {
+        return run_residuals(run, inputs, solve, o, "residual samples" + label + tag, max);
     };
     steps.fit = [&run, &s, family, fo, label](const ResidualSamples& rs, const std::string& tag) {
         return run.stage(std::string(to_string(family)) + " fit" + (label.empty() ? "" : " (validation split)") + tag, [&] {

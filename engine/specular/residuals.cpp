@@ -13,7 +13,16 @@ ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& 
     if (backend == Backend::Cpu) return residual_samples_cpu(in, diffuse, options);
     if (ctx == nullptr) throw UsageError("residual_samples: the Vulkan backend needs a gpu::Context");
     ResidualsVk kernel(*ctx);
-    return kernel.run(in, diffuse, options);
+    ResidualSamples rs = kernel.run(in, diffuse, options);
+    if (options.fit_samples != 0) { // the C++ pass makes only these; the kernel's are thinned to them
+        const std::size_t stride = used_sample_stride(rs.samples, options.fit_samples);
+        std::size_t kept = 0, used = 0;
+        for (const ResidualSample& s : rs.samples)
+            if (s.status == shared::kResidualUsed && used++ % stride == 0) rs.samples[kept++] = s;
+        rs.samples.resize(kept);
+        rs.samples.shrink_to_fit();
+    }
+    return rs;
 }
 
 bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& o) {

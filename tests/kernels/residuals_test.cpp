@@ -126,6 +126,43 @@ TEST(Residuals, BoundedConversionIsTheStrideSubsampleOfTheWhole) {
     }
 }
 
+// With fit_samples the pass returns only what a fit of that many takes from all of them: the
+// same samples byte for byte, in the same order (the C++ pass makes them again from their
+// names), with the counts of the whole; with the memory bound's stride too, and any threads.
+TEST(Residuals, ThinnedForAFitAreTheFitsSubsampleOfTheWhole) {
+    const LambertInputs in = scene().inputs();
+    for (const std::uint64_t max_kept : {std::uint64_t{0}, std::uint64_t{5000}}) {
+        std::vector<std::uint32_t> pa;
+        const ResidualSamples all = residual_samples_cpu(in, diffuse(), {.max_kept_samples = max_kept, .threads = 2}, &pa);
+        for (const std::size_t fit : {std::size_t{700}, std::size_t{2999}, all.samples.size()}) {
+            for (const unsigned threads : {1u, 3u}) {
+                std::vector<std::uint32_t> pt;
+                const ResidualSamples thin = residual_samples_cpu(
+                    in, diffuse(), {.max_kept_samples = max_kept, .fit_samples = fit, .threads = threads}, &pt);
+                expect_same_counts(all.counts, thin.counts);
+                EXPECT_EQ(all.keep_stride, thin.keep_stride);
+                const std::size_t stride = used_sample_stride(all.samples, fit);
+                if (fit < all.samples.size()) {
+                    EXPECT_GE(stride, 2u) << fit;
+                }
+                ASSERT_EQ(thin.samples.size(), (all.samples.size() + stride - 1) / stride) << fit;
+                EXPECT_LE(thin.samples.size(), fit);
+                ASSERT_EQ(pt.size(), thin.samples.size());
+                for (std::size_t i = 0; i < thin.samples.size(); ++i) {
+                    ASSERT_EQ(0, std::memcmp(&thin.samples[i], &all.samples[i * stride], sizeof(ResidualSample)))
+                        << "fit " << fit << " sample " << i;
+                    ASSERT_EQ(pt[i], pa[i * stride]) << "fit " << fit << " sample " << i;
+                }
+                // What the fit converts: the same with or without the thinning.
+                const std::vector<MaterialSample> m = to_material_samples(all.samples, fit);
+                const std::vector<MaterialSample> mt = to_material_samples(thin.samples, fit);
+                ASSERT_EQ(m.size(), mt.size());
+                for (std::size_t i = 0; i < m.size(); ++i) ASSERT_EQ(m[i].b, mt[i].b) << i;
+            }
+        }
+    }
+}
+
 using ResidualsConformance = test::VulkanTest;
 
 TEST_F(ResidualsConformance, VulkanMatchesCpuReference) {
@@ -155,6 +192,14 @@ TEST_F(ResidualsConformance, VulkanMatchesCpuReference) {
             below_one = below_one || q.d.w < 0.95f;
         }
     EXPECT_TRUE(below_one); // the coating's fall-off reaches the samples
+    // Thinned for a fit: the kernel's samples thinned as the C++ pass makes them.
+    const ResidualOptions thin{.fit_samples = 2999};
+    const ResidualSamples ref_thin = residual_samples_cpu(in, diffuse(), thin);
+    const ResidualSamples vk_thin = residual_samples(in, diffuse(), thin, Backend::Vulkan, &ctx());
+    EXPECT_LE(ref_thin.samples.size(), 2999u);
+    EXPECT_LT(ref_thin.samples.size(), ref.samples.size());
+    expect_same_counts(ref_thin.counts, vk_thin.counts);
+    expect_same_samples(ref_thin, vk_thin);
 }
 
 TEST_F(ResidualsConformance, BatchedAndChunkedUnderASmallBindingLimit) {
