@@ -14,15 +14,18 @@ ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& 
     if (ctx == nullptr) throw UsageError("residual_samples: the Vulkan backend needs a gpu::Context");
     ResidualsVk kernel(*ctx);
     ResidualSamples rs = kernel.run(in, diffuse, options);
-    if (options.fit_samples != 0) { // the C++ pass makes only these; the kernel's are thinned to them
-        const std::size_t stride = used_sample_stride(rs.samples, options.fit_samples);
-        std::size_t kept = 0, used = 0;
-        for (const ResidualSample& s : rs.samples)
-            if (s.status == shared::kResidualUsed && used++ % stride == 0) rs.samples[kept++] = s;
-        rs.samples.resize(kept);
-        rs.samples.shrink_to_fit();
-    }
+    thin_for_fit(rs.samples, options.fit_samples); // the C++ pass makes only these
     return rs;
+}
+
+void thin_for_fit(std::vector<ResidualSample>& samples, std::size_t max_samples) {
+    if (max_samples == 0) return;
+    const std::size_t stride = used_sample_stride(samples, max_samples);
+    std::size_t kept = 0, used = 0;
+    for (const ResidualSample& s : samples)
+        if (s.status == shared::kResidualUsed && used++ % stride == 0) samples[kept++] = s;
+    samples.resize(kept);
+    samples.shrink_to_fit();
 }
 
 bool residual_particle_usable(const LambertParticleResult& r, const ResidualOptions& o) {

@@ -141,6 +141,10 @@ private:
 /// stride_subsample takes them from the converted list; 0 or no more used than that: 1).
 [[nodiscard]] std::size_t used_sample_stride(std::span<const ResidualSample> samples, std::size_t max_samples);
 
+/// Only the used samples a fit of at most max_samples takes, every used_sample_stride-th, in
+/// place (0: all kept); the fits' conversions with that bound then take every one of them.
+void thin_for_fit(std::vector<ResidualSample>& samples, std::size_t max_samples);
+
 /// The samples as the fit takes them (weight Ebar^2): with max_samples, only every
 /// used_sample_stride-th used one, converted (the same as stride_subsample of all of them,
 /// without the copy of all: 125 MB for the knot's 3.1 million at 384 px).

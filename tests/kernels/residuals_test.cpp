@@ -153,6 +153,11 @@ TEST(Residuals, ThinnedForAFitAreTheFitsSubsampleOfTheWhole) {
                         << "fit " << fit << " sample " << i;
                     ASSERT_EQ(pt[i], pa[i * stride]) << "fit " << fit << " sample " << i;
                 }
+                // The whole thinned after the pass: the same.
+                std::vector<ResidualSample> after = all.samples;
+                thin_for_fit(after, fit);
+                ASSERT_EQ(after.size(), thin.samples.size());
+                EXPECT_EQ(0, std::memcmp(after.data(), thin.samples.data(), after.size() * sizeof(ResidualSample)));
                 // What the fit converts: the same with or without the thinning.
                 const std::vector<MaterialSample> m = to_material_samples(all.samples, fit);
                 const std::vector<MaterialSample> mt = to_material_samples(thin.samples, fit);
