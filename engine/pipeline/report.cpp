@@ -154,6 +154,7 @@ json material_choice_json(const SpecularStage& s) {
                   {"validation_psnr_linear_db",
                    c.validation_mse && *c.validation_mse > 0.0 ? json(-10.0 * std::log10(*c.validation_mse)) : json(nullptr)},
                   {"seconds", c.seconds},
+                  {"screen_samples", c.screen_samples},
                   {"joint", joint_json(c.joint)}};
         if (c.fit.coated) m["coated"] = coated_json(*c.fit.coated);
         candidates.push_back(std::move(m));

@@ -113,6 +113,8 @@ struct MaterialCandidate {
     JointResult joint;                    ///< its rounds, each with its validation error
     std::optional<double> validation_mse; ///< of the kept round (image units^2); absent without validation frames
     double seconds = 0.0;                 ///< its solves, residuals, fits and validation passes
+    /// Not 0: `fit` is its screen on this many samples, too far behind for a full fit (kScreenFactor).
+    std::size_t screen_samples = 0;
 };
 struct SpecularStage {
     bool residuals_ran = false;           ///< false: --specular off

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -85,12 +86,29 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
     EXPECT_GT(m["validation_frames"].get<int>(), 0);
     ASSERT_EQ(m["candidates"].size(), kMaterialFamilyCount);
     double winner_mse = 0.0;
+    std::size_t screened = 0;
     for (const nlohmann::json& cand : m["candidates"])
         if (cand["family"] == m["family"]) winner_mse = cand["validation_mse"].get<double>();
     for (const nlohmann::json& cand : m["candidates"]) {
         const nlohmann::json& joint = cand["joint"];
         std::printf("  %s: %zu rounds, %s\n", cand["family"].get<std::string>().c_str(), joint["rounds"].size(),
                     joint["stop"].get<std::string>().c_str());
+        // A screened candidate (its fit on kScreenSamples) is more than kScreenFactor behind
+        // another candidate's first fit, has no full fit and no rounds, and does not win.
+        const auto screen = cand["screen_samples"].get<std::size_t>();
+        EXPECT_EQ(screen != 0, joint["stop"].get<std::string>().starts_with("screened")) << cand["family"];
+        if (screen != 0) {
+            ++screened;
+            EXPECT_NE(cand["family"], m["family"]);
+            EXPECT_LE(screen, kScreenSamples);
+            EXPECT_TRUE(joint["rounds"].empty());
+            double least_other = std::numeric_limits<double>::infinity();
+            for (const nlohmann::json& other : m["candidates"])
+                if (other["screen_samples"].get<std::size_t>() == 0)
+                    least_other = std::min(least_other, other["joint"]["first_validation_mse"].get<double>());
+            ASSERT_TRUE(std::isfinite(least_other));
+            EXPECT_GT(joint["first_validation_mse"].get<double>(), kScreenFactor * least_other) << cand["family"];
+        }
         // A candidate runs no rounds only where its first fit is more than kNoRoundsFactor behind
         // the error another candidate's rounds reached (at least the winner's): it cannot win.
         if (joint["stop"].get<std::string>().starts_with("no rounds")) {
@@ -122,6 +140,9 @@ TEST_P(MaterialChoice, AutoPicksTheTruthsFamilyAndTheRoundsNeverRaiseTheValidati
         EXPECT_NEAR(alpha, talpha, cc.tol_alpha * talpha);
         EXPECT_EQ(r.report["bundle"]["has_lobe"], true); // the bundle carries the coated specular
     }
+    // Where the truth is a Lafortune lobe the coated candidate is far behind and only screened;
+    // where it is coated the Lafortune candidate, fitted first, is never screened.
+    EXPECT_EQ(screened, cc.truth == MaterialFamily::Lafortune ? 1u : 0u);
 }
 
 INSTANTIATE_TEST_SUITE_P(Truths, MaterialChoice,
