@@ -677,8 +677,12 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         diffuse.on_fit_split = false;
         return run_solve(run, diffuse.inputs, o, "diffuse solve (every train frame)");
     };
-    ResidualSamples rs = run_residuals(run, first_on_split ? split.fit : diffuse.inputs, diffuse.solve, diffuse.options, "residual samples");
-    s.energy = residual_energy(rs.samples, static_cast<double>(diffuse.options.noise_sigma), config.specular_energy_threshold);
+    // With validation frames the first pass's samples go to the energy test, which reads the
+    // pass's sums, and to the fits: only those the fits take are made (ResidualOptions::fit_samples).
+    // Without, the material choice reads every one (the train residuals' error).
+    ResidualSamples rs = run_residuals(run, first_on_split ? split.fit : diffuse.inputs, diffuse.solve, diffuse.options,
+                                       "residual samples", split.held_out > 0 ? config.max_fit_samples : 0);
+    s.energy = residual_energy(rs.energy, static_cast<double>(diffuse.options.noise_sigma), config.specular_energy_threshold);
     const Toggle toggle = config.specular == SpecularMode::On ? Toggle::On : Toggle::Auto;
     const PlanDecision& decision = run.plan().add(decide_specular(s.energy, toggle, split.held_out));
     // Little energy, but validation frames: "diffuse only" competes with the families.
@@ -723,7 +727,8 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
     if (split.held_out > 0) {
         const LambertOutputs solve0 =
             first_on_split ? diffuse.solve : run_solve(run, split.fit, diffuse.options, "diffuse solve (validation split)");
-        if (!first_on_split) rs0 = run_residuals(run, split.fit, solve0, diffuse.options, "residual samples (validation split)");
+        if (!first_on_split)
+            rs0 = run_residuals(run, split.fit, solve0, diffuse.options, "residual samples (validation split)", config.max_fit_samples);
         if (diffuse_only_competes) {
             // The first solve's albedo with no specular at all, scored as every family is.
             const ResidualSamples rv = run_residuals(run, split.validation, solve0, diffuse.options, "validation (diffuse only)");
@@ -732,8 +737,8 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         }
         // Every family's first fit, then the samples go (peak memory: they would be held through
         // every candidate's rounds beside each round's own); until then only those the fits take
-        // (the knot at 384 px: 13 MB of 200 MB) are held beside the validation passes. Each first
-        // fit is validated as it is made. A family fitted after another's validation error is
+        // (the knot at 384 px: 13 MB of 200 MB) are held beside the validation passes, thinned
+        // here where the first pass was not the split's. Each first fit is validated as it is made. A family fitted after another's validation error is
         // known is first fitted on kScreenSamples of them (joint.h): where that fit is more than
         // kScreenFactor behind, it is the candidate's first fit and the full one is left out.
         thin_for_fit(rs0.samples, fo.max_samples);

@@ -14,6 +14,9 @@ ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& 
     if (ctx == nullptr) throw UsageError("residual_samples: the Vulkan backend needs a gpu::Context");
     ResidualsVk kernel(*ctx);
     ResidualSamples rs = kernel.run(in, diffuse, options);
+    rs.energy = {};
+    for (const ResidualSample& s : rs.samples)
+        if (s.status == shared::kResidualUsed) rs.energy.add(s.f, s.v.w);
     thin_for_fit(rs.samples, options.fit_samples); // the C++ pass makes only these
     return rs;
 }
@@ -75,24 +78,20 @@ std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample
 }
 
 ResidualEnergy residual_energy(std::span<const ResidualSample> samples, double noise_sigma, double threshold) {
+    ResidualEnergySums sums;
+    for (const ResidualSample& s : samples)
+        if (s.status == shared::kResidualUsed) sums.add(s.f, s.v.w);
+    return residual_energy(sums, noise_sigma, threshold);
+}
+
+ResidualEnergy residual_energy(const ResidualEnergySums& sums, double noise_sigma, double threshold) {
     ResidualEnergy e;
     e.noise_sigma = noise_sigma;
     e.threshold = threshold;
-    double sq = 0.0, sum = 0.0;
-    std::uint64_t n = 0;
-    for (const ResidualSample& s : samples) {
-        if (s.status != shared::kResidualUsed) continue;
-        const double ebar = static_cast<double>(s.v.w); // r = f_s E; with a white light E = Ebar on every channel
-        for (int c = 0; c < 3; ++c) {
-            const double r = static_cast<double>(s.f[c]) * ebar;
-            sq += r * r;
-            sum += r;
-        }
-        ++n;
-    }
+    const std::uint64_t n = sums.samples;
     if (n == 0) return e;
-    e.mean_square = sq / (3.0 * static_cast<double>(n));
-    e.mean = sum / (3.0 * static_cast<double>(n));
+    e.mean_square = sums.square / (3.0 * static_cast<double>(n));
+    e.mean = sums.sum / (3.0 * static_cast<double>(n));
     // Floor the noise at one 16-bit step so noise-free captures still compare against quantization.
     const double sigma = std::max(noise_sigma, 1.0 / 65535.0);
     e.ratio = e.mean_square / (sigma * sigma);

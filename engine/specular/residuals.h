@@ -101,8 +101,27 @@ struct ResidualCounts {
     }
 };
 
+/// The sums the energy test reads (residual_energy), over the kept used samples in slot order:
+/// r = f_s Ebar per channel from the samples' float values.
+struct ResidualEnergySums {
+    double square = 0.0;    ///< sum r^2 over samples and channels
+    double sum = 0.0;       ///< sum r
+    std::uint64_t samples = 0;
+    void add(const glm::vec3& f, float ebar) noexcept {
+        const auto e = static_cast<double>(ebar); // r = f_s E; with a white light E = Ebar on every channel
+        for (int c = 0; c < 3; ++c) {
+            const double r = static_cast<double>(f[c]) * e;
+            square += r * r;
+            sum += r;
+        }
+        ++samples;
+    }
+};
+
 struct ResidualSamples {
     std::vector<ResidualSample> samples; ///< used samples only, in slot order (every keep_stride-th)
+    /// Over every kept sample, also those fit_samples left out (both backends).
+    ResidualEnergySums energy;
     std::uint64_t keep_stride = 1;       ///< see ResidualOptions::max_kept_samples
     ResidualCounts counts;
     double seconds = 0.0;               ///< wall clock (layout, upload, dispatch, download, compaction)
@@ -164,5 +183,7 @@ struct ResidualEnergy {
 };
 [[nodiscard]] ResidualEnergy residual_energy(std::span<const ResidualSample> samples, double noise_sigma,
                                              double threshold = 4.0);
+/// The same from a pass's sums (ResidualSamples::energy): every kept sample's, thinned or not.
+[[nodiscard]] ResidualEnergy residual_energy(const ResidualEnergySums& sums, double noise_sigma, double threshold = 4.0);
 
 } // namespace specula

@@ -71,9 +71,9 @@ ParticleInView particle_in_view(const Particle& part, const glm::vec3& albedo, c
 enum class Drop : std::uint8_t { None, Grazing, Missing, Clipped };
 
 // Frame f's sample of the particle (lit and seen: the caller tests vis.lights), or why it is
-// dropped; the sample is written only when it is used.
+// dropped; `out` is written only when it is used.
 Drop frame_sample(const ParticleInView& q, const FrameImage& image, const PointLight& light, const shared::MaterialGpu& known,
-                  double min_cos, ResidualSample* out) {
+                  double min_cos, ResidualSample& out) {
     const glm::dvec3 L = glm::dvec3(glm::vec3(light.position)) - q.P;
     const double d2 = glm::dot(L, L);
     const glm::dvec3 u = L / std::sqrt(d2);
@@ -84,13 +84,12 @@ Drop frame_sample(const ParticleInView& q, const FrameImage& image, const PointL
     if (read.status == detail::SampleStatus::Missing) return Drop::Missing;
     if (read.status == detail::SampleStatus::Clipped) return Drop::Clipped;
     if (read.status == detail::SampleStatus::Grazing) return Drop::Grazing;
-    if (out == nullptr) return Drop::None;
     const glm::dvec3 E = glm::dvec3(glm::vec3(light.intensity)) * (std::max(0.0, cosl) / d2);
     const double kd = f64::material_diffuse_factor(known, cosl, q.nv);
     const glm::dvec3 r = read.c - (q.rpi * kd) * E;
     const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);
     const double ebar = (E.x + E.y + E.z) / 3.0;
-    ResidualSample& s = *out;
+    ResidualSample& s = out;
     s = ResidualSample{};
     s.u = glm::vec4(glm::vec3(f64::to_tangent_frame(q.n, u)), static_cast<float>(ebar * ebar));
     s.v = glm::vec4(glm::vec3(q.vl), static_cast<float>(ebar));
@@ -145,6 +144,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
         ResidualCounts counts;
         std::vector<ResidualSample> samples;
         std::vector<SampleSlot> slots;
+        std::vector<glm::vec4> energy; // named: each sample's f_s and Ebar (the energy sums')
     };
     std::vector<Chunk> chunks((in.particles.size() + kChunk - 1) / kChunk);
     for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
@@ -157,6 +157,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             chunk.counts = {};
             chunk.samples.clear();
             chunk.slots.clear();
+            chunk.energy.clear();
             ResidualCounts& c = chunk.counts;
             for (auto p = static_cast<std::uint32_t>(begin); p < end; ++p) {
                 if (!vis.sees(p, vi)) continue;
@@ -172,11 +173,12 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                         continue;
                     }
                     ResidualSample s;
-                    switch (frame_sample(q, in.images[f], in.lights[f], known, min_cos, named ? nullptr : &s)) {
+                    switch (frame_sample(q, in.images[f], in.lights[f], known, min_cos, s)) {
                     case Drop::None:
                         ++c.used;
                         if (slotted) chunk.slots.push_back({p, vi, f});
-                        if (!named) chunk.samples.push_back(s);
+                        if (named) chunk.energy.emplace_back(s.f, s.v.w);
+                        else chunk.samples.push_back(s);
                         break;
                     case Drop::Grazing: ++c.dropped_grazing; break;
                     case Drop::Missing: ++c.dropped_missing; break;
@@ -194,8 +196,10 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 if (cnt.used++ % out.keep_stride != 0) continue; // memory bound (ResidualOptions::max_kept_samples)
                 if (named) {
                     slots.push_back(chunk.slots[i]);
+                    out.energy.add(glm::vec3(chunk.energy[i]), chunk.energy[i].w);
                 } else {
                     out.samples.push_back(chunk.samples[i]);
+                    out.energy.add(chunk.samples[i].f, chunk.samples[i].v.w);
                     if (sample_particle != nullptr) sample_particle->push_back(chunk.slots[i].particle);
                 }
             }
@@ -211,7 +215,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                 const ParticleInView q = particle_in_view(in.particles[slot.particle], diffuse.albedo(slot.particle),
                                                           frames[slot.view],
                                                           surfaces != nullptr ? &(*surfaces)[slot.view] : nullptr);
-                (void)frame_sample(q, in.images[slot.frame], in.lights[slot.frame], known, min_cos, &out.samples[i]);
+                (void)frame_sample(q, in.images[slot.frame], in.lights[slot.frame], known, min_cos, out.samples[i]);
             }
         });
         if (sample_particle != nullptr)

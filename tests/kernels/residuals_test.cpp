@@ -141,6 +141,13 @@ TEST(Residuals, ThinnedForAFitAreTheFitsSubsampleOfTheWhole) {
                     in, diffuse(), {.max_kept_samples = max_kept, .fit_samples = fit, .threads = threads}, &pt);
                 expect_same_counts(all.counts, thin.counts);
                 EXPECT_EQ(all.keep_stride, thin.keep_stride);
+                // The energy sums are every kept sample's, thinned or not, as the test sums them.
+                const ResidualEnergy whole = residual_energy(all.samples, 0.004);
+                const ResidualEnergy sums = residual_energy(thin.energy, 0.004);
+                EXPECT_EQ(thin.energy.samples, all.samples.size());
+                EXPECT_EQ(whole.mean_square, sums.mean_square);
+                EXPECT_EQ(whole.mean, sums.mean);
+                EXPECT_GT(whole.mean_square, 0.0);
                 const std::size_t stride = used_sample_stride(all.samples, fit);
                 if (fit < all.samples.size()) {
                     EXPECT_GE(stride, 2u) << fit;
@@ -205,6 +212,11 @@ TEST_F(ResidualsConformance, VulkanMatchesCpuReference) {
     EXPECT_LT(ref_thin.samples.size(), ref.samples.size());
     expect_same_counts(ref_thin.counts, vk_thin.counts);
     expect_same_samples(ref_thin, vk_thin);
+    EXPECT_EQ(vk_thin.energy.samples, ref.samples.size()); // the sums over every sample, before the thinning
+    EXPECT_NEAR(vk_thin.energy.square, ref_thin.energy.square, 1e-4 * ref_thin.energy.square);
+    // sum |r| <= sqrt(3 n sum r^2) (Cauchy-Schwarz): the sums' bound from the samples' own.
+    const double abs_bound = std::sqrt(3.0 * static_cast<double>(ref_thin.energy.samples) * ref_thin.energy.square);
+    EXPECT_NEAR(vk_thin.energy.sum, ref_thin.energy.sum, 1e-4 * abs_bound);
 }
 
 TEST_F(ResidualsConformance, BatchedAndChunkedUnderASmallBindingLimit) {
