@@ -380,6 +380,16 @@ struct Renderer::Impl {
     };
     GbufferKey frame_key;
     std::optional<GbufferKey> target_gbuffer;
+    // What the shadow map's depth depends on: the light's projection and the level of detail
+    // (drawn whole). prepare() sets frame_shadow (none: no shadow pass); render() keeps, in
+    // shadow_drawn, the key of the depth the map holds; record() draws its own and clears it.
+    struct ShadowKey {
+        glm::mat4 light_to_clip{0.0f};
+        std::size_t level = 0;
+        bool operator==(const ShadowKey&) const = default;
+    };
+    std::optional<ShadowKey> frame_shadow;
+    std::optional<ShadowKey> shadow_drawn;
     gpu::ShadowMap shadow_map;
     gpu::GraphicsPipeline shadow_pass;
     gpu::DescriptorSet shadow_set;
@@ -744,6 +754,7 @@ struct Renderer::Impl {
         p.material = material;
         p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, info.specular_pass ? 1u : 0u, 0u);
         p.factor_warp = factor_warp;
+        frame_shadow = frustum ? std::optional(ShadowKey{glm::mat4(frustum->to_clip), drawn_level}) : std::nullopt;
         if (frustum) {
             p.light_to_clip = glm::mat4(frustum->to_clip);
             p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
@@ -941,6 +952,7 @@ FrameInfo Renderer::record(VkCommandBuffer cmd, const gpu::RenderTarget& target,
         if (clock != nullptr) clock->mark(cmd, label);
     };
     if (info.shadow_pass) {
+        m.shadow_drawn.reset(); // render() draws its own again
         m.draw_shadow_map(cmd);
         mark("shadow map");
     }
@@ -978,10 +990,12 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
     }
     m.frame_key.view = m.target->gbuffer(0).view();
     info.gbuffer_kept = info.deferred && m.target_gbuffer == m.frame_key;
+    info.shadow_kept = info.shadow_pass && m.shadow_drawn == m.frame_shadow;
+    const bool draw_shadow = info.shadow_pass && !info.shadow_kept;
 
     gpu::Sequence& seq = m.sequence;
     seq.reset();
-    if (info.shadow_pass)
+    if (draw_shadow)
         seq.time_begin("shadow pass").record([&](VkCommandBuffer cmd) { m.draw_shadow_map(cmd); }).time_end();
     if (info.deferred)
         seq.time_begin("diffuse pass")
@@ -1001,8 +1015,10 @@ Frame Renderer::render(const Camera& camera, const PointLight& light, const Sett
             .time_end();
     seq.time_begin("readback").record([&](VkCommandBuffer cmd) { m.target->record_readback(cmd); }).time_end();
     if (info.deferred) m.target_gbuffer.reset(); // until the submit has completed
+    if (draw_shadow) m.shadow_drawn.reset();
     seq.submit_and_wait();
     if (info.deferred) m.target_gbuffer = m.frame_key;
+    if (draw_shadow) m.shadow_drawn = m.frame_shadow;
     for (const gpu::GpuTiming& t : seq.timings()) {
         if (!t.ns) continue;
         if (t.label == "shadow pass") info.shadow_gpu_ms = to_ms(t.ns);

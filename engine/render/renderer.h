@@ -168,6 +168,9 @@ struct FrameInfo {
     bool deferred = false;            ///< Passes::Deferred: G-buffer, then per-pixel shading; timed as diffuse_gpu_ms
     std::string specular_note;        ///< why pass 2 did not run ("no lobe: ...", "mode diffuse"), else empty
     bool shadow_pass = false;         ///< the shadow map was drawn and the lit passes are shadowed
+    /// render(): the shadow map already held this light's depth (the previous render()'s light,
+    /// e.g. one frame drawn with two materials): shadowed from it, not drawn again.
+    bool shadow_kept = false;
     std::string shadow_note;          ///< why not ("shadows off", light too close to the mesh), else empty
     std::optional<double> shadow_gpu_ms;   ///< GPU time of the shadow map's depth pass
     std::optional<double> diffuse_gpu_ms;  ///< GPU time of pass 1 (timestamps); nullopt without timestamps

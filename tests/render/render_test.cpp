@@ -1509,5 +1509,61 @@ TEST_F(RenderTest, ClusterCullingDrawsTheSamePixelsFromFewerTriangles) {
     EXPECT_GT(away, clusters[0].size() / 5);
 }
 
+// One frame drawn with two materials (the evaluation's bundle and core material) draws its light's
+// shadow map once: a render() whose light and level of detail are the previous render()'s shades
+// from the depth that frame left (FrameInfo::shadow_kept), with the same pixels, bit for bit, as a
+// renderer drawing it afresh; another light draws it again, a frame without shadows leaves it,
+// and a frame recorded into another target (the viewer) draws over it.
+TEST_F(RenderTest, OneLightsShadowMapIsDrawnOnceForItsFrames) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = knot_with_varied_atlas(preset);
+    const Camera cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {0.5, 1.0, 4.5}, {0, 0, 0});
+    const Camera other_cam = make_camera(96, 80, 100.0, 100.0, 48.0, 40.0, {-2.0, 1.5, 3.5}, {0, 0, 0});
+    const PointLight light{{2.0, 2.0, 3.0}, {20.0, 20.0, 20.0}};
+    const PointLight other_light{{-2.5, 1.0, 2.5}, {15.0, 18.0, 20.0}};
+    const CoreMaterial core{.roughness = 0.4, .f0 = 0.05, .f90 = 0.8};
+    const Scene scene = data.scene(preset.material.lobe);
+    const Settings deferred{.passes = Passes::Deferred};
+    Renderer r(ctx(), scene);
+    const auto fresh = [&](const Camera& c, const PointLight& l, bool core_material, const Settings& s) {
+        Renderer f(ctx(), scene);
+        if (core_material) f.set_material(core_material_gpu(core), true);
+        const Frame frame = f.render(c, l, s);
+        EXPECT_FALSE(frame.info.shadow_kept);
+        return frame;
+    };
+    const Frame first = r.render(cam, light, deferred);
+    EXPECT_TRUE(first.info.shadow_pass);
+    EXPECT_FALSE(first.info.shadow_kept);
+    r.set_material(core_material_gpu(core), true);
+    const Frame core_frame = r.render(cam, light, deferred);
+    EXPECT_TRUE(core_frame.info.shadow_pass);
+    EXPECT_TRUE(core_frame.info.shadow_kept);
+    EXPECT_TRUE(core_frame.info.gbuffer_kept);
+    expect_same_frame(core_frame, fresh(cam, light, true, deferred), "the core material, the same light");
+    EXPECT_NE(0, std::memcmp(core_frame.color.pixels.data(), first.color.pixels.data(), first.color.pixels.size() * sizeof(float)));
+    r.set_specular(preset.material.lobe);
+    const Frame moved = r.render(other_cam, light, {.passes = Passes::Fused}); // another camera and passes, the same light
+    EXPECT_TRUE(moved.info.shadow_kept);
+    expect_same_frame(moved, fresh(other_cam, light, false, {.passes = Passes::Fused}), "another camera");
+    const Frame lit_other = r.render(cam, other_light, deferred);
+    EXPECT_FALSE(lit_other.info.shadow_kept);
+    expect_same_frame(lit_other, fresh(cam, other_light, false, deferred), "another light");
+    const Frame unshadowed = r.render(cam, light, {.passes = Passes::Deferred, .shadows = false});
+    EXPECT_FALSE(unshadowed.info.shadow_pass);
+    EXPECT_FALSE(unshadowed.info.shadow_kept);
+    const Frame back = r.render(cam, other_light, deferred); // the map still holds other_light's depth
+    EXPECT_TRUE(back.info.shadow_kept);
+    expect_same_frame(back, lit_other, "after a frame without shadows");
+    // A frame recorded into another target draws the shadow map for its light: the next render() draws its own.
+    gpu::RenderTarget target(ctx(), 96, 80, "second target");
+    gpu::Sequence seq(ctx(), 4);
+    seq.record([&](VkCommandBuffer cmd) { (void)r.record(cmd, target, cam, light, deferred); });
+    seq.submit_and_wait();
+    const Frame after_record = r.render(cam, other_light, deferred);
+    EXPECT_FALSE(after_record.info.shadow_kept);
+    expect_same_frame(after_record, lit_other, "after a recorded frame of another light");
+}
+
 } // namespace
 } // namespace specula::render
