@@ -54,6 +54,11 @@ void BundleRenderer::draw_core_material(const std::optional<CoreMaterial>& core)
     m_renderer.set_material(core_material_gpu(c), c.has_specular());
 }
 
+void BundleRenderer::draw_own_material() {
+    const std::optional<SpecularModel> own = m_renderer.specular(); // set_material left the model as it was
+    m_renderer.set_specular(own);
+}
+
 render::Frame BundleRenderer::render(const Camera& camera, const PointLight& light, const render::Settings& settings) {
     if (settings.specular == render::SpecularPath::Factorized && !m_renderer.has_factorization())
         throw Error(m_name +

@@ -43,6 +43,8 @@ public:
     /// From now on draws glTF's core material `core` (Bundle::core; absent: the diffuse-only core)
     /// instead of the bundle's model, analytic path only: what ordinary viewers show.
     void draw_core_material(const std::optional<CoreMaterial>& core);
+    /// From now on draws the bundle's own model again (after draw_core_material).
+    void draw_own_material();
 
 private:
     std::string m_name;

@@ -151,6 +151,8 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         throw Error(desc.dir.string() + ": evaluate needs the capture's images (loaded " + std::to_string(capture.images.size()) +
                     " of " + std::to_string(desc.frames.size()) + ")");
     require_specular_model(bundle, options.render.specular, options.bundle_name);
+    if (options.core_renders != nullptr && (options.core_material || options.external_render))
+        throw UsageError("evaluate: core_renders goes with the bundle's own renders, not with core_material or external_render");
     for (const std::size_t f : options.sheet_frames)
         if (f >= desc.frames.size())
             throw UsageError("--sheet-frames: frame " + std::to_string(f) + " is out of range (the capture has " +
@@ -172,6 +174,8 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         render_settings.specular = render::SpecularPath::Analytic;
     }
     result.render = render_settings;
+    render::Settings core_settings = options.render; // EvaluateOptions::core_renders: as a core_material evaluation draws them
+    core_settings.specular = render::SpecularPath::Analytic;
     std::unique_ptr<metrics::ImageMetricsVk> metrics_vk;
     if (options.metrics_backend == Backend::Vulkan) metrics_vk = std::make_unique<metrics::ImageMetricsVk>(ctx);
     result.timings.setup_s = setup.seconds();
@@ -231,9 +235,16 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
 
         const Stopwatch render_time;
         render::Frame frame;
-        if (renderer) {
+        bool prerendered = false; // EvaluateOptions::rendered: drawn already
+        if (options.rendered != nullptr)
+            if (const auto it = options.rendered->find(fi); it != options.rendered->end()) {
+                frame = std::move(it->second);
+                options.rendered->erase(it);
+                prerendered = true;
+            }
+        if (!prerendered && renderer) {
             frame = renderer->render(fd.camera(), fd.light, render_settings);
-        } else { // another tool's image: its nonzero pixels are its coverage
+        } else if (!prerendered) { // another tool's image: its nonzero pixels are its coverage
             frame.color = std::move(external.at(fi));
             const std::size_t n = static_cast<std::size_t>(frame.color.width) * frame.color.height;
             frame.mask.assign(n, 0);
@@ -243,7 +254,14 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
             frame.info.covered_pixels = static_cast<std::size_t>(std::count(frame.mask.begin(), frame.mask.end(), 255));
             frame.info.shadow_note = "another tool's render";
         }
-        fe.render_ms = 1000.0 * render_time.seconds();
+        // A frame drawn already: the time of its render() (FrameInfo::wall_ms).
+        fe.render_ms = prerendered ? frame.info.wall_ms : 1000.0 * render_time.seconds();
+        if (options.core_renders != nullptr && renderer)
+            if (const auto core = options.core_renders->find(fi); core != options.core_renders->end()) {
+                renderer->draw_core_material(bundle.core);
+                core->second = renderer->render(fd.camera(), fd.light, core_settings);
+                renderer->draw_own_material();
+            }
         fe.covered_pixels = frame.info.covered_pixels;
         fe.shadowed = frame.info.shadow_pass;
         if (renderer && options.render.shadows && !frame.info.shadow_pass) {
@@ -350,6 +368,8 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
         if (progress) progress->update(++done);
     }
     if (progress) progress->finish();
+    if (options.core_renders != nullptr) // the frames not evaluated here have no render
+        std::erase_if(*options.core_renders, [&](const auto& kv) { return !std::binary_search(frames.begin(), frames.end(), kv.first); });
     for (const std::size_t f : options.sheet_frames)
         if (std::find(frames.begin(), frames.end(), f) == frames.end())
             result.warnings.push_back("sheet frame " + std::to_string(f) + " was not evaluated (see --frames): no sheet");

@@ -46,6 +46,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -106,6 +107,15 @@ struct EvaluateOptions {
     /// material/core_material.h) instead of its own model, analytic path, direct light: what an
     /// ordinary viewer (three.js) shows, the figure report.json gives as `viewer`.
     bool core_material = false;
+    /// Frames (its keys) to render also with the bundle's core material, as a core_material
+    /// evaluation draws them, each right after its own render with the same camera and light:
+    /// its G-buffer and shadow map are drawn once (render::FrameInfo::gbuffer_kept, shadow_kept).
+    /// Every key evaluated here gets its render; the others are taken out. Not with
+    /// core_material or external_render.
+    std::map<std::size_t, render::Frame>* core_renders = nullptr;
+    /// Renders made already (another evaluation's core_renders, for a core_material one): scored
+    /// instead of drawn (taken out of the map); frames not in it are drawn.
+    std::map<std::size_t, render::Frame>* rendered = nullptr;
 };
 
 struct FrameEvaluation {

@@ -73,8 +73,11 @@ ReconstructResult reconstruct(const ReconstructConfig& config, const Capture* pr
     const Bundle bundle = bundle_stage(run, capture, geometry, texture, factorization, normals, indirect, specular);
     const std::unique_ptr<evaluate::IndirectLightAdder> indirect_light =
         indirect_light_of(indirect, geometry, visibility, texture, factorization);
-    const std::optional<evaluate::EvaluationResult> evaluation = evaluation_stage(run, capture, bundle, indirect_light.get());
-    const std::optional<evaluate::EvaluationResult> viewer = viewer_stage(run, capture, bundle, evaluation);
+    // The viewer evaluation's frames drawn by the evaluation beside its own (one G-buffer and shadow map each).
+    std::map<std::size_t, render::Frame> core_renders;
+    const std::optional<evaluate::EvaluationResult> evaluation =
+        evaluation_stage(run, capture, bundle, indirect_light.get(), &core_renders);
+    const std::optional<evaluate::EvaluationResult> viewer = viewer_stage(run, capture, bundle, evaluation, &core_renders);
 
     result.total_seconds = total.seconds();
     result.report = report_json(run, ReportInputs{.capture = capture,

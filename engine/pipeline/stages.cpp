@@ -1225,22 +1225,34 @@ Bundle bundle_stage(PipelineRun& run, const Capture& capture, const GeometryStag
     });
 }
 
+namespace {
+
+// The viewer evaluation's options (the metrics backend is the evaluation's).
+evaluate::EvaluateOptions viewer_options(const ReconstructConfig& config) {
+    evaluate::EvaluateOptions eo;
+    eo.metrics.hausdorff = false;
+    eo.max_frames_per_split = config.evaluate_max_frames;
+    eo.max_train_frames = kViewerTrainFrames;
+    eo.include_train = config.evaluate_train;
+    eo.threads = config.threads;
+    eo.bundle_name = "object.glb (core material)";
+    eo.progress = false;
+    eo.core_material = true;
+    return eo;
+}
+
+} // namespace
+
 std::optional<evaluate::EvaluationResult> viewer_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
-                                                       const std::optional<evaluate::EvaluationResult>& evaluation) {
+                                                       const std::optional<evaluate::EvaluationResult>& evaluation,
+                                                       std::map<std::size_t, render::Frame>* core_renders) {
     if (!evaluation) return std::nullopt; // left out with the evaluation (it said why)
     gpu::Context* ctx = run.render_context();
     if (ctx == nullptr) return std::nullopt;
     return run.stage("viewer evaluation", [&] {
-        evaluate::EvaluateOptions eo;
+        evaluate::EvaluateOptions eo = viewer_options(run.config);
         eo.metrics_backend = evaluation->metrics_backend;
-        eo.metrics.hausdorff = false;
-        eo.max_frames_per_split = run.config.evaluate_max_frames;
-        eo.max_train_frames = kViewerTrainFrames;
-        eo.include_train = run.config.evaluate_train;
-        eo.threads = run.config.threads;
-        eo.bundle_name = "object.glb (core material)";
-        eo.progress = false;
-        eo.core_material = true;
+        eo.rendered = core_renders;
         return evaluate::evaluate(*ctx, bundle, capture, eo);
     });
 }
@@ -1256,7 +1268,8 @@ std::unique_ptr<evaluate::IndirectLightAdder> indirect_light_of(const IndirectSt
 }
 
 std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
-                                                           evaluate::IndirectLightAdder* add_light) {
+                                                           evaluate::IndirectLightAdder* add_light,
+                                                           std::map<std::size_t, render::Frame>* core_renders) {
     const ReconstructConfig& config = run.config;
     if (!config.evaluate) {
         run.leave_out("evaluation", "--no-evaluate");
@@ -1278,6 +1291,11 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         if (config.write_sheets) eo.sheet_dir = config.out_dir / "sheets";
         eo.bundle_name = "object.glb";
         eo.progress = true;
+        if (core_renders != nullptr) {
+            core_renders->clear();
+            for (const std::size_t f : evaluate::evaluated_frames(capture.desc, viewer_options(config))) (*core_renders)[f];
+            eo.core_renders = core_renders;
+        }
         if (add_light != nullptr) {
             add_light->expect(evaluate::evaluated_frames(capture.desc, eo)); // its batches: the frames scored
             eo.add_light = [add_light](std::size_t frame, Image& rendered) { add_light->add(frame, rendered); };

@@ -28,6 +28,7 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -208,17 +209,22 @@ void record_specular_cost(PipelineRun& run, const SpecularStage& specular, const
 
 /// 11. Self-evaluation: every test frame and a sample of the train frames (config.evaluate_train_frames)
 ///     re-rendered from the bundle and scored, with `add_light`'s light added when given (writes
-///     evaluation.json and sheets/). Absent when left out (--no-evaluate, or no device).
+///     evaluation.json and sheets/). Absent when left out (--no-evaluate, or no device). With
+///     `core_renders`, the viewer stage's frames among them are drawn with the core material too,
+///     right after their own (their G-buffer and shadow map drawn once), into it.
 [[nodiscard]] std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, const Capture& capture,
                                                                          const Bundle& bundle,
-                                                                         evaluate::IndirectLightAdder* add_light = nullptr);
+                                                                         evaluate::IndirectLightAdder* add_light = nullptr,
+                                                                         std::map<std::size_t, render::Frame>* core_renders = nullptr);
 
 /// 11b. What ordinary viewers show: the bundle's core material rendered (glTF's BRDF as three.js
 ///      draws it, direct light) on the test frames and at most kViewerTrainFrames train frames,
-///      scored like the evaluation. Absent when the evaluation was left out.
+///      scored like the evaluation; the frames in `core_renders` (the evaluation's) are not drawn
+///      again. Absent when the evaluation was left out.
 inline constexpr std::size_t kViewerTrainFrames = 8;
 [[nodiscard]] std::optional<evaluate::EvaluationResult> viewer_stage(PipelineRun& run, const Capture& capture, const Bundle& bundle,
-                                                                     const std::optional<evaluate::EvaluationResult>& evaluation);
+                                                                     const std::optional<evaluate::EvaluationResult>& evaluation,
+                                                                     std::map<std::size_t, render::Frame>* core_renders = nullptr);
 
 /// The indirect light of each frame for the evaluation (evaluate::EvaluateOptions::add_light):
 /// from the final albedo texture and material; null when the stage was left out.

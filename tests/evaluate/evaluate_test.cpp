@@ -358,6 +358,54 @@ TEST_F(EvaluateTest, CoatedBundleIsRenderedAsItIs) {
     EXPECT_NE(rn.warnings.front().find("no specular lobe"), std::string::npos);
 }
 
+// The core material's renders made by the bundle's evaluation, each right after its own frame
+// (its G-buffer and shadow map drawn once), score exactly as a core-material evaluation that draws
+// them itself; a frame it did not make is drawn there, and keys not evaluated are taken out.
+TEST_F(EvaluateTest, CoreRendersBesideTheBundlesScoreAsTheirOwnEvaluation) {
+    const SphereCapture& s = sphere();
+    Bundle bundle = s.truth;
+    bundle.core = CoreMaterial{.roughness = 0.35, .f0 = 0.06, .f90 = 0.9};
+    const EvaluateOptions core_options{.render = {.mode = render::Mode::Both, .passes = render::Passes::Deferred}, .core_material = true};
+    const EvaluationResult own = evaluate(ctx(), bundle, s.capture, core_options);
+    ASSERT_EQ(own.frames.size(), 14u);
+    std::map<std::size_t, render::Frame> renders;
+    for (const FrameEvaluation& f : own.frames) renders[f.frame];
+    renders[s.capture.desc.frames.size() + 5]; // not a frame: taken out
+    EvaluateOptions bundle_options{.render = {.mode = render::Mode::Both, .passes = render::Passes::Deferred}};
+    bundle_options.max_train_frames = 6; // half the train frames: the others are drawn by the core evaluation
+    bundle_options.core_renders = &renders;
+    const EvaluationResult with = evaluate(ctx(), bundle, s.capture, bundle_options);
+    ASSERT_EQ(renders.size(), with.frames.size());
+    for (const FrameEvaluation& f : with.frames) {
+        ASSERT_TRUE(renders.contains(f.frame));
+        EXPECT_TRUE(renders.at(f.frame).info.shadow_kept) << f.frame;
+        EXPECT_TRUE(renders.at(f.frame).info.gbuffer_kept) << f.frame;
+    }
+    // The bundle's own figures are those of an evaluation without the core renders.
+    EvaluateOptions plain = bundle_options;
+    plain.core_renders = nullptr;
+    EXPECT_EQ(evaluate(ctx(), bundle, s.capture, plain).metrics.train_masked.psnr, with.metrics.train_masked.psnr);
+    EvaluateOptions reuse = core_options;
+    reuse.rendered = &renders;
+    const EvaluationResult shared = evaluate(ctx(), bundle, s.capture, reuse);
+    EXPECT_TRUE(renders.empty()); // every render taken
+    ASSERT_EQ(shared.frames.size(), own.frames.size());
+    for (std::size_t i = 0; i < own.frames.size(); ++i) {
+        EXPECT_EQ(shared.frames[i].frame, own.frames[i].frame);
+        EXPECT_EQ(shared.frames[i].masked.rms, own.frames[i].masked.rms) << own.frames[i].frame;
+        EXPECT_EQ(shared.frames[i].full.rms, own.frames[i].full.rms) << own.frames[i].frame;
+        EXPECT_EQ(shared.frames[i].masked_display.rms, own.frames[i].masked_display.rms) << own.frames[i].frame;
+    }
+    EXPECT_EQ(shared.metrics.test_masked.psnr, own.metrics.test_masked.psnr);
+    EXPECT_EQ(shared.metrics.train_masked.psnr, own.metrics.train_masked.psnr);
+    EXPECT_NE(shared.metrics.test_masked.rms, with.metrics.test_masked.rms); // another material was scored
+    // The core renders go with the bundle's own renders only.
+    std::map<std::size_t, render::Frame> more;
+    EvaluateOptions wrong = core_options;
+    wrong.core_renders = &more;
+    EXPECT_THROW((void)evaluate(ctx(), bundle, s.capture, wrong), UsageError);
+}
+
 TEST(EvaluateSelect, EvenlySpacedPerSplit) {
     CaptureDesc d;
     for (int i = 0; i < 10; ++i) d.frames.push_back(FrameDesc{.split = i < 8 ? Split::Train : Split::Test});
