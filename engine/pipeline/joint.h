@@ -67,9 +67,9 @@ inline constexpr double kNoRoundsFactor = 30.0;
 /// On the 17 captures of the coated and Lafortune presets the screens scored 0.95 to 2.0 times
 /// their full first fits' errors; every winner's screen was at most 1.9 times the least first
 /// fit's (the coated cologne on the thesis rig, which won after its rounds), and the screened-out
-/// losers (the coated candidates of the 5 Lafortune presets and the knot at 384 px) 51 to 1,260
-/// times: a margin of 16 over the closest winner. The knot at 384 px: 0.1 s for the screen
-/// against 1 s for the full fit.
+/// losers (the coated candidates of the 5 Lafortune presets and the knot at 384 px) 49 to 1,260
+/// times: a margin of 16 over the closest winner. The knot at 384 px: 0.27 s for the screen
+/// against 0.8 to 1.2 s for the full fit.
 inline constexpr std::size_t kScreenSamples = 20000;
 inline constexpr double kScreenFactor = 30.0;
 /// A coated candidate's first fit lands near eta = 1 where the first (Lambertian) solve's albedo
