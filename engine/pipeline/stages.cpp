@@ -737,25 +737,27 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         }
         // Every family's first fit, then the samples go (peak memory: they would be held through
         // every candidate's rounds beside each round's own); until then only those the fits take
-        // (the knot at 384 px: 13 MB of 200 MB) are held beside the validation passes, thinned
-        // here where the first pass was not the split's. Each first fit is validated as it is made. A family fitted after another's validation error is
-        // known is first fitted on kScreenSamples of them (joint.h): where that fit is more than
-        // kScreenFactor behind, it is the candidate's first fit and the full one is left out.
+        // (the knot at 384 px: 13 MB of 200 MB) are held beside the validation passes (thinned
+        // here where the first pass was not the split's). Each first fit is validated as it is
+        // made. A family fitted after another's validation error is known is first fitted on
+        // kScreenSamples of them (joint.h): where that fit is more than kScreenFactor behind, it
+        // is the candidate's first fit and the full one is left out.
         thin_for_fit(rs0.samples, fo.max_samples);
         std::vector<JointSteps> steps;
         std::vector<MaterialFit> first_fits;
         std::vector<double> first_seconds;
         std::vector<std::optional<double>> first_mse(families.size());
         std::vector<std::size_t> screened(families.size(), 0); // the screen's samples, where it stood in for the fit
+        std::vector<std::string> screen_stop(families.size());
         std::optional<double> least_first;
+        const auto validated = [&](const MaterialFit& f, const JointSteps& st, const std::string& tag) {
+            const std::optional<SpecularModel> m = f.model();
+            return m && st.validate ? std::optional(st.validate(solve0, *m, tag)) : std::nullopt;
+        };
         for (std::size_t k = 0; k < families.size(); ++k) {
             const Stopwatch w;
             const std::string label = std::string(" (") + to_string(families[k]) + ", validation split)";
             steps.push_back(material_steps(run, s, split.fit, &split.validation, families[k], fo, label));
-            const auto validated = [&](const MaterialFit& f, const JointSteps& st, const std::string& tag) {
-                const std::optional<SpecularModel> m = f.model();
-                return m && st.validate ? std::optional(st.validate(solve0, *m, tag)) : std::nullopt;
-            };
             if (least_first && rs0.counts.used > kScreenSamples && (fo.max_samples == 0 || fo.max_samples > kScreenSamples)) {
                 MaterialFitOptions so = fo;
                 so.max_samples = kScreenSamples;
@@ -768,6 +770,10 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
                                           *mse, static_cast<double>(f.samples), *mse / *least_first));
                 if (mse && *mse > kScreenFactor * *least_first) {
                     screened[k] = f.samples;
+                    screen_stop[k] = format_text("screened, no full fit and no rounds: fitted to %.0f samples, its validation "
+                                                 "error is %.3g times another candidate's first fit's, more than %g (a full "
+                                                 "fit and rounds could not make it win)",
+                                                 static_cast<double>(f.samples), *mse / *least_first, kScreenFactor);
                     first_mse[k] = mse;
                     first_fits.push_back(std::move(f));
                     first_seconds.push_back(w.seconds());
@@ -801,10 +807,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
             c.screen_samples = screened[k];
             if (screened[k] != 0) {
                 c.joint.first_validation_mse = first_mse[k];
-                c.joint.stop = format_text("screened, no full fit and no rounds: fitted to %.0f samples, its validation error "
-                                           "is %.3g times another candidate's first fit's, more than %g (a full fit and "
-                                           "rounds could not make it win)",
-                                           static_cast<double>(screened[k]), *first_mse[k] / *least_first, kScreenFactor);
+                c.joint.stop = screen_stop[k];
                 log::info(std::string(to_string(families[k])) + " candidate: " + c.joint.stop);
             } else if (rival && first_mse[k] && *first_mse[k] > kNoRoundsFactor * *rival) {
                 c.joint.first_validation_mse = first_mse[k];
@@ -1293,7 +1296,7 @@ std::optional<evaluate::EvaluationResult> evaluation_stage(PipelineRun& run, con
         eo.progress = true;
         if (core_renders != nullptr) {
             core_renders->clear();
-            for (const std::size_t f : evaluate::evaluated_frames(capture.desc, viewer_options(config))) (*core_renders)[f];
+            for (const std::size_t f : evaluate::evaluated_frames(capture.desc, viewer_options(config))) core_renders->try_emplace(f);
             eo.core_renders = core_renders;
         }
         if (add_light != nullptr) {

@@ -58,11 +58,16 @@ std::uint64_t residual_keep_stride(const LambertInputs& in, const LambertOutputs
     return std::max<std::uint64_t>(1, (lit + o.max_kept_samples - 1) / o.max_kept_samples);
 }
 
+std::size_t used_sample_stride(std::size_t used, std::size_t max_samples) {
+    return max_samples != 0 && used > max_samples ? (used + max_samples - 1) / max_samples : 1;
+}
+
 std::size_t used_sample_stride(std::span<const ResidualSample> samples, std::size_t max_samples) {
     if (max_samples == 0) return 1;
-    const auto used = static_cast<std::size_t>(
-        std::count_if(samples.begin(), samples.end(), [](const ResidualSample& s) { return s.status == shared::kResidualUsed; }));
-    return used > max_samples ? (used + max_samples - 1) / max_samples : 1;
+    return used_sample_stride(static_cast<std::size_t>(std::count_if(samples.begin(), samples.end(), [](const ResidualSample& s) {
+                                  return s.status == shared::kResidualUsed;
+                              })),
+                              max_samples);
 }
 
 std::vector<LafortuneSample> to_lafortune_samples(std::span<const ResidualSample> samples, std::size_t max_samples) {

@@ -159,6 +159,8 @@ private:
 /// The stride that keeps at most max_samples of the used samples, every k-th from the first (as
 /// stride_subsample takes them from the converted list; 0 or no more used than that: 1).
 [[nodiscard]] std::size_t used_sample_stride(std::span<const ResidualSample> samples, std::size_t max_samples);
+/// The same from the count of used samples.
+[[nodiscard]] std::size_t used_sample_stride(std::size_t used, std::size_t max_samples);
 
 /// Only the used samples a fit of at most max_samples takes, every used_sample_stride-th, in
 /// place (0: all kept); the fits' conversions with that bound then take every one of them.

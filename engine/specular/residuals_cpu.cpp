@@ -22,10 +22,6 @@ namespace {
 
 namespace f64 = shared::f64;
 
-} // namespace
-
-namespace {
-
 // One particle as one view sees it: what its samples in the view's frames share.
 struct ParticleInView {
     glm::dvec3 P{0.0}, n{0.0}, rpi{0.0}, vl{0.0};
@@ -89,13 +85,12 @@ Drop frame_sample(const ParticleInView& q, const FrameImage& image, const PointL
     const glm::dvec3 r = read.c - (q.rpi * kd) * E;
     const glm::dvec3 fs(E.x > 0.0 ? r.x / E.x : 0.0, E.y > 0.0 ? r.y / E.y : 0.0, E.z > 0.0 ? r.z / E.z : 0.0);
     const double ebar = (E.x + E.y + E.z) / 3.0;
-    ResidualSample& s = out;
-    s = ResidualSample{};
-    s.u = glm::vec4(glm::vec3(f64::to_tangent_frame(q.n, u)), static_cast<float>(ebar * ebar));
-    s.v = glm::vec4(glm::vec3(q.vl), static_cast<float>(ebar));
-    s.f = glm::vec3(fs);
-    s.status = shared::kResidualUsed;
-    s.d = glm::vec4(glm::vec3(q.rpi), static_cast<float>(kd));
+    out = ResidualSample{};
+    out.u = glm::vec4(glm::vec3(f64::to_tangent_frame(q.n, u)), static_cast<float>(ebar * ebar));
+    out.v = glm::vec4(glm::vec3(q.vl), static_cast<float>(ebar));
+    out.f = glm::vec3(fs);
+    out.status = shared::kResidualUsed;
+    out.d = glm::vec4(glm::vec3(q.rpi), static_cast<float>(kd));
     return Drop::None;
 }
 
@@ -207,7 +202,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     }
     if (named) {
         // The kept samples the fit takes: every k-th from the first (used_sample_stride), made again.
-        const std::size_t stride = slots.size() > o.fit_samples ? (slots.size() + o.fit_samples - 1) / o.fit_samples : 1;
+        const std::size_t stride = used_sample_stride(slots.size(), o.fit_samples);
         out.samples.resize((slots.size() + stride - 1) / stride);
         parallel_for_chunks(out.samples.size(), threads, kChunk, [&](unsigned, std::size_t begin, std::size_t end) {
             for (std::size_t i = begin; i < end; ++i) {
