@@ -596,7 +596,7 @@ JointSteps material_steps(PipelineRun& run, SpecularStage& s, const LambertInput
             LambertOptions o = base;
             o.material = m;
             const ResidualSamples rs = run_residuals(run, *validation, solve, o, "validation" + label + tag);
-            return material_mean_square_error(m, to_material_samples(rs.samples));
+            return material_mean_square_error(m, rs.samples);
         };
     return steps;
 }
@@ -616,7 +616,7 @@ std::size_t choose_material(const PipelineRun& run, SpecularStage& s, const std:
         // its train error would not compare with the others' held-out error.
         error[k] = s.candidates[k].validation_mse ? *s.candidates[k].validation_mse
                    : s.validation_frames > 0      ? std::numeric_limits<double>::infinity()
-                                                  : material_mean_square_error(scored, to_material_samples(train));
+                                                  : material_mean_square_error(scored, train);
     }
     std::size_t best = static_cast<std::size_t>(std::min_element(error.begin(), error.end()) - error.begin());
     // "Diffuse only" (its index: families.size()) when it competes (decide_specular "validate"):
@@ -732,7 +732,7 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         if (diffuse_only_competes) {
             // The first solve's albedo with no specular at all, scored as every family is.
             const ResidualSamples rv = run_residuals(run, split.validation, solve0, diffuse.options, "validation (diffuse only)");
-            s.diffuse_only_mse = material_mean_square_error(SpecularModel(LafortuneRgb{}), to_material_samples(rv.samples));
+            s.diffuse_only_mse = material_mean_square_error(SpecularModel(LafortuneRgb{}), rv.samples);
             log::info("material candidate diffuse only: validation PSNR " + std::to_string(psnr_of(*s.diffuse_only_mse)) + " dB");
         }
         // Every family's first fit, then the samples go (peak memory: they would be held through

@@ -393,6 +393,22 @@ void reweight(std::vector<Prepared>& s, const std::vector<double>& base_w, const
     for (std::size_t i = 0; i < s.size(); ++i) s[i].w = base_w[i] * (abs_r[i] <= k ? 1.0 : k / abs_r[i]);
 }
 
+// A used residual sample as a total BRDF sample (to_material_samples).
+MaterialSample to_material_sample(const ResidualSample& s) noexcept {
+    const glm::vec3 rho_pi(s.d);
+    return {.u = glm::vec3(s.u), .v = glm::vec3(s.v), .b = s.f + rho_pi * s.d.w, .rho_over_pi = rho_pi, .weight = s.u.w};
+}
+
+// material_mean_square_error's sums: sq += w |model - b|^2 / 3, wsum += w (weight > 0 only).
+void add_square_error(const shared::MaterialGpu& m, const MaterialSample& s, double& sq, double& wsum) noexcept {
+    if (!(s.weight > 0.0f)) return;
+    const double ci = s.u.z, co = s.v.z, cuv = glm::dot(s.u, s.v);
+    const glm::dvec3 f = glm::dvec3(s.rho_over_pi) * f64::material_diffuse_factor(m, ci, co) + f64::material_specular(m, ci, co, cuv);
+    const glm::dvec3 r = f - glm::dvec3(s.b);
+    sq += double(s.weight) * glm::dot(r, r) / 3.0;
+    wsum += double(s.weight);
+}
+
 } // namespace
 
 std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> samples, std::size_t max_samples) {
@@ -402,8 +418,7 @@ std::vector<MaterialSample> to_material_samples(std::span<const ResidualSample> 
     std::size_t k = 0;
     for (const ResidualSample& s : samples) {
         if (s.status != shared::kResidualUsed || k++ % stride != 0) continue;
-        const glm::vec3 rho_pi(s.d);
-        out.push_back({.u = glm::vec3(s.u), .v = glm::vec3(s.v), .b = s.f + rho_pi * s.d.w, .rho_over_pi = rho_pi, .weight = s.u.w});
+        out.push_back(to_material_sample(s));
     }
     return out;
 }
@@ -578,15 +593,15 @@ CoatedFit fit_coated(std::span<const MaterialSample> samples, const CoatedFitOpt
 double material_mean_square_error(const SpecularModel& model, std::span<const MaterialSample> samples) {
     const shared::MaterialGpu m = material_gpu(model);
     double sq = 0.0, wsum = 0.0;
-    for (const MaterialSample& s : samples) {
-        if (!(s.weight > 0.0f)) continue;
-        const double ci = s.u.z, co = s.v.z, cuv = glm::dot(s.u, s.v);
-        const glm::dvec3 f = glm::dvec3(s.rho_over_pi) * f64::material_diffuse_factor(m, ci, co) +
-                             f64::material_specular(m, ci, co, cuv);
-        const glm::dvec3 r = f - glm::dvec3(s.b);
-        sq += double(s.weight) * glm::dot(r, r) / 3.0;
-        wsum += double(s.weight);
-    }
+    for (const MaterialSample& s : samples) add_square_error(m, s, sq, wsum);
+    return wsum > 0.0 ? sq / wsum : 0.0;
+}
+
+double material_mean_square_error(const SpecularModel& model, std::span<const ResidualSample> samples) {
+    const shared::MaterialGpu m = material_gpu(model);
+    double sq = 0.0, wsum = 0.0;
+    for (const ResidualSample& s : samples)
+        if (s.status == shared::kResidualUsed) add_square_error(m, to_material_sample(s), sq, wsum);
     return wsum > 0.0 ? sq / wsum : 0.0;
 }
 

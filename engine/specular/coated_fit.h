@@ -117,5 +117,8 @@ struct CoatedFit {
 /// The weighted mean square (image units^2, channel mean) of model - b over the samples, for any
 /// material family: the validation error of the model choice.
 [[nodiscard]] double material_mean_square_error(const SpecularModel& model, std::span<const MaterialSample> samples);
+/// The same over the used residual samples, converted one at a time (to_material_samples,
+/// without holding the converted list): the same value to the last bit.
+[[nodiscard]] double material_mean_square_error(const SpecularModel& model, std::span<const ResidualSample> samples);
 
 } // namespace specula

@@ -124,6 +124,14 @@ TEST(Residuals, BoundedConversionIsTheStrideSubsampleOfTheWhole) {
         ASSERT_EQ(m.size(), mw.size()) << max;
         for (std::size_t i = 0; i < m.size(); ++i) ASSERT_EQ(m[i].b, mw[i].b) << max << " " << i;
     }
+    // The validation error over the residual samples, converted one at a time, is the error over
+    // their conversion to the last bit, for either family.
+    for (const SpecularModel& model : {SpecularModel(LafortuneRgb{.cx = glm::vec3(-0.8f), .cz = glm::vec3(0.7f), .n = glm::vec3(12.0f)}),
+                                       SpecularModel(CoatedParams{.eta = 1.5f, .alpha = 0.2f})}) {
+        const double converted = material_mean_square_error(model, to_material_samples(all));
+        EXPECT_GT(converted, 0.0);
+        EXPECT_EQ(material_mean_square_error(model, all), converted);
+    }
 }
 
 // With fit_samples the pass returns only what a fit of that many takes from all of them: the
