@@ -324,7 +324,7 @@ ViewAtlasMap build_view_atlas_map(const Camera& camera, const Mesh& mesh, const 
     const std::size_t n = static_cast<std::size_t>(std::max(map.width, 0)) * static_cast<std::size_t>(std::max(map.height, 0));
     std::optional<PixelHits> cast;
     if (hits == nullptr) hits = &cast.emplace(cast_pixel_hits(scene, camera, threads));
-    if (hits->width != map.width || hits->height != map.height || hits->triangle.size() != n || hits->uv.size() != n)
+    if (!hits->fits(camera))
         throw Error("build_view_atlas_map: the pixel hits are not the camera's (" + std::to_string(hits->width) + "x" +
                     std::to_string(hits->height) + " for a " + std::to_string(map.width) + "x" + std::to_string(map.height) +
                     " image)");

@@ -737,12 +737,11 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
         }
         // Every family's first fit, then the samples go (peak memory: they would be held through
         // every candidate's rounds beside each round's own); until then only those the fits take
-        // (the knot at 384 px: 13 MB of 200 MB) are held beside the validation passes (thinned
-        // here where the first pass was not the split's). Each first fit is validated as it is
-        // made. A family fitted after another's validation error is known is first fitted on
-        // kScreenSamples of them (joint.h): where that fit is more than kScreenFactor behind, it
-        // is the candidate's first fit and the full one is left out.
-        thin_for_fit(rs0.samples, fo.max_samples);
+        // (the knot at 384 px: 13 MB of 200 MB; both first passes above make no others) are held
+        // beside the validation passes. Each first fit is validated as it is made. A family fitted
+        // after another's validation error is known is first fitted on kScreenSamples of them
+        // (joint.h): where that fit is more than kScreenFactor behind, it is the candidate's first
+        // fit and the full one is left out.
         std::vector<JointSteps> steps;
         std::vector<MaterialFit> first_fits;
         std::vector<double> first_seconds;

@@ -84,8 +84,7 @@ AlbedoRefineResult fit_albedo_to_pixels(const Mesh& mesh, const RayScene& scene,
         std::optional<PixelHits> cast;
         const PixelHits& view_hits =
             vi < fit.view_hits.size() ? fit.view_hits[vi] : cast.emplace(cast_pixel_hits(scene, cam, threads));
-        if (view_hits.width != w || view_hits.height != h || view_hits.triangle.size() != hits.size() ||
-            view_hits.uv.size() != hits.size())
+        if (!view_hits.fits(cam))
             throw Error("albedo pixel fit: view " + std::to_string(vi) + "'s pixel hits are not its camera's");
         parallel_for(static_cast<std::size_t>(h), threads, [&](std::size_t y) {
             for (int x = 0; x < w; ++x) {

@@ -31,6 +31,8 @@
 #include "geometry/ray_scene.h"
 #include "visibility/convexity.h"
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <span>
@@ -48,6 +50,11 @@ struct PixelHits {
     int height = 0;
     std::vector<std::uint32_t> triangle;
     std::vector<glm::vec2> uv;
+    /// True when these are a w x h image's hits (the size of `camera`'s image).
+    [[nodiscard]] bool fits(const Camera& camera) const noexcept {
+        const auto n = static_cast<std::size_t>(std::max(width, 0)) * static_cast<std::size_t>(std::max(height, 0));
+        return width == camera.intrinsics.w && height == camera.intrinsics.h && triangle.size() == n && uv.size() == n;
+    }
 };
 /// One ray a pixel of `camera`, on `threads` workers.
 [[nodiscard]] PixelHits cast_pixel_hits(const RayScene& scene, const Camera& camera, unsigned threads);
