@@ -42,4 +42,25 @@ namespace specula::render {
 [[nodiscard]] std::optional<glm::dvec3> project_vulkan(const glm::dmat4& world_to_clip, const Intrinsics& k,
                                                        const glm::dvec3& world);
 
+/// Pixels [x0, x1) x [y0, y1) of a target, row 0 at the top.
+struct PixelBox {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    [[nodiscard]] bool empty() const noexcept { return x1 <= x0 || y1 <= y0; }
+    [[nodiscard]] long long area() const noexcept { return empty() ? 0 : static_cast<long long>(x1 - x0) * (y1 - y0); }
+    bool operator==(const PixelBox&) const = default;
+};
+/// The smallest box holding both (an empty one adds nothing).
+[[nodiscard]] PixelBox unite(const PixelBox& a, const PixelBox& b) noexcept;
+/// The pixels in both (empty when they do not overlap).
+[[nodiscard]] PixelBox intersect(const PixelBox& a, const PixelBox& b) noexcept;
+
+/// The pixels of the camera's w x h target whose centres a surface inside the box [lo, hi] can
+/// cover when drawn through `world_to_clip` (world_to_clip above): the box's 8 corners projected,
+/// their extent widened by a pixel on each side (rounding between this double arithmetic and the
+/// rasterizer's float), clipped to the target. Every corner in front of the camera (clip w > 0)
+/// puts the whole box there, and the perspective image of a convex set in front is the convex hull
+/// of its corners' images; a corner on or behind the camera plane gives the whole target.
+[[nodiscard]] PixelBox pixels_of_box(const glm::dmat4& world_to_clip, const Intrinsics& k, const glm::dvec3& lo,
+                                     const glm::dvec3& hi);
+
 } // namespace specula::render

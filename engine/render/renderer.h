@@ -156,6 +156,8 @@ struct TriangleCluster {
     glm::vec3 apex{0.0f};
     glm::vec3 axis{0.0f};
     float cutoff = 1.0f;
+    glm::vec3 center{0.0f}; ///< a sphere holding the cluster's vertices (meshoptimizer's): what it can cover on screen
+    float radius = 0.0f;
 };
 /// Whether every triangle of `c` faces away from a camera at `eye` (meshoptimizer's cone test).
 [[nodiscard]] bool faces_away(const TriangleCluster& c, const glm::vec3& eye) noexcept;
@@ -178,6 +180,11 @@ struct FrameInfo {
     std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer
     double wall_ms = 0.0;             ///< render(): parameters, recording, submit, wait, readback, conversion
     std::size_t covered_pixels = 0;
+    /// Passes::Deferred: the pixels the shading pass runs on, the scissor box of what the frame's
+    /// mesh can cover (projection.h pixels_of_box: the mesh's bounds, and with
+    /// Options::cluster_culling the union of the drawn clusters' spheres); the rest keeps the
+    /// clear, as uncovered pixels are shaded. 0 otherwise.
+    std::size_t shaded_pixels = 0;
     std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
     std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
     /// Passes::Deferred in render(): shaded from the G-buffer the previous deferred frame left, whose

@@ -202,6 +202,64 @@ TEST(RenderProjection, MatchesTheCaptureFormula) {
     EXPECT_FALSE(project_vulkan(m, cam.intrinsics, glm::dvec3(0.8, 1.4, 5.0))); // behind the camera
 }
 
+// pixels_of_box: every pixel whose centre a point of the box projects into is inside; the box is
+// the corners' extent and a pixel, not more; a box reaching behind the camera gives the whole target.
+TEST(RenderProjection, PixelsOfABoxHoldWhatItProjectsTo) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int trial = 0; trial < 200; ++trial) {
+        const glm::dvec3 eye(6.0 * u(rng) - 3.0, 6.0 * u(rng) - 3.0, 3.0 + 4.0 * u(rng));
+        const Camera cam = make_camera(160, 120, 150.0, 150.0, 80.0 + 40.0 * (u(rng) - 0.5), 60.0, eye, {0.0, 0.0, 0.0});
+        const glm::dmat4 m = world_to_clip(cam, 0.1);
+        const glm::dvec3 lo(-u(rng), -u(rng), -u(rng)), hi(u(rng), u(rng), u(rng));
+        const PixelBox box = pixels_of_box(m, cam.intrinsics, lo, hi);
+        double x_min = 1e9, x_max = -1e9, y_min = 1e9, y_max = -1e9;
+        for (int i = 0; i < 2000; ++i) {
+            const glm::dvec3 p = lo + (hi - lo) * glm::dvec3(u(rng), u(rng), u(rng));
+            const auto f = project_vulkan(m, cam.intrinsics, p);
+            ASSERT_TRUE(f);
+            x_min = std::min(x_min, f->x);
+            x_max = std::max(x_max, f->x);
+            y_min = std::min(y_min, f->y);
+            y_max = std::max(y_max, f->y);
+            // The pixel whose centre is nearest the point, where it is on the target.
+            const int px = static_cast<int>(std::floor(f->x)), py = static_cast<int>(std::floor(f->y));
+            if (px < 0 || py < 0 || px >= 160 || py >= 120) continue;
+            ASSERT_TRUE(px >= box.x0 && px < box.x1 && py >= box.y0 && py < box.y1)
+                << "trial " << trial << ": pixel " << px << "," << py << " outside " << box.x0 << ".." << box.x1 << " x "
+                << box.y0 << ".." << box.y1;
+        }
+        // Not the whole target for nothing: within the corners' extent and a pixel.
+        for (int corner = 0; corner < 8; ++corner) {
+            const auto f = project_vulkan(m, cam.intrinsics,
+                                          {(corner & 1) ? hi.x : lo.x, (corner & 2) ? hi.y : lo.y, (corner & 4) ? hi.z : lo.z});
+            ASSERT_TRUE(f);
+            x_min = std::min(x_min, f->x);
+            x_max = std::max(x_max, f->x);
+            y_min = std::min(y_min, f->y);
+            y_max = std::max(y_max, f->y);
+        }
+        if (x_max < 0.0 || y_max < 0.0 || x_min > 160.0 || y_min > 120.0) continue;
+        EXPECT_GE(box.x0, static_cast<int>(std::floor(x_min)) - 1) << trial;
+        EXPECT_LE(box.x1, static_cast<int>(std::ceil(x_max)) + 1) << trial;
+        EXPECT_GE(box.y0, static_cast<int>(std::floor(y_min)) - 1) << trial;
+        EXPECT_LE(box.y1, static_cast<int>(std::ceil(y_max)) + 1) << trial;
+        EXPECT_LT(box.area(), 160 * 120) << trial;
+    }
+    const Camera cam = make_camera(160, 120, 150.0, 150.0, 80.0, 60.0, {0.0, 0.0, 4.0}, {0.0, 0.0, 0.0});
+    const glm::dmat4 m = world_to_clip(cam, 0.1);
+    const PixelBox whole{0, 0, 160, 120};
+    EXPECT_EQ(pixels_of_box(m, cam.intrinsics, {-1.0, -1.0, -1.0}, {1.0, 1.0, 5.0}), whole); // reaches behind the camera
+    const PixelBox small = pixels_of_box(m, cam.intrinsics, {-0.1, -0.1, -0.1}, {0.1, 0.1, 0.1});
+    // 150 * 0.1 / 3.9 = 3.85 px each side of the centre (80, 60) at the near face: [76.15, 83.85], and a pixel
+    EXPECT_EQ(small, (PixelBox{75, 55, 85, 65}));
+    EXPECT_TRUE(pixels_of_box(m, cam.intrinsics, {5.0, 5.0, -1.0}, {6.0, 6.0, 1.0}).empty()); // off the target
+    EXPECT_EQ(unite(small, PixelBox{}), small);
+    EXPECT_EQ(unite(small, PixelBox{0, 100, 10, 110}), (PixelBox{0, 55, 85, 110}));
+    EXPECT_EQ(intersect(small, PixelBox{80, 0, 160, 60}), (PixelBox{80, 55, 85, 60}));
+    EXPECT_TRUE(intersect(small, PixelBox{0, 0, 10, 10}).empty());
+}
+
 // ---------------------------------------------------------------------------------------------
 // GPU images
 
@@ -896,6 +954,46 @@ TEST_F(RenderTest, DeferredPassMatchesTheForwardPasses) {
         for (int c = 0; c < 3; ++c) ASSERT_EQ(rgba[i][c], before.color.pixels[3 * i + c]) << "pixel " << i;
     const Frame after = r.render(cam, light, deferred); // back to the renderer's own target
     EXPECT_EQ(after.color.pixels, before.color.pixels);
+}
+
+/// The deferred shading pass runs only on the pixels the mesh can cover (FrameInfo::shaded_pixels,
+/// a scissor box): a knot small in the frame, one cut by the frame's edge, and one seen from so
+/// near that its bounds reach behind the camera (the whole target) shade the same pixels as the
+/// forward passes, with and without cluster culling.
+TEST_F(RenderTest, DeferredShadingRunsWhereTheMeshCanBe) {
+    const synth::Preset preset = synth::make_preset("knot");
+    const SceneData data = constant_albedo(preset.mesh, glm::vec3(0.5f, 0.4f, 0.3f));
+    Renderer whole(ctx(), data.scene(preset.material.lobe));
+    Renderer clustered(ctx(), data.scene(preset.material.lobe), {.cluster_culling = true});
+    ASSERT_TRUE(clustered.culls_back_faces());
+    const PointLight light{{2.2, 3.0, 2.0}, {30.0, 30.0, 30.0}};
+    struct View {
+        const char* what;
+        Camera cam;
+        double max_shaded; // of the target's pixels
+    };
+    const std::array views{
+        View{"small", make_camera(160, 120, 100.0, 100.0, 80.0, 60.0, {1.0, 2.0, 9.0}, {0, 0, 0}), 0.3},
+        View{"cut by the edge", make_camera(160, 120, 100.0, 100.0, 10.0, 20.0, {1.0, 2.0, 7.0}, {0, 0, 0}), 0.5},
+        View{"bounds behind the camera", make_camera(160, 120, 100.0, 100.0, 80.0, 60.0, {0.2, 0.3, 1.05}, {0, 0, 0}), 1.0}};
+    for (const View& v : views)
+        for (Renderer* r : {&whole, &clustered}) {
+            const std::string what = std::string(v.what) + (r == &clustered ? ", clusters" : "");
+            const Frame forward = r->render(v.cam, light, {.passes = Passes::Separate});
+            const Frame deferred = r->render(v.cam, light, {.passes = Passes::Deferred});
+            const std::size_t pixels = 160 * 120;
+            EXPECT_EQ(forward.info.shaded_pixels, 0u) << what;
+            EXPECT_GT(forward.info.covered_pixels, 100u) << what;
+            EXPECT_GE(deferred.info.shaded_pixels, deferred.info.covered_pixels) << what;
+            EXPECT_LE(static_cast<double>(deferred.info.shaded_pixels), v.max_shaded * pixels) << what;
+            if (v.max_shaded == 1.0) EXPECT_EQ(deferred.info.shaded_pixels, pixels) << what;
+            EXPECT_EQ(forward.mask, deferred.mask) << what;
+            float max_rel = 0.0f;
+            for (std::size_t i = 0; i < forward.color.pixels.size(); ++i)
+                max_rel = std::max(max_rel, std::abs(forward.color.pixels[i] - deferred.color.pixels[i]) /
+                                                std::max(1e-3f, std::abs(forward.color.pixels[i])));
+            EXPECT_LE(max_rel, 1e-5f) << what;
+        }
 }
 
 /// A view's lights pay for its G-buffer once: a deferred frame whose camera and level of detail
