@@ -96,6 +96,12 @@ struct FrameStats {
     std::vector<std::pair<std::string, std::vector<double>>> passes;
 
     std::vector<double> triangles; ///< per frame, the triangles drawn (its level of detail's)
+    std::vector<double> shaded;    ///< per deferred frame, the fraction of the target's pixels shaded
+
+    void add_drawn(const render::FrameInfo& info, double target_pixels) {
+        triangles.push_back(static_cast<double>(info.triangles));
+        if (info.deferred) shaded.push_back(static_cast<double>(info.shaded_pixels) / target_pixels);
+    }
 
     void add_passes(const std::vector<std::pair<std::string, double>>& marks) {
         for (const auto& [label, t] : marks) {
@@ -120,6 +126,12 @@ struct FrameStats {
             std::sort(t.begin(), t.end());
             std::printf("bench: triangles drawn per frame: median %.0f, min %.0f, max %.0f\n", quantile(t, 0.5), t.front(),
                         t.back());
+        }
+        if (!shaded.empty()) {
+            std::vector<double> f = shaded;
+            std::sort(f.begin(), f.end());
+            std::printf("bench: pixels shaded per frame (the box the mesh can cover): median %.1f%%, max %.1f%%\n",
+                        100.0 * quantile(f, 0.5), 100.0 * f.back());
         }
         // Where a frame's time goes: each pass's median GPU time (timestamps), and the rest of the
         // median frame (blit and present, recording, submission, waiting).
@@ -237,7 +249,7 @@ void run_offscreen(const ViewerConfig& c, const Bundle& bundle, const Start& sta
             seq.submit_and_wait();
             if (i >= kBenchWarmup) {
                 stats.ms.push_back(sw.seconds() * 1e3);
-                stats.triangles.push_back(static_cast<double>(info.triangles));
+                stats.add_drawn(info, static_cast<double>(w) * h);
                 stats.add_passes(clock.read());
             }
             bench_step(view, c.bench_frames);
@@ -587,7 +599,7 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
             if (c.bench) {
                 if (drawn > kBenchWarmup) {
                     stats.ms.push_back(ms);
-                    if (!show_photo) stats.triangles.push_back(static_cast<double>(info.triangles));
+                    if (!show_photo) stats.add_drawn(info, static_cast<double>(fb_w) * fb_h);
                     stats.add_passes(clock.read()); // present_target waited for the frame
                 }
                 bench_step(view, c.bench_frames);
