@@ -183,7 +183,7 @@ struct FrameInfo {
     /// Passes::Deferred: the pixels the shading pass runs on, the scissor box of what the frame's
     /// mesh can cover (projection.h pixels_of_box: the mesh's bounds, and with
     /// Options::cluster_culling the union of the drawn clusters' spheres); the rest keeps the
-    /// clear, as uncovered pixels are shaded. 0 otherwise.
+    /// clear, 0, which is what the shader writes on an uncovered pixel. 0 otherwise.
     std::size_t shaded_pixels = 0;
     std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
     std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
