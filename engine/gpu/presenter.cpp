@@ -79,7 +79,7 @@ bool Presenter::present_target(const RecordFrame& record, Readback readback) {
     if (!ready()) throw Error("Presenter::present_target before a successful resize()");
     return present(
         [&](VkCommandBuffer cmd, VkImage swap) {
-            record(cmd, *m_target);
+            const std::optional<PixelRect> drawn = record(cmd, *m_target);
             if (readback == Readback::Target) {
                 m_target->record_readback(cmd); // leaves the colour in TRANSFER_SRC
             } else {
@@ -87,12 +87,29 @@ bool Presenter::present_target(const RecordFrame& record, Readback readback) {
                               VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT,
                               VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
             }
-            // Same size: a texel-exact copy with the format conversion (linear float -> sRGB bytes).
-            const uint32_t w = m_chain.width(), h = m_chain.height();
-            const VkImageBlit region =
-                blit_region(w, h, {.x0 = 0, .y0 = 0, .x1 = static_cast<int32_t>(w), .y1 = static_cast<int32_t>(h)});
-            vkCmdBlitImage(cmd, m_target->color().handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, swap,
-                           VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region, VK_FILTER_NEAREST);
+            // Same size: a texel-exact copy with the format conversion (linear float -> sRGB bytes),
+            // of the rectangle drawn; the rest is 0 in the target, so a clear to 0 gives its bytes.
+            const PixelRect whole{.x0 = 0, .y0 = 0, .x1 = static_cast<int32_t>(m_chain.width()),
+                                  .y1 = static_cast<int32_t>(m_chain.height())};
+            PixelRect r = whole;
+            if (drawn) {
+                r = {.x0 = std::clamp(drawn->x0, 0, whole.x1), .y0 = std::clamp(drawn->y0, 0, whole.y1),
+                     .x1 = std::clamp(drawn->x1, 0, whole.x1), .y1 = std::clamp(drawn->y1, 0, whole.y1)};
+                const VkClearColorValue zero{{0.0f, 0.0f, 0.0f, 0.0f}};
+                const VkImageSubresourceRange all{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+                vkCmdClearColorImage(cmd, swap, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1, &all);
+                swap_image_barrier(cmd, swap, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                   VK_ACCESS_TRANSFER_WRITE_BIT);
+            }
+            if (r.x1 > r.x0 && r.y1 > r.y0) {
+                VkImageBlit region{};
+                region.srcSubresource = region.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+                region.srcOffsets[0] = region.dstOffsets[0] = {r.x0, r.y0, 0};
+                region.srcOffsets[1] = region.dstOffsets[1] = {r.x1, r.y1, 1};
+                vkCmdBlitImage(cmd, m_target->color().handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, swap,
+                               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region, VK_FILTER_NEAREST);
+            }
         },
         readback);
 }

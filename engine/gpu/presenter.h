@@ -9,6 +9,7 @@
 //   if (p.ready()) {
 //       const bool ok = p.present_target([&](VkCommandBuffer cmd, const gpu::RenderTarget& target) {
 //           renderer.record(cmd, target, camera, light, settings);    // leaves COLOR_ATTACHMENT_OPTIMAL
+//           return std::optional<gpu::PixelRect>{};                    // or the rectangle it drew
 //       }, gpu::Readback::Shown);
 //       // or p.present_image(photo, rect, ...): a texture scaled into rect, the rest black
 //       if (ok) specula::Image shot = p.shown_image();   // else: out of date, resize and draw again
@@ -31,6 +32,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -72,13 +74,18 @@ public:
 
     /// Records into `cmd` the commands that draw into the window-sized target: every barrier
     /// they need, no render pass left open, the colour left in COLOR_ATTACHMENT_OPTIMAL
-    /// after colour-attachment writes (as render::Renderer::record leaves it).
-    using RecordFrame = std::function<void(VkCommandBuffer cmd, const RenderTarget& target)>;
+    /// after colour-attachment writes (as render::Renderer::record leaves it). Returns the
+    /// rectangle of the target it drew, outside which the target holds 0 (a clear to 0, as
+    /// Renderer::record's passes begin), or nullopt: the whole target may hold anything.
+    using RecordFrame = std::function<std::optional<PixelRect>(VkCommandBuffer cmd, const RenderTarget& target)>;
 
     /// Presents one frame: `record` draws into the target, which is blitted 1:1 to the
-    /// swapchain image. Returns false when the swapchain is out of date (nothing was
-    /// recorded or presented: resize() and draw again). A present that reports the
-    /// swapchain suboptimal or out of date still returns true and marks stale().
+    /// swapchain image: only the rectangle `record` returns, the rest of the swapchain image
+    /// cleared to 0, the bytes the whole blit would give (lavapipe converts each texel it
+    /// blits; at 1024 px the whole blit took about 2 ms more). Returns false when the
+    /// swapchain is out of date (nothing was recorded or presented: resize() and draw again).
+    /// A present that reports the swapchain suboptimal or out of date still returns true and
+    /// marks stale().
     bool present_target(const RecordFrame& record, Readback readback = Readback::None);
 
     /// Presents `image` (a Texture2D in SHADER_READ_ONLY_OPTIMAL, left so) scaled into `rect`

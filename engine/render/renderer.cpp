@@ -743,6 +743,7 @@ struct Renderer::Impl {
             info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
         info.deferred = settings.passes == Passes::Deferred;
+        info.drawn = shading_box;
         if (info.deferred) info.shaded_pixels = static_cast<std::size_t>(shading_box.area());
 
         std::optional<LightFrustum> frustum;

@@ -48,6 +48,7 @@
 #include "gpu/pass_clock.h"
 #include "gpu/render_target.h"
 #include "gpu/shadow_map.h"
+#include "render/projection.h"
 #include "gpu/sequence.h"
 #include "shared/render.h"
 
@@ -180,10 +181,12 @@ struct FrameInfo {
     std::optional<double> readback_gpu_ms; ///< GPU time of the colour copy to the host buffer
     double wall_ms = 0.0;             ///< render(): parameters, recording, submit, wait, readback, conversion
     std::size_t covered_pixels = 0;
-    /// Passes::Deferred: the pixels the shading pass runs on, the scissor box of what the frame's
-    /// mesh can cover (projection.h pixels_of_box: the mesh's bounds, and with
-    /// Options::cluster_culling the union of the drawn clusters' spheres); the rest keeps the
-    /// clear, 0, which is what the shader writes on an uncovered pixel. 0 otherwise.
+    /// The box of pixels the frame's mesh can cover (projection.h pixels_of_box: the mesh's
+    /// bounds, and with Options::cluster_culling the union of the drawn clusters' spheres): no
+    /// pass writes outside it, so the target holds its clear, 0, there (the viewer blits only it).
+    PixelBox drawn;
+    /// Passes::Deferred: the pixels the shading pass runs on, `drawn` (its scissor); the rest
+    /// keeps the clear, 0, which is what the shader writes on an uncovered pixel. 0 otherwise.
     std::size_t shaded_pixels = 0;
     std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
     std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)

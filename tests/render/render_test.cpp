@@ -986,7 +986,11 @@ TEST_F(RenderTest, DeferredShadingRunsWhereTheMeshCanBe) {
             EXPECT_GT(forward.info.covered_pixels, 100u) << what;
             EXPECT_GE(deferred.info.shaded_pixels, deferred.info.covered_pixels) << what;
             EXPECT_LE(static_cast<double>(deferred.info.shaded_pixels), v.max_shaded * pixels) << what;
-            if (v.max_shaded == 1.0) EXPECT_EQ(deferred.info.shaded_pixels, pixels) << what;
+            if (v.max_shaded == 1.0) {
+                EXPECT_EQ(deferred.info.shaded_pixels, pixels) << what;
+            }
+            EXPECT_EQ(deferred.info.drawn.area(), static_cast<long long>(deferred.info.shaded_pixels)) << what;
+            EXPECT_EQ(forward.info.drawn, deferred.info.drawn) << what; // no pass writes outside it
             EXPECT_EQ(forward.mask, deferred.mask) << what;
             float max_rel = 0.0f;
             for (std::size_t i = 0; i < forward.color.pixels.size(); ++i)

@@ -3,6 +3,8 @@
 // reads back, as linear float EXR files, for view_test.cpp to check:
 //   target.exr        Readback::Target of a frame that clears the target to kClear
 //   target_shown.exr  Readback::Shown of the same frame (the swapchain image as presented)
+//   partial_shown.exr the same frame saying it drew only kRect: kClear there, 0 elsewhere
+//   corner_shown.exr  the same frame saying it drew a rectangle past the window's far corner
 //   image_shown.exr   Readback::Shown of known_image() blitted 1:1 into kRect, the rest black
 //   scaled_shown.exr  Readback::Shown of known_image() scaled 2x into kScaledRect
 // Exit status: 0 done; 1 failure (including validation messages with SPECULA_VALIDATION=1,
@@ -24,6 +26,7 @@
 #include <exception>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 namespace {
@@ -59,11 +62,12 @@ void run(const std::filesystem::path& out, GLFWwindow* window) {
         if (!p.resize(kWindowW, kWindowH) || !p.ready()) throw Error("no swapchain for a visible window");
         if (p.width() != kWindowW || p.height() != kWindowH) throw Error("the swapchain is not the window's size");
 
-        const auto clear = [&](gpu::Readback readback) {
+        const auto clear = [&](gpu::Readback readback, std::optional<gpu::PixelRect> drawn = std::nullopt) {
             return p.present_target(
-                [](VkCommandBuffer cmd, const gpu::RenderTarget& target) {
+                [&](VkCommandBuffer cmd, const gpu::RenderTarget& target) {
                     target.begin(cmd, gpu::RenderTarget::Load::Clear, {kClear[0], kClear[1], kClear[2], 1.0f});
                     target.end(cmd);
+                    return drawn;
                 },
                 readback);
         };
@@ -71,6 +75,12 @@ void run(const std::filesystem::path& out, GLFWwindow* window) {
         write_image(out / "target.exr", p.target_image(), ColorSpace::Linear);
         present(p, [&] { return clear(gpu::Readback::Shown); });
         write_image(out / "target_shown.exr", p.shown_image(), ColorSpace::Linear);
+        // The same frame saying it drew only kRect (and a rectangle reaching past the window's
+        // corner, which the presenter clips): only that part is shown, the rest is 0.
+        present(p, [&] { return clear(gpu::Readback::Shown, gpu::PixelRect{kRect.x0, kRect.y0, kRect.x1, kRect.y1}); });
+        write_image(out / "partial_shown.exr", p.shown_image(), ColorSpace::Linear);
+        present(p, [&] { return clear(gpu::Readback::Shown, gpu::PixelRect{kWindowW - 5, kWindowH - 4, kWindowW + 9, kWindowH + 9}); });
+        write_image(out / "corner_shown.exr", p.shown_image(), ColorSpace::Linear);
 
         const Image known = known_image();
         const VkFormat f = gpu::choose_float_texture_format(ctx);

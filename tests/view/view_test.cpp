@@ -278,6 +278,22 @@ TEST_F(ViewTest, XvfbPresenterShowsAndReadsBackWhatItWasGiven) {
     EXPECT_EQ(target_err, 0.0);
     EXPECT_LE(shown_err, step);
 
+    // A frame that says which rectangle it drew: that rectangle as the whole frame shows it, the
+    // rest 0 (the presenter blits only the rectangle), clipped to the window.
+    const pr::Rect corner{pr::kWindowW - 5, pr::kWindowH - 4, pr::kWindowW, pr::kWindowH};
+    for (const auto& [file, rect] : {std::pair{"partial_shown.exr", pr::kRect}, std::pair{"corner_shown.exr", corner}}) {
+        const Image partial = read_image(out / file, ColorSpace::Linear);
+        ASSERT_EQ(partial.width, pr::kWindowW);
+        ASSERT_EQ(partial.height, pr::kWindowH);
+        std::size_t wrong = 0;
+        for (int y = 0; y < pr::kWindowH; ++y)
+            for (int x = 0; x < pr::kWindowW; ++x)
+                for (int c = 0; c < 3; ++c)
+                    wrong += rect.contains(x, y) ? (partial.at(x, y, c) == shown.at(x, y, c) ? 0 : 1)
+                                                 : (partial.at(x, y, c) == 0.0f ? 0 : 1);
+        EXPECT_EQ(wrong, 0u) << file;
+    }
+
     const Image image = read_image(out / "image_shown.exr", ColorSpace::Linear);
     ASSERT_EQ(image.width, pr::kWindowW);
     ASSERT_EQ(image.height, pr::kWindowH);

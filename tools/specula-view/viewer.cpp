@@ -568,6 +568,9 @@ void run_window(const ViewerConfig& c, const Bundle& bundle, const Start& start,
                                                  if (c.bench) clock.start(cmd);
                                                  info = renderer.renderer().record(cmd, target, camera, view.light(), settings,
                                                                                    c.bench ? &clock : nullptr);
+                                                 return std::optional<gpu::PixelRect>(gpu::PixelRect{
+                                                     .x0 = info.drawn.x0, .y0 = info.drawn.y0, .x1 = info.drawn.x1,
+                                                     .y1 = info.drawn.y1});
                                              },
                                              readback);
             if (!ok) {
