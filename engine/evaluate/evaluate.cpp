@@ -242,9 +242,11 @@ EvaluationResult evaluate(gpu::Context& ctx, const Bundle& bundle, const Capture
                 options.rendered->erase(it);
                 prerendered = true;
             }
-        if (!prerendered && renderer) {
+        if (prerendered) {
+            // scored as it was drawn
+        } else if (renderer) {
             frame = renderer->render(fd.camera(), fd.light, render_settings);
-        } else if (!prerendered) { // another tool's image: its nonzero pixels are its coverage
+        } else { // another tool's image: its nonzero pixels are its coverage
             frame.color = std::move(external.at(fi));
             const std::size_t n = static_cast<std::size_t>(frame.color.width) * frame.color.height;
             frame.mask.assign(n, 0);

@@ -349,7 +349,7 @@ struct Renderer::Impl {
         std::optional<gpu::Buffer> visible;                 // with clusters: the frame's clusters facing the camera
     } mesh_buffers;
     uint32_t visible_count = 0; // indices in mesh_buffers.visible this frame (prepare)
-    PixelBox shading_box;       // the pixels the deferred shading pass runs on this frame (prepare)
+    PixelBox drawn_box;         // FrameInfo::drawn this frame (prepare): the deferred shading pass's scissor
     std::size_t drawn_level = 0; // the frame's level of detail (prepare), drawn by every pass
     std::optional<std::size_t> forced_level; // accept_levels_of_detail's renders: this level
     std::size_t accepted_levels = 1;         // levels a frame may draw (accept_levels_of_detail)
@@ -717,9 +717,9 @@ struct Renderer::Impl {
         const double near = settings.near.value_or(near_plane_for(camera, bounds));
         const glm::dmat4 to_clip = world_to_clip(camera, near);
         // Every level's triangles join the mesh's vertices, so the bounds hold what any level covers.
-        shading_box = pixels_of_box(to_clip, k, glm::dvec3(bounds.min), glm::dvec3(bounds.max));
+        drawn_box = pixels_of_box(to_clip, k, glm::dvec3(bounds.min), glm::dvec3(bounds.max));
         if (mesh_buffers.visible) {
-            shading_box = intersect(shading_box, collect_visible_clusters(glm::vec3(camera.center()), to_clip, k));
+            drawn_box = intersect(drawn_box, collect_visible_clusters(glm::vec3(camera.center()), to_clip, k));
             info.triangles = visible_count / 3;
         }
         const bool want_diffuse = settings.mode != Mode::Specular;
@@ -743,8 +743,7 @@ struct Renderer::Impl {
             info.fused = settings.mode == Mode::Both && settings.passes == Passes::Fused;
         }
         info.deferred = settings.passes == Passes::Deferred;
-        info.drawn = shading_box;
-        if (info.deferred) info.shaded_pixels = static_cast<std::size_t>(shading_box.area());
+        info.drawn = drawn_box;
 
         std::optional<LightFrustum> frustum;
         if (!settings.shadows)
@@ -823,10 +822,10 @@ struct Renderer::Impl {
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, shade.layout(), 0, 1, &s, 0, nullptr);
         // Only where the mesh can be: lavapipe runs the whole shader on an uncovered pixel (both
         // sides of its branch), which on knot_hd at 1024 px was 4 pixels in 5.
-        if (!shading_box.empty()) {
-            const VkRect2D box{{shading_box.x0, shading_box.y0},
-                               {static_cast<uint32_t>(shading_box.x1 - shading_box.x0),
-                                static_cast<uint32_t>(shading_box.y1 - shading_box.y0)}};
+        if (!drawn_box.empty()) {
+            const VkRect2D box{{drawn_box.x0, drawn_box.y0},
+                               {static_cast<uint32_t>(drawn_box.x1 - drawn_box.x0),
+                                static_cast<uint32_t>(drawn_box.y1 - drawn_box.y0)}};
             vkCmdSetScissor(cmd, 0, 1, &box);
             vkCmdDraw(cmd, 3, 1, 0, 0);
         }

@@ -184,10 +184,9 @@ struct FrameInfo {
     /// The box of pixels the frame's mesh can cover (projection.h pixels_of_box: the mesh's
     /// bounds, and with Options::cluster_culling the union of the drawn clusters' spheres): no
     /// pass writes outside it, so the target holds its clear, 0, there (the viewer blits only it).
+    /// Passes::Deferred shades only these pixels (the shading pass's scissor): outside it the
+    /// clear is what the shader writes on an uncovered pixel.
     PixelBox drawn;
-    /// Passes::Deferred: the pixels the shading pass runs on, `drawn` (its scissor); the rest
-    /// keeps the clear, 0, which is what the shader writes on an uncovered pixel. 0 otherwise.
-    std::size_t shaded_pixels = 0;
     std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
     std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
     /// Passes::Deferred in render(): shaded from the G-buffer the previous deferred frame left, whose

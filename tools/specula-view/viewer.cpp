@@ -100,7 +100,7 @@ struct FrameStats {
 
     void add_drawn(const render::FrameInfo& info, double target_pixels) {
         triangles.push_back(static_cast<double>(info.triangles));
-        if (info.deferred) shaded.push_back(static_cast<double>(info.shaded_pixels) / target_pixels);
+        if (info.deferred) shaded.push_back(static_cast<double>(info.drawn.area()) / target_pixels);
     }
 
     void add_passes(const std::vector<std::pair<std::string, double>>& marks) {
