@@ -28,6 +28,8 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <numeric>
+#include <numbers>
 #include <tuple>
 #include <unordered_map>
 
@@ -221,60 +223,278 @@ IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corn
     return out;
 }
 
-std::vector<LevelOfDetail> build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels) {
-    if (mesh.indices.size() % 3 != 0 || mesh.indices.empty())
-        throw Error("renderer: levels of detail need whole triangles (" + std::to_string(mesh.indices.size()) + " indices)");
-    const std::size_t full = mesh.indices.size();
-    std::vector<LevelOfDetail> levels{{.first_index = 0, .index_count = static_cast<uint32_t>(full), .error = 0.0}};
-    constexpr std::size_t kMinTriangles = 1000;
-    const auto* positions = reinterpret_cast<const float*>(mesh.vertices.data()); // position_u: xyz first
-    const float scale = meshopt_simplifyScale(positions, mesh.vertices.size(), sizeof(shared::RenderVertex));
-    std::vector<uint32_t> out(full);
-    while (levels.size() < max_levels) {
-        const std::size_t previous = levels.back().index_count;
-        const std::size_t target = (full >> levels.size()) / 3 * 3;
-        if (target / 3 < kMinTriangles) break;
-        float relative_error = 0.0f;
-        // target_error 1: no bound on the error (the mesh's extent); the level is chosen per frame by its error.
-        const std::size_t count = meshopt_simplify(out.data(), mesh.indices.data(), full, positions, mesh.vertices.size(),
-                                                   sizeof(shared::RenderVertex), target, 1.0f, 0, &relative_error);
-        if (4 * count > 3 * previous || count < 3 * kMinTriangles) break;
-        levels.push_back({.first_index = static_cast<uint32_t>(mesh.indices.size()), .index_count = static_cast<uint32_t>(count),
-                          .error = static_cast<double>(relative_error) * scale});
-        mesh.indices.insert(mesh.indices.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
-    }
-    return levels;
+namespace {
+
+glm::vec3 triangle_centroid(const IndexedVertices& mesh, const uint32_t* tri) {
+    return (glm::vec3(mesh.vertices[tri[0]].position_u) + glm::vec3(mesh.vertices[tri[1]].position_u) +
+            glm::vec3(mesh.vertices[tri[2]].position_u)) / 3.0f;
 }
 
-std::vector<std::vector<TriangleCluster>> cluster_levels(IndexedVertices& mesh, std::span<const LevelOfDetail> levels) {
+glm::vec3 triangle_normal(const IndexedVertices& mesh, const uint32_t* tri) {
+    const glm::vec3 a(mesh.vertices[tri[0]].position_u), b(mesh.vertices[tri[1]].position_u), c(mesh.vertices[tri[2]].position_u);
+    return glm::cross(b - a, c - a); // length: twice the area
+}
+
+// Orders `tris` (triangle numbers) so that runs of at most `most` are compact: splits at the median
+// of the centroids along the longest side of their box, recursively. Appends each run's size to `runs`.
+void split_into_patches(std::span<uint32_t> tris, std::span<const glm::vec3> centroids, std::size_t most,
+                        std::vector<std::size_t>& runs) {
+    if (tris.size() <= most) {
+        runs.push_back(tris.size());
+        return;
+    }
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (const uint32_t t : tris) {
+        lo = glm::min(lo, centroids[t]);
+        hi = glm::max(hi, centroids[t]);
+    }
+    const glm::vec3 extent = hi - lo;
+    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : extent.y >= extent.z ? 1 : 2;
+    const std::size_t half = tris.size() / 2;
+    std::nth_element(tris.begin(), tris.begin() + static_cast<std::ptrdiff_t>(half), tris.end(),
+                     [&](uint32_t a, uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
+    split_into_patches(tris.first(half), centroids, most, runs);
+    split_into_patches(tris.subspan(half), centroids, most, runs);
+}
+
+// The shape of a patch's surface, by its directed edges (welded position ids): its border (the
+// edges no triangle among them walks the other way, sorted), and its folds (edges walked twice the
+// same way, and triangles with two corners at one place), which a simplification must not add.
+struct PatchEdges {
+    std::vector<uint64_t> edges; // every directed edge, (from << 32) | to, sorted
+    std::vector<uint64_t> border;
+    std::size_t folds = 0;
+};
+PatchEdges patch_edges(std::span<const uint32_t> indices, std::span<const uint32_t> welded) {
+    PatchEdges out;
+    out.edges.reserve(indices.size());
+    for (std::size_t t = 0; t < indices.size(); t += 3)
+        for (std::size_t k = 0; k < 3; ++k) {
+            const uint32_t from = welded[indices[t + k]], to = welded[indices[t + (k + 1) % 3]];
+            if (from == to) ++out.folds;
+            out.edges.push_back(uint64_t{from} << 32 | to);
+        }
+    std::sort(out.edges.begin(), out.edges.end());
+    for (std::size_t i = 0; i < out.edges.size(); ++i) {
+        const uint64_t e = out.edges[i];
+        if (i > 0 && out.edges[i - 1] == e) ++out.folds;
+        if (!std::binary_search(out.edges.begin(), out.edges.end(), (e << 32) | (e >> 32))) out.border.push_back(e);
+    }
+    return out;
+}
+
+} // namespace
+
+LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels, std::size_t patch_triangles) {
+    if (mesh.indices.size() % 3 != 0 || mesh.indices.empty())
+        throw Error("renderer: levels of detail need whole triangles (" + std::to_string(mesh.indices.size()) + " indices)");
+    if (patch_triangles == 0) throw Error("renderer: levels of detail need patches of at least one triangle");
+    const std::size_t full = mesh.indices.size();
+    LevelsOfDetail out;
+    out.levels.push_back({.first_index = 0, .index_count = static_cast<uint32_t>(full), .error = 0.0});
+    constexpr std::size_t kMinTriangles = 1000;
+    if (max_levels < 2 || full / 3 / 2 < kMinTriangles) return out;
+
+    // Level 0 in patches.
+    const std::size_t triangles = full / 3;
+    std::vector<glm::vec3> centroids(triangles);
+    for (std::size_t t = 0; t < triangles; ++t) centroids[t] = triangle_centroid(mesh, &mesh.indices[3 * t]);
+    std::vector<uint32_t> order(triangles);
+    for (std::size_t t = 0; t < triangles; ++t) order[t] = static_cast<uint32_t>(t);
+    std::vector<std::size_t> runs;
+    split_into_patches(order, centroids, patch_triangles, runs);
+    {
+        std::vector<uint32_t> reordered(full);
+        for (std::size_t i = 0; i < triangles; ++i)
+            for (std::size_t k = 0; k < 3; ++k) reordered[3 * i + k] = mesh.indices[3 * order[i] + k];
+        mesh.indices = std::move(reordered);
+    }
+    // Welded by exact position (atlas seams split vertices): what "the same border" compares.
+    std::vector<uint32_t> welded(mesh.vertices.size());
+    std::size_t places = 0;
+    {
+        std::map<std::tuple<float, float, float>, uint32_t> ids;
+        for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+            const glm::vec4& p = mesh.vertices[v].position_u;
+            welded[v] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
+        }
+        places = ids.size();
+    }
+
+    // Each patch's level 0, and its vertices numbered locally (the simplifier's work scales with them).
+    std::vector<uint32_t> local_of(mesh.vertices.size(), std::numeric_limits<uint32_t>::max());
+    struct Local {
+        std::vector<uint32_t> global;  // local vertex -> mesh vertex
+        std::vector<float> positions;  // xyz per local vertex
+        std::vector<uint32_t> indices; // level 0, local
+        float scale = 0.0f;            // meshopt_simplifyScale
+        PatchEdges edges;              // level 0's
+    };
+    std::vector<Local> locals(runs.size());
+    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> patch_at(places, kNone); // a patch with a corner at each place
+    std::vector<bool> shared(places, false);        // places where patches meet
+    std::size_t first = 0;
+    for (std::size_t p = 0; p < runs.size(); ++p) {
+        Local& l = locals[p];
+        const std::span<const uint32_t> range(mesh.indices.data() + first, 3 * runs[p]);
+        for (const uint32_t v : range) {
+            if (local_of[v] == std::numeric_limits<uint32_t>::max()) {
+                local_of[v] = static_cast<uint32_t>(l.global.size());
+                l.global.push_back(v);
+                const glm::vec4& q = mesh.vertices[v].position_u;
+                l.positions.insert(l.positions.end(), {q.x, q.y, q.z});
+            }
+            l.indices.push_back(local_of[v]);
+        }
+        for (const uint32_t v : l.global) local_of[v] = std::numeric_limits<uint32_t>::max();
+        l.scale = meshopt_simplifyScale(l.positions.data(), l.global.size(), 3 * sizeof(float));
+        l.edges = patch_edges(range, welded);
+        for (const uint32_t v : l.global) {
+            uint32_t& at = patch_at[welded[v]];
+            if (at != kNone && at != p) shared[welded[v]] = true;
+            at = static_cast<uint32_t>(p);
+        }
+        MeshPatch& patch = out.patches.emplace_back();
+        patch.levels.push_back({.first_index = static_cast<uint32_t>(first), .index_count = static_cast<uint32_t>(range.size())});
+        first += range.size();
+    }
+    // Which patch walks each directed edge between two places where patches meet, at any level: a
+    // simplified patch may not walk another's (their triangles would overlap in some mix of levels).
+    // Only such edges can be two patches': any other has a corner in one patch only.
+    std::unordered_map<uint64_t, uint32_t> owner;
+    const auto between_patches = [&](uint64_t e) { return shared[e >> 32] && shared[e & 0xffffffffu]; };
+    for (std::size_t p = 0; p < locals.size(); ++p)
+        for (const uint64_t e : locals[p].edges.edges)
+            if (between_patches(e)) owner.try_emplace(e, static_cast<uint32_t>(p));
+
+    std::vector<uint32_t> simplified, global_indices;
+    while (out.levels.size() < max_levels) {
+        const std::size_t k = out.levels.size();
+        const std::size_t previous = out.levels.back().index_count;
+        if ((full >> k) / 3 < kMinTriangles) break;
+        LevelOfDetail level{.first_index = static_cast<uint32_t>(mesh.indices.size())};
+        std::vector<uint32_t> appended;
+        appended.reserve(full >> k);
+        std::vector<LevelOfDetail> ranges(out.patches.size());
+        for (std::size_t p = 0; p < out.patches.size(); ++p) {
+            const Local& l = locals[p];
+            simplified.resize(l.indices.size());
+            float relative_error = 0.0f;
+            // target_error 1: no bound on the error (the patch's extent); the level is chosen per frame by its error.
+            const std::size_t count =
+                meshopt_simplify(simplified.data(), l.indices.data(), l.indices.size(), l.positions.data(), l.global.size(),
+                                 3 * sizeof(float), (l.indices.size() >> k) / 3 * 3, 1.0f, meshopt_SimplifyLockBorder,
+                                 &relative_error);
+            global_indices.resize(count);
+            for (std::size_t i = 0; i < count; ++i) global_indices[i] = l.global[simplified[i]];
+            const PatchEdges edges = patch_edges(global_indices, welded);
+            const bool same_shape =
+                count > 0 && edges.border == l.edges.border && edges.folds <= l.edges.folds &&
+                std::none_of(edges.edges.begin(), edges.edges.end(), [&](uint64_t e) {
+                    if (!between_patches(e)) return false;
+                    const auto it = owner.find(e);
+                    return it != owner.end() && it->second != p;
+                });
+            if (same_shape)
+                for (const uint64_t e : edges.edges)
+                    if (between_patches(e)) owner.try_emplace(e, static_cast<uint32_t>(p));
+            // Else the patch keeps its level before (its border is level 0's).
+            const LevelOfDetail& before = out.patches[p].levels.back();
+            const std::span<const uint32_t> chosen =
+                same_shape ? std::span<const uint32_t>(global_indices)
+                           : std::span<const uint32_t>(mesh.indices.data() + before.first_index, before.index_count);
+            ranges[p] = {.first_index = static_cast<uint32_t>(level.first_index + appended.size()),
+                         .index_count = static_cast<uint32_t>(chosen.size()),
+                         .error = same_shape ? static_cast<double>(relative_error) * l.scale : before.error};
+            appended.insert(appended.end(), chosen.begin(), chosen.end());
+            level.error = std::max(level.error, ranges[p].error);
+        }
+        level.index_count = static_cast<uint32_t>(appended.size());
+        if (4 * appended.size() > 3 * previous || appended.size() < 3 * kMinTriangles) break;
+        mesh.indices.insert(mesh.indices.end(), appended.begin(), appended.end());
+        for (std::size_t p = 0; p < out.patches.size(); ++p) out.patches[p].levels.push_back(ranges[p]);
+        out.levels.push_back(level);
+    }
+    if (out.levels.size() == 1) {
+        out.patches.clear();
+        return out;
+    }
+
+    // Each patch's sphere (what its error is seen from).
+    for (MeshPatch& patch : out.patches) {
+        glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+        const LevelOfDetail& whole = patch.levels[0];
+        const std::span<const uint32_t> corners(mesh.indices.data() + whole.first_index, whole.index_count);
+        for (const uint32_t v : corners) {
+            lo = glm::min(lo, glm::vec3(mesh.vertices[v].position_u));
+            hi = glm::max(hi, glm::vec3(mesh.vertices[v].position_u));
+        }
+        patch.center = 0.5f * (lo + hi);
+        for (const uint32_t v : corners)
+            patch.radius = std::max(patch.radius, glm::length(glm::vec3(mesh.vertices[v].position_u) - patch.center));
+    }
+    return out;
+}
+
+bool may_graze(const TriangleCluster& c, const glm::vec3& eye, float grazing) noexcept {
+    const glm::vec3 d = eye - c.center;
+    const float distance = glm::length(d);
+    if (!(distance > c.radius)) return true; // the eye inside the sphere: any angle
+    const float seen = std::asin(c.radius / distance); // the directions to the eye from the sphere's points
+    const float from_axis = std::acos(std::clamp(glm::dot(d / distance, c.axis), -1.0f, 1.0f));
+    const float lo = from_axis - c.spread - seen, hi = from_axis + c.spread + seen;
+    return hi > grazing && lo < std::numbers::pi_v<float> - grazing;
+}
+
+std::vector<std::vector<TriangleCluster>> cluster_levels(IndexedVertices& mesh, std::span<const LevelOfDetail> levels,
+                                                         std::span<const MeshPatch> patches) {
     constexpr std::size_t kMaxVertices = 64, kMaxTriangles = 124;
     const auto* positions = reinterpret_cast<const float*>(mesh.vertices.data()); // position_u: xyz first
     std::vector<std::vector<TriangleCluster>> out;
-    for (const LevelOfDetail& level : levels) {
-        const uint32_t* indices = mesh.indices.data() + level.first_index;
-        const std::size_t bound = meshopt_buildMeshletsBound(level.index_count, kMaxVertices, kMaxTriangles);
-        std::vector<meshopt_Meshlet> meshlets(bound);
-        std::vector<uint32_t> meshlet_vertices(bound * kMaxVertices);
-        std::vector<unsigned char> meshlet_triangles(bound * kMaxTriangles * 3);
-        meshlets.resize(meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(), meshlet_triangles.data(), indices,
-                                              level.index_count, positions, mesh.vertices.size(), sizeof(shared::RenderVertex),
-                                              kMaxVertices, kMaxTriangles, 0.5f));
+    for (std::size_t k = 0; k < levels.size(); ++k) {
+        const LevelOfDetail& level = levels[k];
+        std::vector<TriangleCluster>& clusters = out.emplace_back();
         std::vector<uint32_t> ordered;
         ordered.reserve(level.index_count);
-        std::vector<TriangleCluster>& clusters = out.emplace_back();
-        for (const meshopt_Meshlet& m : meshlets) {
-            const meshopt_Bounds b =
-                meshopt_computeMeshletBounds(&meshlet_vertices[m.vertex_offset], &meshlet_triangles[m.triangle_offset],
-                                             m.triangle_count, positions, mesh.vertices.size(), sizeof(shared::RenderVertex));
-            clusters.push_back({.first_index = static_cast<uint32_t>(level.first_index + ordered.size()),
-                                .index_count = 3 * m.triangle_count,
-                                .apex = {b.cone_apex[0], b.cone_apex[1], b.cone_apex[2]},
-                                .axis = {b.cone_axis[0], b.cone_axis[1], b.cone_axis[2]},
-                                .cutoff = b.cone_cutoff,
-                                .center = {b.center[0], b.center[1], b.center[2]},
-                                .radius = b.radius});
-            for (std::size_t k = 0; k < 3 * std::size_t{m.triangle_count}; ++k)
-                ordered.push_back(meshlet_vertices[m.vertex_offset + meshlet_triangles[m.triangle_offset + k]]);
+        // The level's runs: its patches' ranges, or the whole level.
+        std::vector<std::pair<LevelOfDetail, uint32_t>> runs;
+        if (patches.empty())
+            runs.emplace_back(level, 0u);
+        else
+            for (std::size_t p = 0; p < patches.size(); ++p) runs.emplace_back(patches[p].levels.at(k), static_cast<uint32_t>(p));
+        for (const auto& [run, patch] : runs) {
+            const uint32_t* indices = mesh.indices.data() + run.first_index;
+            const std::size_t bound = meshopt_buildMeshletsBound(run.index_count, kMaxVertices, kMaxTriangles);
+            std::vector<meshopt_Meshlet> meshlets(bound);
+            std::vector<uint32_t> meshlet_vertices(bound * kMaxVertices);
+            std::vector<unsigned char> meshlet_triangles(bound * kMaxTriangles * 3);
+            meshlets.resize(meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(), meshlet_triangles.data(), indices,
+                                                  run.index_count, positions, mesh.vertices.size(),
+                                                  sizeof(shared::RenderVertex), kMaxVertices, kMaxTriangles, 0.5f));
+            for (const meshopt_Meshlet& m : meshlets) {
+                const meshopt_Bounds b = meshopt_computeMeshletBounds(&meshlet_vertices[m.vertex_offset],
+                                                                      &meshlet_triangles[m.triangle_offset], m.triangle_count,
+                                                                      positions, mesh.vertices.size(), sizeof(shared::RenderVertex));
+                clusters.push_back({.first_index = static_cast<uint32_t>(level.first_index + ordered.size()),
+                                    .index_count = 3 * m.triangle_count,
+                                    .apex = {b.cone_apex[0], b.cone_apex[1], b.cone_apex[2]},
+                                    .axis = {b.cone_axis[0], b.cone_axis[1], b.cone_axis[2]},
+                                    .cutoff = b.cone_cutoff,
+                                    .center = {b.center[0], b.center[1], b.center[2]},
+                                    .radius = b.radius,
+                                    .patch = patch});
+                const std::size_t start = ordered.size();
+                for (std::size_t i = 0; i < 3 * std::size_t{m.triangle_count}; ++i)
+                    ordered.push_back(meshlet_vertices[m.vertex_offset + meshlet_triangles[m.triangle_offset + i]]);
+                float least = 1.0f;
+                for (std::size_t i = start; i < ordered.size(); i += 3) {
+                    const glm::vec3 n = triangle_normal(mesh, &ordered[i]);
+                    const float l = glm::length(n);
+                    if (l > 0.0f) least = std::min(least, glm::dot(n / l, clusters.back().axis));
+                }
+                clusters.back().spread = std::acos(std::clamp(least, -1.0f, 1.0f));
+            }
         }
         if (ordered.size() != level.index_count)
             throw Error("renderer: the clusters hold " + std::to_string(ordered.size()) + " indices of a level's " +
@@ -344,9 +564,15 @@ struct Renderer::Impl {
         gpu::Buffer vertices;
         gpu::Buffer indices;
         std::vector<LevelOfDetail> levels; // [0]: every triangle; more with Options::lod_max_error_px
+        std::vector<MeshPatch> patches;    // with more than one level
         std::vector<std::vector<TriangleCluster>> clusters; // per level, with Options::cluster_culling and culling
+        // With clusters and patches: per level, where each patch's clusters start (and, last, the end).
+        std::vector<std::vector<uint32_t>> patch_clusters;
         std::vector<uint32_t> cpu_indices;                  // with clusters: what `indices` holds
+        // With clusters and patches: each triangle of cpu_indices' unit normal and centroid.
+        std::vector<glm::vec3> facet_normals, facet_points;
         std::optional<gpu::Buffer> visible;                 // with clusters: the frame's clusters facing the camera
+        std::optional<gpu::Buffer> patched;                 // with patches by the view: every patch at its level (the shadow map)
     } mesh_buffers;
     uint32_t visible_count = 0; // indices in mesh_buffers.visible this frame (prepare)
     PixelBox drawn_box;         // FrameInfo::drawn this frame (prepare): the deferred shading pass's scissor
@@ -372,23 +598,26 @@ struct Renderer::Impl {
 
     std::unique_ptr<gpu::RenderTarget> target; // resized to each camera
     // What a deferred frame's G-buffer depends on: the target, the camera's projection and
-    // position (which also choose the clusters drawn), the level of detail. prepare() sets
+    // position (which also choose the clusters drawn), the level of detail, and with patches by
+    // the view each patch's level (which the light chooses too, with shadows). prepare() sets
     // frame_key; render() keeps, in target_gbuffer, the key of the G-buffer its target holds.
     struct GbufferKey {
         VkImageView view = VK_NULL_HANDLE;
         glm::mat4 world_to_clip{0.0f};
         glm::vec3 eye{0.0f};
         std::size_t level = 0;
+        std::vector<uint8_t> patch_levels;
         bool operator==(const GbufferKey&) const = default;
     };
     GbufferKey frame_key;
     std::optional<GbufferKey> target_gbuffer;
     // What the shadow map's depth depends on: the light's projection and the level of detail
-    // (drawn whole). prepare() sets frame_shadow (none: no shadow pass); render() keeps, in
+    // (drawn whole), or with patches by the view each patch's level. prepare() sets frame_shadow (none: no shadow pass); render() keeps, in
     // shadow_drawn, the key of the depth the map holds; record() draws its own and clears it.
     struct ShadowKey {
         glm::mat4 light_to_clip{0.0f};
         std::size_t level = 0;
+        std::vector<uint8_t> patch_levels;
         bool operator==(const ShadowKey&) const = default;
     };
     std::optional<ShadowKey> frame_shadow;
@@ -615,45 +844,148 @@ struct Renderer::Impl {
     /// The vertex and index buffers (index_vertices), with the levels of detail when `lod`.
     static MeshBuffers upload_mesh(gpu::Context& c, const Scene& scene, bool lod, bool clusters) {
         IndexedVertices data = index_vertices(*scene.mesh, scene.corner_uv);
-        std::vector<LevelOfDetail> levels =
-            lod ? build_levels_of_detail(data)
-                : std::vector<LevelOfDetail>{{.index_count = static_cast<uint32_t>(data.indices.size())}};
+        LevelsOfDetail levels = lod ? build_levels_of_detail(data)
+                                    : LevelsOfDetail{{{.index_count = static_cast<uint32_t>(data.indices.size())}}, {}};
         MeshBuffers b{gpu::Buffer::of<shared::RenderVertex>(c, data.vertices.size(), "render vertices"),
-                      gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices"), std::move(levels)};
+                      gpu::Buffer::of<uint32_t>(c, data.indices.size(), "render indices"), std::move(levels.levels),
+                      std::move(levels.patches)};
         if (clusters) {
-            b.clusters = cluster_levels(data, b.levels);
+            b.clusters = cluster_levels(data, b.levels, b.patches);
+            if (!b.patches.empty())
+                for (const std::vector<TriangleCluster>& level : b.clusters) {
+                    std::vector<uint32_t>& starts = b.patch_clusters.emplace_back(b.patches.size() + 1, 0u);
+                    for (const TriangleCluster& cl : level) ++starts[cl.patch + 1];
+                    std::partial_sum(starts.begin(), starts.end(), starts.begin());
+                }
             b.visible.emplace(gpu::Buffer::of<uint32_t>(c, b.levels[0].index_count, "render indices facing the camera"));
+            if (!b.patches.empty())
+                b.patched.emplace(gpu::Buffer::of<uint32_t>(c, b.levels[0].index_count, "render indices, each patch at its level"));
         }
         b.vertices.upload(data.vertices);
         b.indices.upload(data.indices);
         if (clusters) b.cpu_indices = std::move(data.indices);
+        if (clusters && !b.patches.empty()) {
+            const std::size_t facets = b.cpu_indices.size() / 3;
+            b.facet_normals.resize(facets);
+            b.facet_points.resize(facets);
+            for (std::size_t t = 0; t < facets; ++t) {
+                const uint32_t* tri = &b.cpu_indices[3 * t];
+                const glm::vec3 n = triangle_normal(data, tri);
+                const float l = glm::length(n);
+                b.facet_normals[t] = l > 0.0f ? n / l : glm::vec3(0.0f); // degenerate (draws nothing): skipped
+                b.facet_points[t] = triangle_centroid(data, tri);
+            }
+        }
         return b;
     }
 
     // The frame's clusters that do not face wholly away from the camera at `eye`, into `visible`;
-    // returns the pixels their spheres can cover seen through `to_clip`.
-    PixelBox collect_visible_clusters(const glm::vec3& eye, const glm::dmat4& to_clip, const Intrinsics& k) {
+    // returns the pixels their spheres can cover seen through `to_clip`. With `light` (shadows), a
+    // patch the light grazes keeps its triangles too: a coarser surface would move the shadow's edge.
+    PixelBox collect_visible_clusters(const glm::vec3& eye, std::optional<glm::vec3> light, const glm::dmat4& to_clip,
+                                      const Intrinsics& k) {
         std::vector<uint32_t>& staging = visible_scratch;
         staging.clear();
         PixelBox covered;
-        for (const TriangleCluster& c : mesh_buffers.clusters[drawn_level])
-            if (!faces_away(c, eye)) {
-                staging.insert(staging.end(), mesh_buffers.cpu_indices.begin() + c.first_index,
-                               mesh_buffers.cpu_indices.begin() + c.first_index + c.index_count);
-                const glm::dvec3 r(c.radius);
-                covered = unite(covered, pixels_of_box(to_clip, k, glm::dvec3(c.center) - r, glm::dvec3(c.center) + r));
+        const auto collect = [&](std::span<const TriangleCluster> clusters) {
+            for (const TriangleCluster& c : clusters)
+                if (!faces_away(c, eye)) {
+                    staging.insert(staging.end(), mesh_buffers.cpu_indices.begin() + c.first_index,
+                                   mesh_buffers.cpu_indices.begin() + c.first_index + c.index_count);
+                    const glm::dvec3 r(c.radius);
+                    covered = unite(covered, pixels_of_box(to_clip, k, glm::dvec3(c.center) - r, glm::dvec3(c.center) + r));
+                }
+        };
+        if (drawn_level == 0 || !patches_by_view()) {
+            patch_levels.assign(mesh_buffers.patches.size(), static_cast<uint8_t>(drawn_level));
+            collect(mesh_buffers.clusters[drawn_level]);
+        } else {
+            // Each patch draws the coarsest level, up to the frame's, none of whose triangles, nor
+            // level 0's, the view (or the light) may graze: there a coarser surface moves the point
+            // the ray meets by its error over the cosine of the angle (may_graze on each cluster's
+            // cone, then its triangles); level 0 where every level may. The patches' borders are the
+            // same at every level.
+            const double focal = std::max(k.fl_x, k.fl_y);
+            patch_levels.assign(mesh_buffers.patches.size(), 0);
+            for (std::size_t p = 0; p < mesh_buffers.patches.size(); ++p) {
+                const MeshPatch& patch = mesh_buffers.patches[p];
+                const double distance = std::max(double(glm::length(eye - patch.center)) - patch.radius, patch.radius / 100.0);
+                // Whether a triangle of the patch's `level` is seen from `from` within the grazing
+                // band, or the patch holds triangles facing both ways (a silhouette runs through it,
+                // between two triangles each seen outside the band).
+                const auto grazes_from = [&](const glm::vec3& from, std::size_t level, float grazing) {
+                    const float cos2 = std::cos(grazing) * std::cos(grazing);
+                    const std::vector<uint32_t>& starts = mesh_buffers.patch_clusters[level];
+                    unsigned sides = 0; // 1: a triangle facing `from`, 2: one facing away
+                    for (uint32_t ci = starts[p]; ci < starts[p + 1]; ++ci) {
+                        const TriangleCluster& c = mesh_buffers.clusters[level][ci];
+                        if (!may_graze(c, from, grazing)) { // every triangle on the side its axis is
+                            sides |= glm::dot(from - c.center, c.axis) > 0.0f ? 1u : 2u;
+                        } else {
+                            for (uint32_t t = c.first_index / 3; t < (c.first_index + c.index_count) / 3; ++t) {
+                                const glm::vec3& n = mesh_buffers.facet_normals[t];
+                                if (n == glm::vec3(0.0f)) continue;
+                                const glm::vec3 d = from - mesh_buffers.facet_points[t];
+                                const float along = glm::dot(n, d);
+                                if (along * along < cos2 * glm::dot(d, d)) return true;
+                                sides |= along > 0.0f ? 1u : 2u;
+                            }
+                        }
+                        if (sides == 3u) return true;
+                    }
+                    return false;
+                };
+                const auto grazes = [&](std::size_t level, float grazing) {
+                    return grazes_from(eye, level, grazing) || (light && grazes_from(*light, level, grazing));
+                };
+                std::size_t level = drawn_level;
+                for (; level > 0; --level) {
+                    const double error_px = patch.levels[level].error * focal / distance;
+                    if (error_px > options.lod_max_error_px) continue;
+                    const float grazing = static_cast<float>(std::atan2(options.lod_max_error_px, error_px));
+                    if (!grazes(0, grazing) && !grazes(level, grazing)) break;
+                }
+                patch_levels[p] = static_cast<uint8_t>(level);
+                const std::vector<uint32_t>& starts = mesh_buffers.patch_clusters[level];
+                collect(std::span(mesh_buffers.clusters[level]).subspan(starts[p], starts[p + 1] - starts[p]));
             }
+        }
         visible_count = static_cast<uint32_t>(staging.size());
         if (visible_count > 0) mesh_buffers.visible->upload(staging);
         return covered;
     }
     std::vector<uint32_t> visible_scratch;
+    std::vector<uint8_t> patch_levels; // the frame's level of each patch (with patches; collect_visible_clusters)
+
+    // With patches by the view: every patch's triangles at the frame's level for it, into `patched`
+    // (the shadow map draws what the lit passes draw, so the surfaces it compares are the same).
+    void collect_patched() {
+        std::vector<uint32_t>& staging = visible_scratch;
+        staging.clear();
+        for (std::size_t p = 0; p < mesh_buffers.patches.size(); ++p) {
+            const LevelOfDetail& r = mesh_buffers.patches[p].levels[patch_levels[p]];
+            staging.insert(staging.end(), mesh_buffers.cpu_indices.begin() + r.first_index,
+                           mesh_buffers.cpu_indices.begin() + r.first_index + r.index_count);
+        }
+        patched_count = static_cast<uint32_t>(staging.size());
+        mesh_buffers.patched->upload(staging);
+    }
+    uint32_t patched_count = 0;
+
+    /// Whether each patch chooses its level by the view (levels, patches and clusters).
+    [[nodiscard]] bool patches_by_view() const noexcept { return mesh_buffers.visible && !mesh_buffers.patches.empty(); }
 
     /// Binds the mesh and draws the frame's level of detail (the pipeline and its set bound): its
-    /// clusters facing the camera where there are clusters, unless `whole` (the shadow map).
+    /// clusters facing the camera where there are clusters, unless `whole` (the shadow map: every
+    /// patch at the frame's level for it, where patches are chosen by the view).
     void draw_mesh(VkCommandBuffer cmd, bool whole = false) const {
         const LevelOfDetail& lod = mesh_buffers.levels[drawn_level];
         gpu::bind_vertex_buffer(cmd, mesh_buffers.vertices);
+        if (whole && patches_by_view()) {
+            vkCmdBindIndexBuffer(cmd, mesh_buffers.patched->handle(), 0, VK_INDEX_TYPE_UINT32);
+            vkCmdDrawIndexed(cmd, patched_count, 1, 0, 0, 0);
+            return;
+        }
         if (!whole && mesh_buffers.visible) {
             if (visible_count == 0) return;
             vkCmdBindIndexBuffer(cmd, mesh_buffers.visible->handle(), 0, VK_INDEX_TYPE_UINT32);
@@ -709,9 +1041,11 @@ struct Renderer::Impl {
         if (k.w <= 0 || k.h <= 0 || !(k.fl_x > 0.0) || !(k.fl_y > 0.0))
             throw Error("renderer: the camera needs a positive image size and focal lengths");
         FrameInfo info;
+        // With patches drawn by the view, each patch chooses its level up to this one (collect_visible_clusters).
         drawn_level = forced_level.value_or(
-            choose_level_of_detail(std::span(mesh_buffers.levels).first(accepted_levels), camera, glm::dvec3(bounds.center()),
-                                   bounds.radius(), options.lod_max_error_px));
+            patches_by_view() ? accepted_levels - 1
+                              : choose_level_of_detail(std::span(mesh_buffers.levels).first(accepted_levels), camera,
+                                                       glm::dvec3(bounds.center()), bounds.radius(), options.lod_max_error_px));
         info.lod_level = drawn_level;
         info.triangles = mesh_buffers.levels[drawn_level].index_count / 3;
         const double near = settings.near.value_or(near_plane_for(camera, bounds));
@@ -719,7 +1053,10 @@ struct Renderer::Impl {
         // Every level's triangles join the mesh's vertices, so the bounds hold what any level covers.
         drawn_box = pixels_of_box(to_clip, k, glm::dvec3(bounds.min), glm::dvec3(bounds.max));
         if (mesh_buffers.visible) {
-            drawn_box = intersect(drawn_box, collect_visible_clusters(glm::vec3(camera.center()), to_clip, k));
+            drawn_box = intersect(drawn_box, collect_visible_clusters(glm::vec3(camera.center()),
+                                                                      settings.shadows ? std::optional(glm::vec3(light.position))
+                                                                                       : std::nullopt,
+                                                                      to_clip, k));
             info.triangles = visible_count / 3;
         }
         const bool want_diffuse = settings.mode != Mode::Specular;
@@ -761,14 +1098,19 @@ struct Renderer::Impl {
         shared::RenderParams p{};
         p.world_to_clip = glm::mat4(to_clip);
         p.eye = glm::vec4(glm::vec3(camera.center()), 1.0f);
-        frame_key = {.world_to_clip = p.world_to_clip, .eye = glm::vec3(p.eye), .level = drawn_level};
+        frame_key = {.world_to_clip = p.world_to_clip,
+                     .eye = glm::vec3(p.eye),
+                     .level = drawn_level,
+                     .patch_levels = patches_by_view() ? patch_levels : std::vector<uint8_t>{}};
         p.light_position = glm::vec4(glm::vec3(light.position), 1.0f);
         p.light_intensity = glm::vec4(glm::vec3(light.intensity), 0.0f);
         p.material = material;
         p.flags = glm::uvec4(want_diffuse ? 1u : 0u, 0u, info.specular_pass ? 1u : 0u, 0u);
         p.factor_warp = factor_warp;
-        frame_shadow = frustum ? std::optional(ShadowKey{glm::mat4(frustum->to_clip), drawn_level}) : std::nullopt;
+        frame_shadow = std::nullopt;
         if (frustum) {
+            frame_shadow = ShadowKey{glm::mat4(frustum->to_clip), drawn_level, patches_by_view() ? patch_levels : std::vector<uint8_t>{}};
+            if (patches_by_view() && frame_shadow != shadow_drawn) collect_patched();
             p.light_to_clip = glm::mat4(frustum->to_clip);
             p.shadow = glm::vec4(1.0f, static_cast<float>(frustum->texel_per_distance), kNormalOffsetGrazing,
                                  kNormalOffsetConstant);

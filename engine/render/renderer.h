@@ -123,14 +123,19 @@ struct Options {
     uint32_t shadow_map_size = 2048;
     /// Levels of detail (build_levels_of_detail): 0, the default, draws every triangle. A positive
     /// value lets each frame draw the coarsest level whose geometric error, projected at the
-    /// nearest point of the mesh's bounding sphere, is at most this many pixels (choose_level_of_detail).
-    /// Every pass of the frame, the shadow map's included, draws that level. For a real-time view:
-    /// `specula render` draws the mesh as it is, `specula evaluate --lod` measures what the levels cost.
+    /// nearest point of the mesh's bounding sphere, is at most this many pixels (choose_level_of_detail);
+    /// every pass of the frame, the shadow map's included, draws that level. With cluster_culling
+    /// (a closed mesh), each patch of the mesh chooses instead: the coarsest level whose error,
+    /// projected at the patch's nearest point, is at most this many pixels, and none of whose
+    /// triangles, nor the whole mesh's there, the camera (or, with shadows, the light) sees at a
+    /// grazing angle or from both sides (may_graze: there a coarser surface moves a silhouette or
+    /// a shadow's edge); the shadow map draws the same patches. For a real-time view: `specula
+    /// render` draws the mesh as it is, `specula evaluate --lod` measures what the levels cost.
     double lod_max_error_px = 0.0;
     /// With back faces culled (a closed mesh): each level is ordered in clusters of up to 124
     /// triangles (meshoptimizer's meshlets) and a frame's lit passes draw only the clusters whose
     /// normal cone does not face wholly away from the camera (collected on the CPU into an index
-    /// buffer; the shadow map draws the whole level). The same pixels, with fewer back faces set
+    /// buffer; the shadow map draws every cluster). The same pixels, with fewer back faces set
     /// up only to be culled. For a real-time view.
     bool cluster_culling = false;
 };
@@ -141,6 +146,9 @@ struct Options {
 /// 37.9 dB against its 256 px captures) the level kept at 46.8 dB costs 0.03 / 0.39 dB, and one
 /// at 40.0 dB would cost 0.22 / 1.0 dB (docs/pipeline.md section 7.4).
 inline constexpr double kDefaultLodMinPsnrDb = 42.0;
+
+/// The most triangles of a patch of the levels of detail (build_levels_of_detail).
+inline constexpr std::size_t kPatchTriangles = 512;
 
 /// One level of detail: a range of the index buffer over the same vertices.
 struct LevelOfDetail {
@@ -159,7 +167,32 @@ struct TriangleCluster {
     float cutoff = 1.0f;
     glm::vec3 center{0.0f}; ///< a sphere holding the cluster's vertices (meshoptimizer's): what it can cover on screen
     float radius = 0.0f;
+    uint32_t patch = 0; ///< the MeshPatch whose triangles it holds (0 without patches)
+    float spread = 0.0f; ///< every triangle's normal is within this many radians of `axis`
 };
+
+/// A patch of the mesh (build_levels_of_detail): a compact group of the whole mesh's triangles,
+/// simplified on its own with its border kept, so that neighbouring patches drawn at different
+/// levels meet edge to edge, without cracks.
+struct MeshPatch {
+    std::vector<LevelOfDetail> levels; ///< its range of the index buffer at each level (error: its own)
+    glm::vec3 center{0.0f};            ///< a sphere holding its triangles
+    float radius = 0.0f;
+};
+
+/// The levels of detail of a mesh: each level is its patches' ranges, in the patches' order.
+struct LevelsOfDetail {
+    std::vector<LevelOfDetail> levels; ///< [0]: every triangle
+    std::vector<MeshPatch> patches;    ///< none when there is one level
+};
+
+/// Whether a triangle of `c` may be seen from `eye` at a grazing angle: more than `grazing`
+/// radians from its normal and less than pi - `grazing` (facing away), from the cluster's normal
+/// cone (axis, spread) and bounding sphere; false only where every point and normal of it is
+/// outside that band. A coarser surface moves the point a ray at angle a meets by its error over
+/// cos a: error_px x tan a on screen, so a level whose error is e pixels is drawn where no triangle
+/// is seen beyond atan(max / e) (Options::lod_max_error_px).
+[[nodiscard]] bool may_graze(const TriangleCluster& c, const glm::vec3& eye, float grazing) noexcept;
 /// Whether every triangle of `c` faces away from a camera at `eye` (meshoptimizer's cone test).
 [[nodiscard]] bool faces_away(const TriangleCluster& c, const glm::vec3& eye) noexcept;
 
@@ -188,9 +221,11 @@ struct FrameInfo {
     /// clear is what the shader writes on an uncovered pixel.
     PixelBox drawn;
     std::size_t triangles = 0;        ///< triangles drawn (the level of detail's; its clusters facing the camera with Options::cluster_culling)
-    std::size_t lod_level = 0;        ///< the level of detail drawn (0: the mesh as it is)
+    /// The level of detail drawn (0: the mesh as it is); with patches chosen by the view
+    /// (Options::lod_max_error_px with cluster_culling), the coarsest a patch could draw.
+    std::size_t lod_level = 0;
     /// Passes::Deferred in render(): shaded from the G-buffer the previous deferred frame left, whose
-    /// camera (pose, intrinsics, near plane) and level of detail were the same: the mesh is not
+    /// camera (pose, intrinsics, near plane) and level of detail (each patch's) were the same: the mesh is not
     /// drawn again, only the shading pass runs. The same pixels as drawing it (tested); a view's
     /// lights rendered one after the other pay for its G-buffer once.
     bool gbuffer_kept = false;
@@ -301,17 +336,24 @@ struct IndexedVertices {
 [[nodiscard]] IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corner_uv);
 
 /// Reorders each level's range of `mesh.indices` into clusters (meshopt_buildMeshlets, at most 64
-/// vertices and 124 triangles each, the same triangles) and returns each level's clusters.
+/// vertices and 124 triangles each, the same triangles) and returns each level's clusters. With
+/// patches, each patch's range is clustered on its own (TriangleCluster::patch), in their order.
 [[nodiscard]] std::vector<std::vector<TriangleCluster>> cluster_levels(IndexedVertices& mesh,
-                                                                       std::span<const LevelOfDetail> levels);
+                                                                       std::span<const LevelOfDetail> levels,
+                                                                       std::span<const MeshPatch> patches = {});
 
-/// Levels of detail of `mesh` (Options::lod_max_error_px): level 0 is the indices as they are;
-/// level k is meshoptimizer's simplification (meshopt_simplify, edge collapses under a quadric
-/// error, seams between atlas charts kept) of level 0 to about 1/2^k of its triangles, appended to
-/// `mesh.indices`. Stops after `max_levels` levels, below 1,000 triangles, or when a level keeps
-/// more than 3/4 of the one before (the simplifier stopped at the topology). The vertices are not
-/// changed, so every level reads the same vertex buffer and atlas coordinates.
-[[nodiscard]] std::vector<LevelOfDetail> build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels = 4);
+/// Levels of detail of `mesh` (Options::lod_max_error_px). Level 0 is every triangle, reordered
+/// into patches of at most `patch_triangles` (median splits of the triangles' centroids along the
+/// longest side of their box). Level k is each patch simplified on its own by meshoptimizer
+/// (meshopt_simplify, edge collapses under a quadric error, seams between atlas charts kept, the
+/// patch's border locked) to about 1/2^k of its triangles, appended to `mesh.indices`; a patch
+/// whose simplified border would not be the whole mesh's keeps its level-0 triangles. Stops after
+/// `max_levels` levels, below 1,000 triangles, or when a level keeps more than 3/4 of the one
+/// before (the simplifier stopped at the topology or the borders). The vertices are not changed,
+/// so every level reads the same vertex buffer and atlas coordinates. A level's error is its
+/// patches' largest.
+[[nodiscard]] LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels = 4,
+                                                    std::size_t patch_triangles = kPatchTriangles);
 /// The coarsest of `levels` whose error, seen by `camera` at the nearest point of the sphere
 /// (`center`, `radius`) that bounds the mesh, is at most `max_error_px` pixels: error x focal /
 /// distance, the distance at least `radius` / 100. Level 0 when none is or max_error_px <= 0.

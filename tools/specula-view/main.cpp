@@ -60,8 +60,9 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"deferred", "fused", "separate"}))
         ->capture_default_str();
     app.add_option("--lod", c.lod_max_error_px,
-                   "Levels of detail: draw the coarsest simplified mesh (meshoptimizer, down to 1/8 of the triangles) whose "
-                   "geometric error is at most this many pixels on screen; 0 draws every triangle")
+                   "Levels of detail: each patch of the mesh (512 triangles) draws the coarsest simplified version of itself\n"
+                   "(meshoptimizer, its border kept, down to 1/8 of the triangles) whose geometric error is at most this many\n"
+                   "pixels on screen, unless it holds a silhouette (or, with shadows, a shadow's edge); 0 draws every triangle")
         ->default_val(c.lod_max_error_px)
         ->check(CLI::Range(0.0, 100.0));
     app.add_option("--lod-psnr", c.lod_min_psnr_db,

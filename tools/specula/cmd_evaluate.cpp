@@ -65,6 +65,7 @@ void run_evaluate(const EvaluateArgs& a) {
     o.render.specular = a.specular == "factorized" ? render::SpecularPath::Factorized : render::SpecularPath::Analytic;
     o.render.shadows = !a.no_shadows;
     o.renderer.lod_max_error_px = a.lod;
+    o.renderer.cluster_culling = a.lod > 0.0; // as specula-view draws them: patches by the view (the same pixels otherwise)
     o.lod_min_psnr_db = a.lod_psnr;
     o.metrics.hausdorff = !a.no_hausdorff;
     o.max_frames_per_split = a.frames;
@@ -204,9 +205,10 @@ void add_evaluate_command(CLI::App& app) {
     cmd->add_flag("--no-shadows", a->no_shadows,
                   "Render without cast shadows: the thesis's unshadowed render (default: shadow-mapped, like the captures)");
     cmd->add_option("--lod", a->lod,
-                    "Draw levels of detail as specula-view does (its --lod): the coarsest simplified mesh whose geometric\n"
-                    "error is at most this many pixels, among the levels that score at least --lod-psnr against the whole\n"
-                    "mesh on 4 of the evaluated frames; 0, the default, draws every triangle")
+                    "Draw levels of detail as specula-view does (its --lod): each patch of the mesh at the coarsest simplified\n"
+                    "level whose geometric error is at most this many pixels, unless it holds a silhouette or a shadow's edge,\n"
+                    "among the levels that score at least --lod-psnr against the whole mesh on 4 of the evaluated frames;\n"
+                    "0, the default, draws every triangle")
         ->check(CLI::Range(0.0, 100.0));
     cmd->add_option("--lod-psnr", a->lod_psnr, "With --lod: the display PSNR (dB) under which a level is left out")
         ->capture_default_str()
