@@ -346,8 +346,11 @@ struct IndexedVertices {
 /// into patches of at most `patch_triangles` (median splits of the triangles' centroids along the
 /// longest side of their box). Level k is each patch simplified on its own by meshoptimizer
 /// (meshopt_simplify, edge collapses under a quadric error, seams between atlas charts kept, the
-/// patch's border locked) to about 1/2^k of its triangles, appended to `mesh.indices`; a patch
-/// whose simplified border would not be the whole mesh's keeps its level-0 triangles. Stops after
+/// patch's border locked) to about 1/2^k of its triangles, appended to `mesh.indices`. A simplified
+/// patch is kept only if its border is its level 0's, it adds no fold (an edge walked twice the
+/// same way, a triangle with two corners at one place) and walks no directed edge another patch
+/// walks at any level; else the patch keeps its level before. So any mix of levels, one per
+/// patch, is as closed as the mesh. Stops after
 /// `max_levels` levels, below 1,000 triangles, or when a level keeps more than 3/4 of the one
 /// before (the simplifier stopped at the topology or the borders). The vertices are not changed,
 /// so every level reads the same vertex buffer and atlas coordinates. A level's error is its

@@ -1388,6 +1388,24 @@ TEST_F(RenderTest, CoatedFactorizedWithinOneDbOfAnalyticOnThePresets) {
 // The lit passes' specialization constants (term count, parametrization, material family,
 // shadows: render/terms.glsl) and the levels of detail.
 
+/// Display PSNR (sRGB 8-bit codes, peak 1) of `a` against `b` over the pixels either covers, as
+/// Renderer::accept_levels_of_detail scores a level; `b` a Frame or synth's RenderedFrame.
+template <class Other>
+double display_psnr_where_either_covers(const Frame& a, const Other& b) {
+    const auto code = [](float v) { return std::round(255.0 * linear_to_srgb(std::clamp(v, 0.0f, 1.0f))); };
+    double se = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.mask.size(); ++i) {
+        if (!a.mask[i] && !b.mask[i]) continue;
+        for (std::size_t c = 0; c < 3; ++c) {
+            const double d = (code(a.color.pixels[3 * i + c]) - code(b.color.pixels[3 * i + c])) / 255.0;
+            se += d * d;
+        }
+        n += 3;
+    }
+    return 10.0 * std::log10(static_cast<double>(n) / se);
+}
+
 /// Bit-exact equality of two frames' colours and masks.
 void expect_same_frame(const Frame& a, const Frame& b, const std::string& what) {
     EXPECT_EQ(a.mask, b.mask) << what;
@@ -1519,18 +1537,7 @@ TEST_F(RenderTest, LevelsOfDetailAreDrawnWhereTheyLookTheSame) {
     }
     EXPECT_GT(psnr[1], psnr[levels - 1]);
     // The drawn level's score is that of the frame it drew against the whole mesh's.
-    double se = 0.0;
-    std::size_t n = 0;
-    const auto code = [](float v) { return std::round(255.0 * linear_to_srgb(std::clamp(v, 0.0f, 1.0f))); };
-    for (std::size_t i = 0; i < full.mask.size(); ++i) {
-        if (!full.mask[i] && !coarse.mask[i]) continue;
-        for (std::size_t c = 0; c < 3; ++c) {
-            const double d = (code(coarse.color.pixels[3 * i + c]) - code(full.color.pixels[3 * i + c])) / 255.0;
-            se += d * d;
-        }
-        n += 3;
-    }
-    EXPECT_NEAR(psnr[chosen], 10.0 * std::log10(static_cast<double>(n) / se), 1e-9);
+    EXPECT_NEAR(psnr[chosen], display_psnr_where_either_covers(coarse, full), 1e-9);
 
     // A bound between the first and the last level's scores keeps the levels before the first
     // under it; a bound no level meets keeps the whole mesh only.
@@ -1702,21 +1709,6 @@ TEST_F(RenderTest, PatchesAtASilhouetteKeepEveryTriangle) {
     const Settings s{.passes = Passes::Deferred};
     (void)by_view.accept_levels_of_detail(cams, lights, s, 0.0); // every level may be drawn
     (void)one_level.accept_levels_of_detail(cams, lights, s, 0.0);
-    // Display PSNR (sRGB 8-bit codes) over the pixels either covers, as the evaluation scores frames.
-    const auto psnr = [](const Frame& f, const auto& truth) {
-        const auto code = [](float v) { return std::round(255.0 * linear_to_srgb(std::clamp(v, 0.0f, 1.0f))); };
-        double se = 0.0;
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < f.mask.size(); ++i) {
-            if (!f.mask[i] && !truth.mask[i]) continue;
-            for (std::size_t c = 0; c < 3; ++c) {
-                const double d = (code(f.color.pixels[3 * i + c]) - code(truth.color.pixels[3 * i + c])) / 255.0;
-                se += d * d;
-            }
-            n += 3;
-        }
-        return 10.0 * std::log10(static_cast<double>(n) / se);
-    };
     const synth::Renderer tracer(preset.mesh, preset.material);
     double worst_one_level = 0.0;
     std::size_t drawn = 0, drawn_whole = 0;
@@ -1729,7 +1721,9 @@ TEST_F(RenderTest, PatchesAtASilhouetteKeepEveryTriangle) {
         EXPECT_GE(o.info.lod_level, 1u);
         std::size_t differ = 0;
         for (std::size_t i = 0; i < w.mask.size(); ++i) differ += (f.mask[i] != 0) != (w.mask[i] != 0) ? 1 : 0;
-        const double by_view_db = psnr(f, truth), one_level_db = psnr(o, truth), whole_db = psnr(w, truth);
+        const double by_view_db = display_psnr_where_either_covers(f, truth);
+        const double one_level_db = display_psnr_where_either_covers(o, truth);
+        const double whole_db = display_psnr_where_either_covers(w, truth);
         std::printf("view %zu: %zu triangles of %zu, %zu pixels covered by one only; against the truth: whole %.2f dB, "
                     "patches by the view %.2f dB, level %zu everywhere %.2f dB\n",
                     v, f.info.triangles, w.info.triangles, differ, whole_db, by_view_db, o.info.lod_level, one_level_db);
@@ -1752,7 +1746,8 @@ TEST_F(RenderTest, PatchesAtASilhouetteKeepEveryTriangle) {
     Renderer plain_whole(ctx(), plain, {.cluster_culling = true});
     (void)plain_by_view.accept_levels_of_detail(cams, lights, s, 0.0);
     for (std::size_t v = 0; v < cams.size(); ++v) {
-        const double db = psnr(plain_by_view.render(cams[v], lights[v], s), plain_whole.render(cams[v], lights[v], s));
+        const double db =
+            display_psnr_where_either_covers(plain_by_view.render(cams[v], lights[v], s), plain_whole.render(cams[v], lights[v], s));
         std::printf("view %zu, constant albedo: patches by the view %.2f dB against the whole mesh\n", v, db);
         EXPECT_GT(db, 45.0) << v;
     }
