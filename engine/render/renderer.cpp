@@ -225,6 +225,19 @@ IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corn
 
 namespace {
 
+// Each position's place: positions equal bit for bit share one (texture seams duplicate vertices
+// at the same place), numbered in first-use order; `places` is their count.
+std::vector<uint32_t> weld_by_position(std::span<const glm::vec3> positions, std::size_t& places) {
+    std::map<std::tuple<float, float, float>, uint32_t> ids;
+    std::vector<uint32_t> welded(positions.size());
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+        const glm::vec3& p = positions[i];
+        welded[i] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
+    }
+    places = ids.size();
+    return welded;
+}
+
 glm::vec3 triangle_centroid(const IndexedVertices& mesh, const uint32_t* tri) {
     return (glm::vec3(mesh.vertices[tri[0]].position_u) + glm::vec3(mesh.vertices[tri[1]].position_u) +
             glm::vec3(mesh.vertices[tri[2]].position_u)) / 3.0f;
@@ -300,7 +313,7 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
     std::vector<glm::vec3> centroids(triangles);
     for (std::size_t t = 0; t < triangles; ++t) centroids[t] = triangle_centroid(mesh, &mesh.indices[3 * t]);
     std::vector<uint32_t> order(triangles);
-    for (std::size_t t = 0; t < triangles; ++t) order[t] = static_cast<uint32_t>(t);
+    std::iota(order.begin(), order.end(), 0u);
     std::vector<std::size_t> runs;
     split_into_patches(order, centroids, patch_triangles, runs);
     {
@@ -310,16 +323,10 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
         mesh.indices = std::move(reordered);
     }
     // Welded by exact position (atlas seams split vertices): what "the same border" compares.
-    std::vector<uint32_t> welded(mesh.vertices.size());
+    std::vector<glm::vec3> positions(mesh.vertices.size());
+    for (std::size_t v = 0; v < positions.size(); ++v) positions[v] = glm::vec3(mesh.vertices[v].position_u);
     std::size_t places = 0;
-    {
-        std::map<std::tuple<float, float, float>, uint32_t> ids;
-        for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
-            const glm::vec4& p = mesh.vertices[v].position_u;
-            welded[v] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
-        }
-        places = ids.size();
-    }
+    const std::vector<uint32_t> welded = weld_by_position(positions, places);
 
     // Each patch's level 0, and its vertices numbered locally (the simplifier's work scales with them).
     std::vector<uint32_t> local_of(mesh.vertices.size(), std::numeric_limits<uint32_t>::max());
@@ -523,13 +530,8 @@ std::size_t choose_level_of_detail(std::span<const LevelOfDetail> levels, const 
 
 bool is_closed_outward(const Mesh& mesh) {
     if (mesh.triangles.empty()) return false;
-    // Weld by exact position: texture seams duplicate vertices at the same place.
-    std::map<std::tuple<float, float, float>, uint32_t> ids;
-    std::vector<uint32_t> welded(mesh.positions.size());
-    for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
-        const glm::vec3& p = mesh.positions[i];
-        welded[i] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
-    }
+    std::size_t places = 0;
+    const std::vector<uint32_t> welded = weld_by_position(mesh.positions, places);
     std::map<std::pair<uint32_t, uint32_t>, int> directed; // count of each directed edge
     double volume6 = 0.0;
     for (const glm::uvec3& t : mesh.triangles) {
