@@ -1060,6 +1060,10 @@ struct Renderer::Impl {
                                                                                        : std::nullopt,
                                                                       to_clip, k));
             info.triangles = visible_count / 3;
+            if (patches_by_view()) {
+                info.patches = patch_levels.size();
+                info.patches_whole = static_cast<std::size_t>(std::count(patch_levels.begin(), patch_levels.end(), 0));
+            }
         }
         const bool want_diffuse = settings.mode != Mode::Specular;
         const bool want_specular = settings.mode != Mode::Diffuse;

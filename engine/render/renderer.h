@@ -224,6 +224,10 @@ struct FrameInfo {
     /// The level of detail drawn (0: the mesh as it is); with patches chosen by the view
     /// (Options::lod_max_error_px with cluster_culling), the coarsest a patch could draw.
     std::size_t lod_level = 0;
+    /// With patches chosen by the view: the mesh's patches, and how many of them this frame drew
+    /// at level 0 (a silhouette or a shadow's edge in them, or no coarser level within the bound).
+    std::size_t patches = 0;
+    std::size_t patches_whole = 0;
     /// Passes::Deferred in render(): shaded from the G-buffer the previous deferred frame left, whose
     /// camera (pose, intrinsics, near plane) and level of detail (each patch's) were the same: the mesh is not
     /// drawn again, only the shading pass runs. The same pixels as drawing it (tested); a view's

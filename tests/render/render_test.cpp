@@ -1728,6 +1728,12 @@ TEST_F(RenderTest, PatchesAtASilhouetteKeepEveryTriangle) {
                     "patches by the view %.2f dB, level %zu everywhere %.2f dB\n",
                     v, f.info.triangles, w.info.triangles, differ, whole_db, by_view_db, o.info.lod_level, one_level_db);
         EXPECT_EQ(differ, 0u) << v;
+        // What the frame says it drew whole: some patches, not all; no patches without them.
+        EXPECT_GE(f.info.patches, preset.mesh.triangles.size() / kPatchTriangles) << v;
+        EXPECT_GT(f.info.patches_whole, 0u) << v;
+        EXPECT_LT(f.info.patches_whole, f.info.patches) << v;
+        EXPECT_EQ(o.info.patches, 0u) << v;
+        EXPECT_EQ(w.info.patches, 0u) << v;
         EXPECT_LE(std::abs(by_view_db - whole_db), 0.2) << v;
         EXPECT_GT(whole_db, 30.0) << v;
         worst_one_level = std::max(worst_one_level, whole_db - one_level_db);

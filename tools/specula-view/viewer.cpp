@@ -97,9 +97,15 @@ struct FrameStats {
 
     std::vector<double> triangles; ///< per frame, the triangles drawn (its level of detail's)
     std::vector<double> shaded;    ///< per deferred frame, the fraction of the target's pixels shaded
+    std::vector<double> whole;     ///< per frame with patches chosen by the view, the patches drawn at level 0
+    std::size_t patches = 0;       ///< the mesh's patches (with patches chosen by the view)
 
     void add_drawn(const render::FrameInfo& info, double target_pixels) {
         triangles.push_back(static_cast<double>(info.triangles));
+        if (info.patches > 0) {
+            whole.push_back(static_cast<double>(info.patches_whole));
+            patches = info.patches;
+        }
         if (info.deferred) shaded.push_back(static_cast<double>(info.drawn.area()) / target_pixels);
     }
 
@@ -126,6 +132,13 @@ struct FrameStats {
             std::sort(t.begin(), t.end());
             std::printf("bench: triangles drawn per frame: median %.0f, min %.0f, max %.0f\n", quantile(t, 0.5), t.front(),
                         t.back());
+        }
+        if (!whole.empty()) {
+            std::vector<double> w = whole;
+            std::sort(w.begin(), w.end());
+            std::printf("bench: patches drawn whole per frame (a silhouette or a shadow's edge in them, or no coarser level "
+                        "under --lod): median %.0f of %zu, min %.0f, max %.0f\n",
+                        quantile(w, 0.5), patches, w.front(), w.back());
         }
         if (!shaded.empty()) {
             std::vector<double> f = shaded;
