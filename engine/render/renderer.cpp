@@ -226,15 +226,14 @@ IndexedVertices index_vertices(const Mesh& mesh, std::span<const glm::vec2> corn
 namespace {
 
 // Each position's place: positions equal bit for bit share one (texture seams duplicate vertices
-// at the same place), numbered in first-use order; `places` is their count.
-std::vector<uint32_t> weld_by_position(std::span<const glm::vec3> positions, std::size_t& places) {
+// at the same place), numbered 0, 1, ... in first-use order.
+std::vector<uint32_t> weld_by_position(std::span<const glm::vec3> positions) {
     std::map<std::tuple<float, float, float>, uint32_t> ids;
     std::vector<uint32_t> welded(positions.size());
     for (std::size_t i = 0; i < positions.size(); ++i) {
         const glm::vec3& p = positions[i];
         welded[i] = ids.try_emplace({p.x, p.y, p.z}, static_cast<uint32_t>(ids.size())).first->second;
     }
-    places = ids.size();
     return welded;
 }
 
@@ -325,8 +324,8 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
     // Welded by exact position (atlas seams split vertices): what "the same border" compares.
     std::vector<glm::vec3> positions(mesh.vertices.size());
     for (std::size_t v = 0; v < positions.size(); ++v) positions[v] = glm::vec3(mesh.vertices[v].position_u);
-    std::size_t places = 0;
-    const std::vector<uint32_t> welded = weld_by_position(positions, places);
+    const std::vector<uint32_t> welded = weld_by_position(positions);
+    const std::size_t places = std::size_t{*std::max_element(welded.begin(), welded.end())} + 1;
 
     // Each patch's level 0, and its vertices numbered locally (the simplifier's work scales with them).
     std::vector<uint32_t> local_of(mesh.vertices.size(), std::numeric_limits<uint32_t>::max());
@@ -530,8 +529,7 @@ std::size_t choose_level_of_detail(std::span<const LevelOfDetail> levels, const 
 
 bool is_closed_outward(const Mesh& mesh) {
     if (mesh.triangles.empty()) return false;
-    std::size_t places = 0;
-    const std::vector<uint32_t> welded = weld_by_position(mesh.positions, places);
+    const std::vector<uint32_t> welded = weld_by_position(mesh.positions);
     std::map<std::pair<uint32_t, uint32_t>, int> directed; // count of each directed edge
     double volume6 = 0.0;
     for (const glm::uvec3& t : mesh.triangles) {
@@ -614,8 +612,9 @@ struct Renderer::Impl {
     GbufferKey frame_key;
     std::optional<GbufferKey> target_gbuffer;
     // What the shadow map's depth depends on: the light's projection and the level of detail
-    // (drawn whole), or with patches by the view each patch's level. prepare() sets frame_shadow (none: no shadow pass); render() keeps, in
-    // shadow_drawn, the key of the depth the map holds; record() draws its own and clears it.
+    // (drawn whole), or with patches by the view each patch's level. prepare() sets frame_shadow
+    // (none: no shadow pass); render() keeps, in shadow_drawn, the key of the depth the map holds;
+    // record() draws its own and clears it.
     struct ShadowKey {
         glm::mat4 light_to_clip{0.0f};
         std::size_t level = 0;
