@@ -131,6 +131,11 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     if (sample_particle != nullptr && !named) sample_particle->reserve(room);
     std::vector<ViewFrame> frames;
     for (const LambertView& view : in.views) frames.push_back(view_frame(view));
+    // Whether each particle gives samples, decided once (each view's loop asked again).
+    std::vector<std::uint8_t> usable(in.particles.size());
+    parallel_for_chunks(usable.size(), threads, 16384, [&](unsigned, std::size_t begin, std::size_t end) {
+        for (std::size_t p = begin; p < end; ++p) usable[p] = residual_particle_usable(diffuse.particles[p], o) ? 1 : 0;
+    });
     // Each view's particles are cut into fixed chunks that the workers share; a chunk keeps
     // every used sample it finds, and the chunks are then taken in order, every keep_stride-th
     // sample kept: the slot order of one serial loop, whatever the thread count.
@@ -157,7 +162,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             for (auto p = static_cast<std::uint32_t>(begin); p < end; ++p) {
                 if (!vis.sees(p, vi)) continue;
                 c.candidates += view.frames.size();
-                if (!residual_particle_usable(diffuse.particles[p], o)) {
+                if (usable[p] == 0) {
                     c.dropped_no_diffuse += view.frames.size();
                     continue;
                 }
