@@ -73,17 +73,22 @@ void record_occlusion_cost(PipelineRun& run, const GeometryStage& geometry, cons
                        "maps, skipped too, are not included";
 }
 
-// The residual samples of `solve` (solved with `options`, whose material it subtracted) on the
-// run's per-particle backend, timed as `name`; with fit_samples, only those a fit of that many takes.
+// The residual pass's options for a solve made with `options` (whose material it subtracted).
+ResidualOptions residual_options(const LambertOptions& options, std::size_t fit_samples) {
+    return {.min_light_cos = options.min_light_cos,
+            .material = options.material,
+            .tap_irradiance = options.tap_irradiance,
+            .max_binding_bytes = 0,
+            .max_albedo_spread = 0.02f,
+            .fit_samples = fit_samples,
+            .threads = options.threads};
+}
+
+// The residual samples of `solve` (solved with `options`) on the run's per-particle backend,
+// timed as `name`; with fit_samples, only those a fit of that many takes.
 ResidualSamples run_residuals(PipelineRun& run, const LambertInputs& inputs, const LambertOutputs& solve,
                               const LambertOptions& options, const std::string& name, std::size_t fit_samples = 0) {
-    const ResidualOptions ro{.min_light_cos = options.min_light_cos,
-                             .material = options.material,
-                             .tap_irradiance = options.tap_irradiance,
-                             .max_binding_bytes = 0,
-                             .max_albedo_spread = 0.02f,
-                             .fit_samples = fit_samples,
-                             .threads = options.threads};
+    const ResidualOptions ro = residual_options(options, fit_samples);
     ResidualSamples rs = run.stage(name, [&] {
         return run.on_particle_backend("residual samples", [&](Backend b) {
             return residual_samples(inputs, solve, ro, b, run.compute_context());
@@ -91,6 +96,18 @@ ResidualSamples run_residuals(PipelineRun& run, const LambertInputs& inputs, con
     });
     if (rs.gpu_ms) run.add_gpu_dispatch(name, "residuals (" + std::to_string(rs.chunks) + " dispatches)", *rs.gpu_ms);
     return rs;
+}
+
+// The validation error of `model` over the residual samples of `solve` (solved with `options`)
+// on `inputs`, timed as `name`: on the C++ backend without holding the samples.
+double run_validation(PipelineRun& run, const LambertInputs& inputs, const LambertOutputs& solve, const LambertOptions& options,
+                      const SpecularModel& model, const std::string& name) {
+    const ResidualOptions ro = residual_options(options, 0);
+    return run.stage(name, [&] {
+        return run.on_particle_backend("residual samples", [&](Backend b) {
+            return residual_mean_square_error(inputs, solve, ro, model, b, run.compute_context());
+        });
+    }).mean_square;
 }
 
 // The diffuse solve with `options` on the run's per-particle backend, timed as `name`.
@@ -595,8 +612,7 @@ JointSteps material_steps(PipelineRun& run, SpecularStage& s, const LambertInput
                                                                              const std::string& tag) {
             LambertOptions o = base;
             o.material = m;
-            const ResidualSamples rs = run_residuals(run, *validation, solve, o, "validation" + label + tag);
-            return material_mean_square_error(m, rs.samples);
+            return run_validation(run, *validation, solve, o, m, "validation" + label + tag);
         };
     return steps;
 }
@@ -731,8 +747,8 @@ SpecularStage specular_stage(PipelineRun& run, DiffuseStage& diffuse, bool srgb_
             rs0 = run_residuals(run, split.fit, solve0, diffuse.options, "residual samples (validation split)", config.max_fit_samples);
         if (diffuse_only_competes) {
             // The first solve's albedo with no specular at all, scored as every family is.
-            const ResidualSamples rv = run_residuals(run, split.validation, solve0, diffuse.options, "validation (diffuse only)");
-            s.diffuse_only_mse = material_mean_square_error(SpecularModel(LafortuneRgb{}), rv.samples);
+            s.diffuse_only_mse = run_validation(run, split.validation, solve0, diffuse.options, SpecularModel(LafortuneRgb{}),
+                                                "validation (diffuse only)");
             log::info("material candidate diffuse only: validation PSNR " + std::to_string(psnr_of(*s.diffuse_only_mse)) + " dB");
         }
         // Every family's first fit, then the samples go (peak memory: they would be held through

@@ -601,8 +601,12 @@ double material_mean_square_error(const SpecularModel& model, std::span<const Re
     const shared::MaterialGpu m = material_gpu(model);
     double sq = 0.0, wsum = 0.0;
     for (const ResidualSample& s : samples)
-        if (s.status == shared::kResidualUsed) add_square_error(m, to_material_sample(s), sq, wsum);
+        if (s.status == shared::kResidualUsed) add_material_square_error(m, s, sq, wsum);
     return wsum > 0.0 ? sq / wsum : 0.0;
+}
+
+void add_material_square_error(const shared::MaterialGpu& m, const ResidualSample& s, double& sq, double& wsum) noexcept {
+    add_square_error(m, to_material_sample(s), sq, wsum);
 }
 
 } // namespace specula

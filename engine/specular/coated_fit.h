@@ -120,5 +120,8 @@ struct CoatedFit {
 /// The same over the used residual samples, converted one at a time (to_material_samples,
 /// without holding the converted list): the same value to the last bit.
 [[nodiscard]] double material_mean_square_error(const SpecularModel& model, std::span<const ResidualSample> samples);
+/// One used residual sample's part of that error: adds w |model - b|^2 / 3 to sq and w to wsum
+/// (nothing where the weight is not positive); in the samples' order, the same sums.
+void add_material_square_error(const shared::MaterialGpu& m, const ResidualSample& s, double& sq, double& wsum) noexcept;
 
 } // namespace specula

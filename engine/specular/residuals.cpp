@@ -1,6 +1,8 @@
 // Residual samples: backend dispatch, conversion for the fit, and the energy test.
 #include "specular/residuals.h"
 
+#include "specular/coated_fit.h"
+
 #include "core/error.h"
 
 #include <algorithm>
@@ -19,6 +21,13 @@ ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& 
         if (s.status == shared::kResidualUsed) rs.energy.add(s.f, s.v.w);
     thin_for_fit(rs.samples, options.fit_samples); // the C++ pass makes only these
     return rs;
+}
+
+ResidualScore residual_mean_square_error(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& options,
+                                        const SpecularModel& model, Backend backend, gpu::Context* ctx) {
+    if (backend == Backend::Cpu) return residual_mean_square_error_cpu(in, diffuse, options, model);
+    const ResidualSamples rs = residual_samples(in, diffuse, options, backend, ctx);
+    return {.mean_square = material_mean_square_error(model, rs.samples), .counts = rs.counts, .seconds = rs.seconds};
 }
 
 void thin_for_fit(std::vector<ResidualSample>& samples, std::size_t max_samples) {

@@ -136,6 +136,18 @@ struct ResidualSamples {
                                                    const ResidualOptions& options = {},
                                                    std::vector<std::uint32_t>* sample_particle = nullptr);
 
+/// A validation error without the samples: material_mean_square_error of `model` over the
+/// samples the pass would return, each one's part summed in their order as it is made (the same
+/// value to the last bit), with the pass's counts. The demo can's validation passes held up to 2
+/// million samples (130 MB) for that one number, written from one thread.
+struct ResidualScore {
+    double mean_square = 0.0;
+    ResidualCounts counts;
+    double seconds = 0.0;
+};
+[[nodiscard]] ResidualScore residual_mean_square_error_cpu(const LambertInputs& in, const LambertOutputs& diffuse,
+                                                           const ResidualOptions& options, const SpecularModel& model);
+
 /// The Vulkan kernel (shaders/specular/residuals.comp). Owns its pipeline.
 class ResidualsVk {
 public:
@@ -155,6 +167,10 @@ private:
 [[nodiscard]] ResidualSamples residual_samples(const LambertInputs& in, const LambertOutputs& diffuse,
                                                const ResidualOptions& options, Backend backend,
                                                gpu::Context* ctx = nullptr);
+/// The validation error on a backend: Vulkan makes the samples and scores them.
+[[nodiscard]] ResidualScore residual_mean_square_error(const LambertInputs& in, const LambertOutputs& diffuse,
+                                                       const ResidualOptions& options, const SpecularModel& model,
+                                                       Backend backend, gpu::Context* ctx = nullptr);
 
 /// The stride that keeps at most max_samples of the used samples, every k-th from the first (as
 /// stride_subsample takes them from the converted list; 0 or no more used than that: 1).

@@ -4,6 +4,8 @@
 // Inputs the GPU gets in float (camera, lights, rho/pi) are rounded to float first.
 #include "specular/residuals.h"
 
+#include "specular/coated_fit.h"
+
 #include "core/error.h"
 #include "core/parallel.h"
 #include "diffuse/lambert_solve_detail.h"
@@ -99,10 +101,11 @@ struct SampleSlot {
     std::uint32_t particle, view, frame;
 };
 
-} // namespace
-
-ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o,
-                                     std::vector<std::uint32_t>* sample_particle) {
+// The pass: with `score`, no sample is kept: each kept one's part of the material's square
+// error is summed instead, in the samples' order, into score_sums (square, weight).
+ResidualSamples residual_pass(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o,
+                              std::vector<std::uint32_t>* sample_particle, const shared::MaterialGpu* score,
+                              glm::dvec2* score_sums) {
     if (sample_particle != nullptr) sample_particle->clear();
     const Stopwatch sw;
     lambert_validate(in);
@@ -122,12 +125,12 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     // fit takes, once their count is known; else it makes every kept one. Room for every lit
     // slot's, an upper bound: pages never written take no memory, where doubling growth copied
     // the samples and held up to three times them at once.
-    const bool named = o.fit_samples != 0;
+    const bool named = o.fit_samples != 0 && score == nullptr;
     const bool slotted = named || sample_particle != nullptr; // the chunks name their samples
     std::vector<SampleSlot> slots;
     const auto room = static_cast<std::size_t>(lit / out.keep_stride + 1);
     if (named) slots.reserve(room);
-    else out.samples.reserve(room);
+    else if (score == nullptr) out.samples.reserve(room);
     if (sample_particle != nullptr && !named) sample_particle->reserve(room);
     std::vector<ViewFrame> frames;
     for (const LambertView& view : in.views) frames.push_back(view_frame(view));
@@ -145,6 +148,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
         std::vector<ResidualSample> samples;
         std::vector<SampleSlot> slots;
         std::vector<glm::vec4> energy; // named: each sample's f_s and Ebar (the energy sums')
+        std::vector<glm::dvec2> error;  // score: each sample's weighted square error and weight
     };
     std::vector<Chunk> chunks((in.particles.size() + kChunk - 1) / kChunk);
     for (std::uint32_t vi = 0; vi < in.views.size(); ++vi) {
@@ -158,6 +162,7 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             chunk.samples.clear();
             chunk.slots.clear();
             chunk.energy.clear();
+            chunk.error.clear();
             ResidualCounts& c = chunk.counts;
             for (auto p = static_cast<std::uint32_t>(begin); p < end; ++p) {
                 if (!vis.sees(p, vi)) continue;
@@ -177,7 +182,11 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
                     case Drop::None:
                         ++c.used;
                         if (slotted) chunk.slots.push_back({p, vi, f});
-                        if (named) chunk.energy.emplace_back(s.f, s.v.w);
+                        if (score != nullptr) {
+                            glm::dvec2 e(0.0);
+                            add_material_square_error(*score, s, e.x, e.y);
+                            chunk.error.push_back(e);
+                        } else if (named) chunk.energy.emplace_back(s.f, s.v.w);
                         else chunk.samples.push_back(s);
                         break;
                     case Drop::Grazing: ++c.dropped_grazing; break;
@@ -191,10 +200,12 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
             ResidualCounts c = chunk.counts;
             c.used = 0; // counted below, sample by sample: the stride runs over the slots of every view
             cnt += c;
-            const std::size_t n = named ? chunk.slots.size() : chunk.samples.size();
+            const std::size_t n = score != nullptr ? chunk.error.size() : named ? chunk.slots.size() : chunk.samples.size();
             for (std::size_t i = 0; i < n; ++i) {
                 if (cnt.used++ % out.keep_stride != 0) continue; // memory bound (ResidualOptions::max_kept_samples)
-                if (named) {
+                if (score != nullptr) {
+                    *score_sums += chunk.error[i];
+                } else if (named) {
                     slots.push_back(chunk.slots[i]);
                     out.energy.add(glm::vec3(chunk.energy[i]), chunk.energy[i].w);
                 } else {
@@ -223,6 +234,21 @@ ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutpu
     }
     out.seconds = sw.seconds();
     return out;
+}
+
+} // namespace
+
+ResidualSamples residual_samples_cpu(const LambertInputs& in, const LambertOutputs& diffuse, const ResidualOptions& o,
+                                     std::vector<std::uint32_t>* sample_particle) {
+    return residual_pass(in, diffuse, o, sample_particle, nullptr, nullptr);
+}
+
+ResidualScore residual_mean_square_error_cpu(const LambertInputs& in, const LambertOutputs& diffuse,
+                                             const ResidualOptions& options, const SpecularModel& model) {
+    const shared::MaterialGpu m = material_gpu(model);
+    glm::dvec2 sums(0.0);
+    const ResidualSamples pass = residual_pass(in, diffuse, options, nullptr, &m, &sums);
+    return {.mean_square = sums.y > 0.0 ? sums.x / sums.y : 0.0, .counts = pass.counts, .seconds = pass.seconds};
 }
 
 } // namespace specula

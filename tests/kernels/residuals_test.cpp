@@ -11,6 +11,7 @@
 // min_light_cos) could flip within rounding; the counts per reason must agree exactly here
 // (they do on this scene), so the used samples line up slot for slot.
 #include "specular/residuals.h"
+#include "specular/coated_fit.h"
 #include "specular/material_fit.h"
 
 #include "diffuse_scene.h"
@@ -181,6 +182,30 @@ TEST(Residuals, ThinnedForAFitAreTheFitsSubsampleOfTheWhole) {
             }
         }
     }
+}
+
+// The validation error without the samples: the error over the samples the pass returns, to
+// the last bit, for either family, with a known material in the solve, under the memory bound's
+// stride, and any threads; the counts the pass's.
+TEST(Residuals, ScoredWithoutTheSamplesAsOverThem) {
+    const LambertInputs in = scene().inputs();
+    const std::vector<SpecularModel> models{SpecularModel(LafortuneRgb{.cx = glm::vec3(-0.8f), .cz = glm::vec3(0.7f), .n = glm::vec3(12.0f)}),
+                                            SpecularModel(CoatedParams{.eta = 1.5f, .alpha = 0.2f}),
+                                            SpecularModel(LafortuneRgb{})};
+    for (const std::optional<SpecularModel>& known : {std::optional<SpecularModel>{}, std::optional(models[1])})
+        for (const std::uint64_t max_kept : {std::uint64_t{0}, std::uint64_t{5000}})
+            for (const unsigned threads : {1u, 3u}) {
+                const ResidualOptions o{.material = known, .max_kept_samples = max_kept, .threads = threads};
+                const ResidualSamples all = residual_samples_cpu(in, diffuse(), o);
+                ASSERT_GT(all.samples.size(), 1000u);
+                for (const SpecularModel& model : models) {
+                    const ResidualScore score = residual_mean_square_error_cpu(in, diffuse(), o, model);
+                    const double over = material_mean_square_error(model, all.samples);
+                    EXPECT_GT(over, 0.0);
+                    EXPECT_EQ(score.mean_square, over) << max_kept << " " << threads;
+                    expect_same_counts(all.counts, score.counts);
+                }
+            }
 }
 
 using ResidualsConformance = test::VulkanTest;
