@@ -136,10 +136,11 @@ struct ResidualSamples {
                                                    const ResidualOptions& options = {},
                                                    std::vector<std::uint32_t>* sample_particle = nullptr);
 
-/// A validation error without the samples: material_mean_square_error of `model` over the
-/// samples the pass would return, each one's part summed in their order as it is made (the same
-/// value to the last bit), with the pass's counts. The demo can's validation passes held up to 2
-/// million samples (130 MB) for that one number, written from one thread.
+/// A validation error without the samples: material_mean_square_error of `model` over every
+/// kept sample of the pass (options.fit_samples is not read), each one's part summed in their
+/// order as it is made (the same value to the last bit), with the pass's counts. The demo can's
+/// validation passes held up to 2 million samples (130 MB) for that one number, written from one
+/// thread.
 struct ResidualScore {
     double mean_square = 0.0;
     ResidualCounts counts;
