@@ -328,7 +328,8 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
     const std::size_t places = std::size_t{*std::max_element(welded.begin(), welded.end())} + 1;
 
     // Each patch's level 0, and its vertices numbered locally (the simplifier's work scales with them).
-    std::vector<uint32_t> local_of(mesh.vertices.size(), std::numeric_limits<uint32_t>::max());
+    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> local_of(mesh.vertices.size(), kNone);
     struct Local {
         std::vector<uint32_t> global;  // local vertex -> mesh vertex
         std::vector<float> positions;  // xyz per local vertex
@@ -337,7 +338,6 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
         PatchEdges edges;              // level 0's
     };
     std::vector<Local> locals(runs.size());
-    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
     std::vector<uint32_t> patch_at(places, kNone); // a patch with a corner at each place
     std::vector<bool> shared(places, false);        // places where patches meet
     std::size_t first = 0;
@@ -345,7 +345,7 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
         Local& l = locals[p];
         const std::span<const uint32_t> range(mesh.indices.data() + first, 3 * runs[p]);
         for (const uint32_t v : range) {
-            if (local_of[v] == std::numeric_limits<uint32_t>::max()) {
+            if (local_of[v] == kNone) {
                 local_of[v] = static_cast<uint32_t>(l.global.size());
                 l.global.push_back(v);
                 const glm::vec4& q = mesh.vertices[v].position_u;
@@ -353,7 +353,7 @@ LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_lev
             }
             l.indices.push_back(local_of[v]);
         }
-        for (const uint32_t v : l.global) local_of[v] = std::numeric_limits<uint32_t>::max();
+        for (const uint32_t v : l.global) local_of[v] = kNone;
         l.scale = meshopt_simplifyScale(l.positions.data(), l.global.size(), 3 * sizeof(float));
         l.edges = patch_edges(range, welded);
         for (const uint32_t v : l.global) {

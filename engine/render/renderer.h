@@ -354,11 +354,10 @@ struct IndexedVertices {
 /// patch is kept only if its border is its level 0's, it adds no fold (an edge walked twice the
 /// same way, a triangle with two corners at one place) and walks no directed edge another patch
 /// walks at any level; else the patch keeps its level before. So any mix of levels, one per
-/// patch, is as closed as the mesh. Stops after
-/// `max_levels` levels, below 1,000 triangles, or when a level keeps more than 3/4 of the one
-/// before (the simplifier stopped at the topology or the borders). The vertices are not changed,
-/// so every level reads the same vertex buffer and atlas coordinates. A level's error is its
-/// patches' largest.
+/// patch, is as closed as the mesh. Stops after `max_levels` levels, below 1,000 triangles, or
+/// when a level keeps more than 3/4 of the one before (the simplifier stopped at the topology or
+/// the borders). The vertices are not changed, so every level reads the same vertex buffer and
+/// atlas coordinates. A level's error is its patches' largest.
 [[nodiscard]] LevelsOfDetail build_levels_of_detail(IndexedVertices& mesh, std::size_t max_levels = 4,
                                                     std::size_t patch_triangles = kPatchTriangles);
 /// The coarsest of `levels` whose error, seen by `camera` at the nearest point of the sphere
